@@ -1,0 +1,60 @@
+/* The cloth: a lattice of particles at warp/weft crossings (paper sections 2-3).
+ *
+ * A Cloth owns the lattice (a DMDA with 3 dof per particle that decides which
+ * rank owns which particles and exchanges ghosts), the material, the pins, the
+ * lumped masses and the local element lists (stretch edges, shear corners,
+ * bending triples) that the physics kernels loop over.  Every array handed out
+ * by the functions below is "owned-particle order": 3 entries per particle
+ * owned by this rank, in the order of the DMDA's global vector. */
+#pragma once
+
+#include <petscdm.h>
+#include <petscmat.h>
+
+typedef struct _p_Cloth *Cloth;
+
+/* Internal energy split by kind, plus kinetic and gravitational energy. */
+typedef struct {
+  PetscReal kinetic, gravity, stretch, shear, bend;
+} ClothEnergies;
+
+/* Summary numbers a driver prints or writes next to the results. */
+typedef struct {
+  PetscInt  Mx, My;                  /* lattice size (warp x weft)           */
+  PetscInt  nparticles, npinned;     /* global counts                        */
+  PetscInt  nstretch, nshear, nbend; /* global element counts                */
+  PetscInt  nowned;                  /* particles owned by this rank         */
+  PetscReal mass;                    /* total mass, kg                       */
+  PetscReal damping;                 /* mass-proportional damping, 1/s       */
+  PetscReal gravity[3];              /* m/s^2                                */
+  PetscReal size[2], spacing[2];     /* cloth size and lattice spacing, m    */
+  PetscReal stretch[2], shear, bend[2]; /* continuum rigidities (see README) */
+} ClothInfo;
+
+PETSC_EXTERN PetscErrorCode ClothCreate(MPI_Comm, Cloth *);
+PETSC_EXTERN PetscErrorCode ClothSetFromOptions(Cloth);
+PETSC_EXTERN PetscErrorCode ClothSetUp(Cloth);
+PETSC_EXTERN PetscErrorCode ClothDestroy(Cloth *);
+PETSC_EXTERN PetscErrorCode ClothView(Cloth, PetscViewer);
+PETSC_EXTERN PetscErrorCode ClothGetInfo(Cloth, ClothInfo *);
+/* The lattice DMDA (dof 3): its global vectors are in owned-particle order and
+ * VecView on them writes natural lattice order. */
+PETSC_EXTERN PetscErrorCode ClothGetDM(Cloth, DM *);
+/* Lumped particle masses and pin flags, owned-particle order (1 entry each). */
+PETSC_EXTERN PetscErrorCode ClothGetMasses(Cloth, const PetscReal **, const PetscBool **);
+
+/* Initial state: the flat sheet at rest given by the options. */
+PETSC_EXTERN PetscErrorCode ClothSetInitialState(Cloth, PetscScalar *x, PetscScalar *v);
+/* Acceleration a = F(x, v)/m with internal, gravity and damping forces; 0 at pins. */
+PETSC_EXTERN PetscErrorCode ClothComputeAcceleration(Cloth, const PetscScalar *x, const PetscScalar *v, PetscScalar *a);
+/* Internal force only (no gravity, no damping, pins not zeroed). */
+PETSC_EXTERN PetscErrorCode ClothComputeInternalForce(Cloth, const PetscScalar *x, PetscScalar *f);
+/* Energies of the state (x, v), summed over all ranks. */
+PETSC_EXTERN PetscErrorCode ClothComputeEnergies(Cloth, const PetscScalar *x, const PetscScalar *v, ClothEnergies *);
+/* y = H(x) z with H the (SPD-projected) Hessian of the internal energy; pinned rows
+ * and columns removed. Matrix-free: used for the stability estimate. */
+PETSC_EXTERN PetscErrorCode ClothApplyHessian(Cloth, const PetscScalar *x, const PetscScalar *z, PetscScalar *y);
+/* A MATAIJ (block size 3) preallocated for the pattern of a*M + b*H. */
+PETSC_EXTERN PetscErrorCode ClothCreateMatrix(Cloth, Mat *);
+/* J = a M + b H(x); pinned particles get a*m*I on the diagonal and nothing else. */
+PETSC_EXTERN PetscErrorCode ClothAssembleMatrix(Cloth, const PetscScalar *x, PetscReal a, PetscReal b, Mat J);

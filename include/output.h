@@ -1,0 +1,19 @@
+/* HDF5 frames (natural lattice order), an XDMF index beside them for ParaView. */
+#pragma once
+
+#include <cloth.h>
+
+typedef struct _p_Output *Output;
+
+PETSC_EXTERN PetscErrorCode OutputCreate(MPI_Comm, Output *);
+/* -output_file, -output_interval (simulated s), -output_steps */
+PETSC_EXTERN PetscErrorCode OutputSetFromOptions(Output);
+PETSC_EXTERN PetscErrorCode OutputEnabled(Output, PetscBool *);
+/* Open the file and write the run's description (every option, version, lattice). */
+PETSC_EXTERN PetscErrorCode OutputOpen(Output, Cloth, const char *description);
+/* Is a frame due at (step, t)? The first frame is always due. */
+PETSC_EXTERN PetscErrorCode OutputFrameDue(Output, PetscInt step, PetscReal t, PetscBool *);
+/* Write one frame and flush it to disk: a run killed later keeps it readable. */
+PETSC_EXTERN PetscErrorCode OutputWriteFrame(Output, Cloth, PetscInt step, PetscReal t, const PetscScalar *x, const PetscScalar *v, const ClothEnergies *);
+PETSC_EXTERN PetscErrorCode OutputLastStep(Output, PetscInt *);
+PETSC_EXTERN PetscErrorCode OutputDestroy(Output *);

@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# Install what drape needs on Debian 12, only what is missing.
+#   install-deps.sh            Debian packages (PETSc, Open MPI, HDF5, METIS, CGAL)
+#   install-deps.sh --python D a Python virtual environment D with scripts/requirements.txt
+set -euo pipefail
+here=$(cd "$(dirname "$0")" && pwd)
+
+if [ "${1:-}" = "--python" ]; then
+  venv=${2:-.venv}
+  if [ ! -x "$venv/bin/python" ]; then
+    python3 -m venv "$venv" || { echo "drape: cannot create a Python virtual environment; install python3-venv (apt-get install python3-venv)"; exit 1; }
+  fi
+  "$venv/bin/python" -m pip install -q --disable-pip-version-check -r "$here/requirements.txt"
+  exit 0
+fi
+
+packages="petsc-dev libmetis-dev libhdf5-openmpi-dev libcgal-dev pkg-config make g++ clang-format"
+missing=""
+for p in $packages; do
+  dpkg -s "$p" >/dev/null 2>&1 || missing="$missing $p"
+done
+[ -z "$missing" ] && exit 0
+if [ "$(id -u)" != 0 ]; then
+  echo "drape: missing Debian packages:$missing"
+  echo "drape: install them with: sudo apt-get install$missing"
+  exit 1
+fi
+echo "drape: installing$missing"
+export DEBIAN_FRONTEND=noninteractive
+apt-get update -qq
+apt-get install -y -qq --no-install-recommends $missing >/dev/null

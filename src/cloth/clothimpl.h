@@ -1,0 +1,60 @@
+/* Private layout of the Cloth object, shared by src/cloth/ only. */
+#pragma once
+
+#include <cloth.h>
+
+/* Elements as local particle indices (owned + ghost), each with its coefficient.
+ * `own` marks elements whose energy this rank counts (exactly one rank each);
+ * forces are computed by every rank that owns one of the element's particles. */
+typedef struct {
+  PetscInt       n;
+  PetscInt      *p;    /* 2 (stretch) or 3 (angle: a, b, vertex c) per element */
+  PetscReal     *coef; /* k, or kappa                                           */
+  PetscReal     *rest; /* rest length (stretch only)                           */
+  unsigned char *own;
+} ClothElements;
+
+typedef enum {
+  CLOTH_HORIZONTAL,
+  CLOTH_VERTICAL
+} ClothOrientation;
+
+typedef enum {
+  CLOTH_PIN_NONE,
+  CLOTH_PIN_CORNERS,
+  CLOTH_PIN_EDGE_CORNERS,
+  CLOTH_PIN_EDGE,
+  CLOTH_PIN_LIST
+} ClothPinType;
+
+struct _p_Cloth {
+  MPI_Comm comm;
+  /* options */
+  PetscReal        size[2], density, damping, gravity[3], origin[3];
+  PetscReal        stretch[2], shear, bend[2];
+  ClothOrientation orientation;
+  ClothPinType     pin;
+  PetscInt        *pin_list, npin_list; /* (i, j) pairs */
+  PetscBool        exact_hessian;       /* keep indefinite Hessians (tests only)  */
+  PetscBool        setup;
+  /* lattice */
+  DM        da;
+  Vec       Xg, Xl, Yl; /* global (array placed), local ghosted work vectors */
+  PetscInt  Mx, My;
+  PetscReal spacing[2];
+  PetscInt  xs, ys, xm, ym, gxs, gys, gxm, gym;
+  PetscInt  nowned, nlocal;
+  PetscInt *owned_local;          /* local index of each owned particle       */
+  PetscInt *row_map, *col_map;    /* local -> global block index, or -1       */
+  PetscInt *global;               /* local -> global block index              */
+  PetscReal *mass;                /* owned particles                          */
+  PetscBool *pinned;              /* owned particles                          */
+  PetscBool *pinned_local;        /* owned + ghost                            */
+  ClothElements stretch_el, shear_el, bend_el;
+  PetscInt      nstretch, nshear, nbend, npinned; /* global counts            */
+  PetscReal     total_mass;
+};
+
+/* forces.c */
+PETSC_INTERN PetscErrorCode ClothScatterPositions(Cloth, const PetscScalar *, const PetscScalar **);
+PETSC_INTERN PetscErrorCode ClothEndScatter(Cloth, const PetscScalar **);

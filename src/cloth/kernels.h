@@ -1,0 +1,269 @@
+/* Element kernels of the paper's three energies, each with its exact gradient
+ * and Hessian (paper section 3; the derivation is in README "The model").
+ *
+ * These functions know nothing about lattices, ranks or partitions: they take
+ * the coordinates of one element's particles and return its energy, gradient
+ * (w.r.t. those coordinates) and Hessian (row-major). A NULL gradient or
+ * Hessian pointer skips that work.
+ *
+ * Stretch edge (a, b):            E = k/2 (|x_b - x_a| - L)^2
+ * Angle element (a, b; vertex c): e1 = x_a - x_c, e2 = x_b - x_c and
+ *   shear corner:  E = kappa |e1||e2| phi^2,  phi = angle(e1,e2) - pi/2 = -asin(cos)
+ *   bending triple: E = kappa (1 + cos(theta)) = 2 kappa cos^2(theta/2)
+ * with cos = e1.e2/(|e1||e2|). Both angle energies are functions E(u, w, s) of
+ * u = |e1|^2, w = |e2|^2, s = e1.e2, which gives one chain rule for both.
+ *
+ * With project = PETSC_TRUE the Hessian is replaced by a positive semi-definite
+ * one (design.md): the stretch factor (1 - L/l) is clamped at 0 and the angle
+ * Hessian's two parts (a rank-3 part and an isotropic 2x2 (x) I3 part) each get
+ * their negative eigenvalues clamped at 0. Sums of PSD element matrices keep the
+ * backward-Euler matrix SPD for CG. */
+#pragma once
+
+#include <petscsys.h>
+
+/* Eigen-decomposition of a symmetric 3x3 matrix by cyclic Jacobi rotations; on
+ * return A holds A's projection onto the PSD cone (negative eigenvalues -> 0). */
+static inline void KernelProjectPSD3(PetscReal A[9])
+{
+  PetscReal V[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}, D[9], lam[3];
+  PetscInt  sweep, p, q, r, i;
+
+  for (i = 0; i < 9; i++) D[i] = A[i];
+  for (sweep = 0; sweep < 12; sweep++) {
+    PetscReal off = D[1] * D[1] + D[2] * D[2] + D[5] * D[5], diag = D[0] * D[0] + D[4] * D[4] + D[8] * D[8];
+    if (off <= 1e-30 * diag || off == 0) break;
+    for (p = 0; p < 2; p++) {
+      for (q = p + 1; q < 3; q++) {
+        PetscReal apq = D[3 * p + q], theta, t, c, s;
+        if (apq == 0) continue;
+        theta = (D[3 * q + q] - D[3 * p + p]) / (2 * apq);
+        t     = (theta >= 0 ? 1.0 : -1.0) / (PetscAbsReal(theta) + PetscSqrtReal(theta * theta + 1));
+        c     = 1 / PetscSqrtReal(t * t + 1);
+        s     = t * c;
+        for (r = 0; r < 3; r++) { /* D <- D G (columns p, q) */
+          PetscReal drp = D[3 * r + p], drq = D[3 * r + q];
+          D[3 * r + p] = c * drp - s * drq;
+          D[3 * r + q] = s * drp + c * drq;
+        }
+        for (r = 0; r < 3; r++) { /* D <- G^T D (rows p, q) */
+          PetscReal dpr = D[3 * p + r], dqr = D[3 * q + r];
+          D[3 * p + r] = c * dpr - s * dqr;
+          D[3 * q + r] = s * dpr + c * dqr;
+        }
+        for (r = 0; r < 3; r++) { /* V <- V G */
+          PetscReal vrp = V[3 * r + p], vrq = V[3 * r + q];
+          V[3 * r + p] = c * vrp - s * vrq;
+          V[3 * r + q] = s * vrp + c * vrq;
+        }
+      }
+    }
+  }
+  for (i = 0; i < 3; i++) lam[i] = PetscMax(D[4 * i], 0.0);
+  for (p = 0; p < 3; p++)
+    for (q = 0; q < 3; q++) A[3 * p + q] = lam[0] * V[3 * p] * V[3 * q] + lam[1] * V[3 * p + 1] * V[3 * q + 1] + lam[2] * V[3 * p + 2] * V[3 * q + 2];
+}
+
+/* PSD projection of the symmetric 2x2 [[a, b], [b, d]] in closed form. */
+static inline void KernelProjectPSD2(PetscReal *a, PetscReal *b, PetscReal *d)
+{
+  PetscReal m = 0.5 * (*a + *d), r = PetscSqrtReal(0.25 * (*a - *d) * (*a - *d) + (*b) * (*b)), l1 = m + r, l2 = m - r;
+  PetscReal c, s, n;
+
+  if (l2 >= 0) return;
+  if (l1 <= 0) {
+    *a = *b = *d = 0;
+    return;
+  }
+  /* eigenvector of l1: (b, l1 - a) or (l1 - d, b) */
+  if (PetscAbsReal(*b) > 0) {
+    c = *b;
+    s = l1 - *a;
+  } else if (*a >= *d) {
+    c = 1;
+    s = 0;
+  } else {
+    c = 0;
+    s = 1;
+  }
+  n  = c * c + s * s;
+  *a = l1 * c * c / n;
+  *b = l1 * c * s / n;
+  *d = l1 * s * s / n;
+}
+
+static inline PetscReal KernelStretch(const PetscReal *xa, const PetscReal *xb, PetscReal k, PetscReal L, PetscReal *g, PetscReal *H, PetscBool project)
+{
+  PetscReal e[3] = {xb[0] - xa[0], xb[1] - xa[1], xb[2] - xa[2]};
+  PetscReal l    = PetscSqrtReal(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]), dl = l - L;
+
+  if (g) {
+    PetscReal t = k * dl / l;
+    for (PetscInt i = 0; i < 3; i++) {
+      g[i]     = -t * e[i];
+      g[3 + i] = t * e[i];
+    }
+  }
+  if (H) {
+    PetscReal s = 1 - L / l, u[3] = {e[0] / l, e[1] / l, e[2] / l};
+    if (project && s < 0) s = 0;
+    for (PetscInt i = 0; i < 3; i++) {
+      for (PetscInt j = 0; j < 3; j++) {
+        PetscReal h = k * ((1 - s) * u[i] * u[j] + (i == j ? s : 0));
+        H[6 * i + j]             = h;
+        H[6 * (i + 3) + j + 3]   = h;
+        H[6 * i + j + 3]         = -h;
+        H[6 * (i + 3) + j]       = -h;
+      }
+    }
+  }
+  return 0.5 * k * dl * dl;
+}
+
+/* First and second partials of an angle energy E(u, w, s). */
+typedef struct {
+  PetscReal E, Eu, Ew, Es, Euu, Eww, Ess, Euw, Eus, Ews;
+} KernelAnglePartials;
+
+/* cos = s / sqrt(u w) and its partials. */
+typedef struct {
+  PetscReal c, cu, cw, cs, cuu, cww, cuw, cus, cws;
+} KernelCos;
+
+static inline void KernelCosine(PetscReal u, PetscReal w, PetscReal s, PetscInt order, KernelCos *k)
+{
+  PetscReal P = PetscSqrtReal(u * w);
+  k->c        = s / P;
+  if (order < 1) return;
+  k->cs = 1 / P;
+  k->cu = -k->c / (2 * u);
+  k->cw = -k->c / (2 * w);
+  if (order < 2) return;
+  k->cuu = 3 * k->c / (4 * u * u);
+  k->cww = 3 * k->c / (4 * w * w);
+  k->cuw = k->c / (4 * u * w);
+  k->cus = -1 / (2 * u * P);
+  k->cws = -1 / (2 * w * P);
+}
+
+/* Shear corner: E = kappa sqrt(u w) asin(c)^2. */
+static inline void KernelShearPartials(PetscReal kappa, PetscReal u, PetscReal w, PetscReal s, PetscInt order, KernelAnglePartials *d)
+{
+  KernelCos C = {0};
+  PetscReal P, a, r, g, g1 = 0, g2 = 0, Pu, Pw, Puu, Pww, Puw;
+
+  KernelCosine(u, w, s, order, &C);
+  C.c  = PetscMin(PetscMax(C.c, -1 + 1e-14), 1 - 1e-14);
+  P    = PetscSqrtReal(u * w);
+  a    = PetscAsinReal(C.c);
+  g    = a * a;
+  d->E = kappa * P * g;
+  if (order < 1) return;
+  r     = PetscSqrtReal(1 - C.c * C.c);
+  g1    = 2 * a / r;
+  Pu    = P / (2 * u);
+  Pw    = P / (2 * w);
+  d->Eu = kappa * (Pu * g + P * g1 * C.cu);
+  d->Ew = kappa * (Pw * g + P * g1 * C.cw);
+  d->Es = kappa * (P * g1 * C.cs);
+  if (order < 2) return;
+  g2     = 2 / (r * r) + 2 * a * C.c / (r * r * r);
+  Puu    = -P / (4 * u * u);
+  Pww    = -P / (4 * w * w);
+  Puw    = P / (4 * u * w);
+  d->Euu = kappa * (Puu * g + 2 * Pu * g1 * C.cu + P * (g2 * C.cu * C.cu + g1 * C.cuu));
+  d->Eww = kappa * (Pww * g + 2 * Pw * g1 * C.cw + P * (g2 * C.cw * C.cw + g1 * C.cww));
+  d->Euw = kappa * (Puw * g + Pu * g1 * C.cw + Pw * g1 * C.cu + P * (g2 * C.cu * C.cw + g1 * C.cuw));
+  d->Ess = kappa * (P * g2 * C.cs * C.cs);
+  d->Eus = kappa * (Pu * g1 * C.cs + P * (g2 * C.cu * C.cs + g1 * C.cus));
+  d->Ews = kappa * (Pw * g1 * C.cs + P * (g2 * C.cw * C.cs + g1 * C.cws));
+}
+
+/* Bending triple: E = kappa (1 + c). */
+static inline void KernelBendPartials(PetscReal kappa, PetscReal u, PetscReal w, PetscReal s, PetscInt order, KernelAnglePartials *d)
+{
+  KernelCos C = {0};
+
+  KernelCosine(u, w, s, order, &C);
+  d->E = kappa * (1 + C.c);
+  if (order < 1) return;
+  d->Eu = kappa * C.cu;
+  d->Ew = kappa * C.cw;
+  d->Es = kappa * C.cs;
+  if (order < 2) return;
+  d->Euu = kappa * C.cuu;
+  d->Eww = kappa * C.cww;
+  d->Euw = kappa * C.cuw;
+  d->Ess = 0;
+  d->Eus = kappa * C.cus;
+  d->Ews = kappa * C.cws;
+}
+
+typedef enum {
+  KERNEL_SHEAR,
+  KERNEL_BEND
+} KernelAngleKind;
+
+/* Angle element on particles (a, b, c), c the vertex; x = [x_a, x_b, x_c]. */
+static inline PetscReal KernelAngle(KernelAngleKind kind, const PetscReal *xa, const PetscReal *xb, const PetscReal *xc, PetscReal kappa, PetscReal *g, PetscReal *H, PetscBool project)
+{
+  PetscReal           e1[3] = {xa[0] - xc[0], xa[1] - xc[1], xa[2] - xc[2]}, e2[3] = {xb[0] - xc[0], xb[1] - xc[1], xb[2] - xc[2]};
+  PetscReal           u = e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2], w = e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2];
+  PetscReal           s     = e1[0] * e2[0] + e1[1] * e2[1] + e1[2] * e2[2];
+  PetscInt            order = H ? 2 : (g ? 1 : 0);
+  KernelAnglePartials d = {0};
+
+  if (kind == KERNEL_SHEAR) KernelShearPartials(kappa, u, w, s, order, &d);
+  else KernelBendPartials(kappa, u, w, s, order, &d);
+  if (g) {
+    for (PetscInt i = 0; i < 3; i++) {
+      g[i]     = 2 * d.Eu * e1[i] + d.Es * e2[i];
+      g[3 + i] = 2 * d.Ew * e2[i] + d.Es * e1[i];
+      g[6 + i] = -g[i] - g[3 + i];
+    }
+  }
+  if (H) {
+    /* H6 (w.r.t. e1, e2) = J^T E2 J + [[2Eu, Es], [Es, 2Ew]] (x) I3, J = [grad u; grad w; grad s] */
+    PetscReal E2[9] = {d.Euu, d.Euw, d.Eus, d.Euw, d.Eww, d.Ews, d.Eus, d.Ews, d.Ess};
+    PetscReal a = 2 * d.Eu, b = d.Es, c = 2 * d.Ew, Jm[3][6], H6[6][6];
+    if (project) {
+      KernelProjectPSD3(E2);
+      KernelProjectPSD2(&a, &b, &c);
+    }
+    for (PetscInt i = 0; i < 3; i++) {
+      Jm[0][i] = 2 * e1[i];
+      Jm[0][3 + i] = 0;
+      Jm[1][i] = 0;
+      Jm[1][3 + i] = 2 * e2[i];
+      Jm[2][i] = e2[i];
+      Jm[2][3 + i] = e1[i];
+    }
+    for (PetscInt i = 0; i < 6; i++) {
+      PetscReal t[3];
+      for (PetscInt p = 0; p < 3; p++) t[p] = E2[3 * p] * Jm[0][i] + E2[3 * p + 1] * Jm[1][i] + E2[3 * p + 2] * Jm[2][i];
+      for (PetscInt j = 0; j < 6; j++) H6[i][j] = t[0] * Jm[0][j] + t[1] * Jm[1][j] + t[2] * Jm[2][j];
+    }
+    for (PetscInt i = 0; i < 3; i++) {
+      H6[i][i] += a;
+      H6[i][3 + i] += b;
+      H6[3 + i][i] += b;
+      H6[3 + i][3 + i] += c;
+    }
+    /* H9 = B^T H6 B with B = [[I, 0, -I], [0, I, -I]] */
+    for (PetscInt i = 0; i < 3; i++) {
+      for (PetscInt j = 0; j < 3; j++) {
+        PetscReal h11 = H6[i][j], h12 = H6[i][3 + j], h21 = H6[3 + i][j], h22 = H6[3 + i][3 + j];
+        H[9 * i + j]                 = h11;
+        H[9 * i + 3 + j]             = h12;
+        H[9 * i + 6 + j]             = -(h11 + h12);
+        H[9 * (3 + i) + j]           = h21;
+        H[9 * (3 + i) + 3 + j]       = h22;
+        H[9 * (3 + i) + 6 + j]       = -(h21 + h22);
+        H[9 * (6 + i) + j]           = -(h11 + h21);
+        H[9 * (6 + i) + 3 + j]       = -(h12 + h22);
+        H[9 * (6 + i) + 6 + j]       = h11 + h12 + h21 + h22;
+      }
+    }
+  }
+  return d.E;
+}

@@ -1,0 +1,212 @@
+/* Backward Euler in the paper's form (scheme 4, Baraff & Witkin 1998).
+ *
+ * The unknown of each step is the velocity change dv (3 per particle). The
+ * backward-Euler equations
+ *     R(dv) = M dv - h F(x + h (v + dv), v + dv) = 0
+ * are handed to SNES; its Jacobian
+ *     A = M - h dF/dv - h^2 dF/dx = (1 + h c) M + h^2 H
+ * (H the SPD-projected Hessian of the internal energy, c the mass-proportional
+ * damping) is an assembled MATAIJ with block size 3, and KSP CG solves with it.
+ * -snes_type ksponly (the default) takes the single Newton step from dv = 0: the
+ * paper's linearised step; -snes_type newtonls iterates to the full backward-Euler
+ * solution. Pinned particles keep dv = 0 (their rows and columns are removed).
+ * Then v += dv and x += h v. A failed solve stops the run with its reason. */
+#include <petsc/private/tsimpl.h>
+#include <drape.h>
+#include <simulation.h>
+
+typedef struct {
+  Cloth              cloth;
+  Vec                DV, R;
+  Mat                J;
+  PetscScalar       *xt, *vt, *at;
+  const PetscScalar *x0, *v0;
+  const PetscReal   *mass;
+  PetscReal          h, damping;
+  PetscInt           n; /* 3 x owned particles */
+} TS_DrapeBE;
+
+/* Trial state of the step: v_t = v0 + dv, x_t = x0 + h v_t. */
+static PetscErrorCode TrialState(TS_DrapeBE *be, Vec DV)
+{
+  const PetscScalar *dv;
+
+  PetscFunctionBeginUser;
+  PetscCall(VecGetArrayRead(DV, &dv));
+  for (PetscInt i = 0; i < be->n; i++) {
+    be->vt[i] = be->v0[i] + dv[i];
+    be->xt[i] = be->x0[i] + be->h * be->vt[i];
+  }
+  PetscCall(VecRestoreArrayRead(DV, &dv));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode BEFunction(SNES snes, Vec DV, Vec R, void *ctx)
+{
+  TS_DrapeBE        *be = (TS_DrapeBE *)ctx;
+  const PetscScalar *dv;
+  PetscScalar       *r;
+
+  PetscFunctionBeginUser;
+  PetscCall(TrialState(be, DV));
+  PetscCall(ClothComputeAcceleration(be->cloth, be->xt, be->vt, be->at));
+  PetscCall(VecGetArrayRead(DV, &dv));
+  PetscCall(VecGetArray(R, &r));
+  for (PetscInt i = 0; i < be->n; i++) r[i] = be->mass[i / 3] * (dv[i] - be->h * be->at[i]);
+  PetscCall(VecRestoreArray(R, &r));
+  PetscCall(VecRestoreArrayRead(DV, &dv));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode BEJacobian(SNES snes, Vec DV, Mat J, Mat P, void *ctx)
+{
+  TS_DrapeBE *be = (TS_DrapeBE *)ctx;
+
+  PetscFunctionBeginUser;
+  PetscCall(TrialState(be, DV));
+  PetscCall(ClothAssembleMatrix(be->cloth, be->xt, 1 + be->h * be->damping, be->h * be->h, P));
+  if (J != P) {
+    PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
+    PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
+  }
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode TSSetUp_DrapeBE(TS ts)
+{
+  TS_DrapeBE *be = (TS_DrapeBE *)ts->data;
+  SNES        snes;
+  DM          da;
+  ClothInfo   info;
+  const PetscBool *pinned;
+
+  PetscFunctionBeginUser;
+  PetscCall(TSGetApplicationContext(ts, &be->cloth));
+  PetscCheck(be->cloth, PetscObjectComm((PetscObject)ts), PETSC_ERR_ARG_WRONGSTATE, "TS type beuler (drape) needs the Cloth as TS application context");
+  PetscCall(ClothGetInfo(be->cloth, &info));
+  PetscCall(ClothGetDM(be->cloth, &da));
+  PetscCall(ClothGetMasses(be->cloth, &be->mass, &pinned));
+  be->damping = info.damping;
+  be->n       = 3 * info.nowned;
+  PetscCall(DMCreateGlobalVector(da, &be->DV));
+  PetscCall(VecDuplicate(be->DV, &be->R));
+  PetscCall(ClothCreateMatrix(be->cloth, &be->J));
+  PetscCall(PetscMalloc3(be->n, &be->xt, be->n, &be->vt, be->n, &be->at));
+  PetscCall(TSGetSNES(ts, &snes));
+  PetscCall(SNESSetDM(snes, da));
+  PetscCall(SNESSetFunction(snes, be->R, BEFunction, be));
+  PetscCall(SNESSetJacobian(snes, be->J, be->J, BEJacobian, be));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode TSStep_DrapeBE(TS ts)
+{
+  TS_DrapeBE         *be = (TS_DrapeBE *)ts->data;
+  SNES                snes;
+  KSP                 ksp;
+  SNESConvergedReason sreason;
+  KSPConvergedReason  kreason;
+  PetscInt            its, lits;
+  PetscScalar        *u;
+  const PetscScalar  *dv;
+
+  PetscFunctionBeginUser;
+  PetscCall(TSGetSNES(ts, &snes));
+  PetscCall(TSPreStage(ts, ts->ptime + ts->time_step));
+  be->h = ts->time_step;
+  PetscCall(VecGetArray(ts->vec_sol, &u));
+  be->x0 = u;
+  be->v0 = u + be->n;
+  PetscCall(VecSet(be->DV, 0.0));
+  PetscCall(PetscLogEventBegin(drape_log.linear_solve, 0, 0, 0, 0));
+  PetscCall(SNESSolve(snes, NULL, be->DV));
+  PetscCall(PetscLogEventEnd(drape_log.linear_solve, 0, 0, 0, 0));
+  PetscCall(SNESGetConvergedReason(snes, &sreason));
+  PetscCall(SNESGetIterationNumber(snes, &its));
+  PetscCall(SNESGetLinearSolveIterations(snes, &lits));
+  PetscCall(SNESGetKSP(snes, &ksp));
+  PetscCall(KSPGetConvergedReason(ksp, &kreason));
+  ts->snes_its += its;
+  ts->ksp_its += lits;
+  if (sreason < 0 || kreason < 0) {
+    PetscCall(VecRestoreArray(ts->vec_sol, &u));
+    SETERRQ(PetscObjectComm((PetscObject)ts), PETSC_ERR_NOT_CONVERGED,
+            "The backward-Euler solve of step %" PetscInt_FMT " (t = %g s, h = %g s) failed: SNES %s, KSP %s after %" PetscInt_FMT " linear iterations. An indefinite matrix points at -cloth_hessian exact; otherwise raise -ksp_max_it or reduce -ts_dt",
+            ts->steps, (double)ts->ptime, (double)ts->time_step, SNESConvergedReasons[sreason], KSPConvergedReasons[kreason], lits);
+  }
+  PetscCall(VecGetArrayRead(be->DV, &dv));
+  for (PetscInt i = 0; i < be->n; i++) {
+    u[be->n + i] += dv[i];
+    u[i] += be->h * u[be->n + i];
+  }
+  PetscCall(VecRestoreArrayRead(be->DV, &dv));
+  PetscCall(VecRestoreArray(ts->vec_sol, &u));
+  ts->ptime += ts->time_step;
+  PetscCall(TSPostStage(ts, ts->ptime, 0, &ts->vec_sol));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode TSReset_DrapeBE(TS ts)
+{
+  TS_DrapeBE *be = (TS_DrapeBE *)ts->data;
+
+  PetscFunctionBeginUser;
+  PetscCall(VecDestroy(&be->DV));
+  PetscCall(VecDestroy(&be->R));
+  PetscCall(MatDestroy(&be->J));
+  PetscCall(PetscFree3(be->xt, be->vt, be->at));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode TSDestroy_DrapeBE(TS ts)
+{
+  PetscFunctionBeginUser;
+  PetscCall(TSReset_DrapeBE(ts));
+  PetscCall(PetscFree(ts->data));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode TSView_DrapeBE(TS ts, PetscViewer viewer)
+{
+  PetscBool isascii;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectTypeCompare((PetscObject)viewer, PETSCVIEWERASCII, &isascii));
+  if (isascii) PetscCall(PetscViewerASCIIPrintf(viewer, "  drape backward Euler: (M - h dF/dv - h^2 dF/dx) dv = h F, velocity form\n"));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode TSCreate_DrapeBE(TS ts)
+{
+  TS_DrapeBE *be;
+  SNES        snes;
+  KSP         ksp;
+  PC          pc;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscNew(&be));
+  ts->data           = (void *)be;
+  ts->ops->setup     = TSSetUp_DrapeBE;
+  ts->ops->step      = TSStep_DrapeBE;
+  ts->ops->reset     = TSReset_DrapeBE;
+  ts->ops->destroy   = TSDestroy_DrapeBE;
+  ts->ops->view      = TSView_DrapeBE;
+  ts->usessnes       = PETSC_TRUE;
+  ts->default_adapt_type = TSADAPTNONE;
+  /* drape's defaults; -snes_type, -ksp_type, -pc_type ... override them */
+  PetscCall(TSGetSNES(ts, &snes));
+  PetscCall(SNESSetType(snes, SNESKSPONLY));
+  PetscCall(SNESGetKSP(snes, &ksp));
+  PetscCall(KSPSetType(ksp, KSPCG));
+  PetscCall(KSPSetTolerances(ksp, 1e-6, 1e-50, PETSC_DEFAULT, 1000));
+  PetscCall(KSPGetPC(ksp, &pc));
+  PetscCall(PCSetType(pc, PCJACOBI));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode DrapeTSRegisterBEuler(void)
+{
+  PetscFunctionBeginUser;
+  PetscCall(TSRegister(TSBEULER, TSCreate_DrapeBE));
+  PetscFunctionReturn(0);
+}

@@ -1,0 +1,354 @@
+/* The simulation driver: state vector, TS set-up and the time loop.
+ *
+ * Data flows one way: options -> cloth (lattice, material, pins) -> state U ->
+ * TS -> monitor (divergence check, output, progress). The integrator is whatever
+ * -ts_type says; drape supplies
+ *   - the first-order right-hand side G(U) = [v; F(x, v)/m] for explicit TS types
+ *     (euler = paper scheme 2, rk, ssp);
+ *   - the "position" and "momentum" splits for basicsymplectic (scheme 3: velocity
+ *     first; the momentum update sees the current velocity for the damping force);
+ *   - its own TS type beuler (scheme 4, see beuler.c). */
+#include <petsc/private/tsimpl.h>
+#include <simulation.h>
+#include <output.h>
+#include <drape.h>
+#include <unistd.h>
+
+struct _p_Simulation {
+  MPI_Comm        comm;
+  Cloth           cloth;
+  Output          output;
+  TS              ts;
+  Vec             U;
+  IS              is_x, is_v;
+  PetscInt        n; /* 3 x owned particles */
+  StabilityLimits limits;
+  PetscInt        stability_its;
+  PetscReal       divergence_factor;
+  PetscBool       progress, summary, help;
+  /* monitor state */
+  PetscReal       energy0, energy_scale, wall0, wall_last;
+};
+
+static const char *const supported_types[] = {TSEULER, TSBASICSYMPLECTIC, TSBEULER, TSRK, TSSSP, NULL};
+
+static PetscErrorCode RHSFirstOrder(TS ts, PetscReal t, Vec U, Vec G, void *ctx)
+{
+  Simulation         sim = (Simulation)ctx;
+  const PetscScalar *u;
+  PetscScalar       *g;
+
+  PetscFunctionBeginUser;
+  PetscCall(VecGetArrayRead(U, &u));
+  PetscCall(VecGetArray(G, &g));
+  PetscCall(PetscArraycpy(g, u + sim->n, sim->n));
+  PetscCall(ClothComputeAcceleration(sim->cloth, u, u + sim->n, g + sim->n));
+  PetscCall(VecRestoreArray(G, &g));
+  PetscCall(VecRestoreArrayRead(U, &u));
+  PetscFunctionReturn(0);
+}
+
+/* position split: dx/dt = v */
+static PetscErrorCode RHSPosition(TS ts, PetscReal t, Vec V, Vec G, void *ctx)
+{
+  PetscFunctionBeginUser;
+  PetscCall(VecCopy(V, G));
+  PetscFunctionReturn(0);
+}
+
+/* momentum split: dv/dt = F(x, v)/m. TSBASICSYMPLECTIC passes x only; the splits
+ * are contiguous views of U, so U holds the current v. */
+static PetscErrorCode RHSMomentum(TS ts, PetscReal t, Vec X, Vec A, void *ctx)
+{
+  Simulation         sim = (Simulation)ctx;
+  const PetscScalar *x, *u;
+  PetscScalar       *a;
+
+  PetscFunctionBeginUser;
+  PetscCall(VecGetArrayRead(X, &x));
+  PetscCall(VecGetArrayRead(sim->U, &u));
+  PetscCall(VecGetArray(A, &a));
+  PetscCall(ClothComputeAcceleration(sim->cloth, x, u + sim->n, a));
+  PetscCall(VecRestoreArray(A, &a));
+  PetscCall(VecRestoreArrayRead(sim->U, &u));
+  PetscCall(VecRestoreArrayRead(X, &x));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SimulationCreate(MPI_Comm comm, Simulation *sim)
+{
+  Simulation s;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscNew(&s));
+  s->comm              = comm;
+  s->stability_its     = 30;
+  s->divergence_factor = 1.0;
+  s->summary           = PETSC_TRUE;
+  s->progress          = (PetscBool)(isatty(1) && !getenv("CI"));
+  PetscCall(ClothCreate(comm, &s->cloth));
+  PetscCall(OutputCreate(comm, &s->output));
+  *sim = s;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SimulationSetFromOptions(Simulation s)
+{
+  PetscFunctionBeginUser;
+  PetscCall(PetscOptionsHasHelp(NULL, &s->help));
+  PetscOptionsBegin(s->comm, NULL, "drape run control", "Simulation");
+  PetscCall(PetscOptionsInt("-drape_stability_its", "Power iterations for the Omega_max estimate printed at start-up (0: skip)", "StabilityEstimate", s->stability_its, &s->stability_its, NULL));
+  PetscCall(PetscOptionsReal("-drape_divergence_factor", "Stop when the energy exceeds its initial value by this many times the run's energy scale (M g L + initial energy)", "SimulationRun", s->divergence_factor, &s->divergence_factor, NULL));
+  PetscCall(PetscOptionsBool("-drape_progress", "One updating progress line (default: on for a terminal, off in CI)", "SimulationRun", s->progress, &s->progress, NULL));
+  PetscCall(PetscOptionsBool("-drape_summary", "One-line summary at the end of the run", "SimulationRun", s->summary, &s->summary, NULL));
+  PetscOptionsEnd();
+  PetscCheck(s->stability_its >= 0, s->comm, PETSC_ERR_USER_INPUT, "-drape_stability_its must be zero or positive; got %" PetscInt_FMT, s->stability_its);
+  PetscCheck(s->divergence_factor > 0, s->comm, PETSC_ERR_USER_INPUT, "-drape_divergence_factor must be positive; got %g", (double)s->divergence_factor);
+  PetscCall(ClothSetFromOptions(s->cloth));
+  PetscCall(OutputSetFromOptions(s->output));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SimulationSetUp(Simulation s)
+{
+  ClothInfo   info;
+  PetscInt    rstart;
+  PetscScalar *u;
+  TSType      type;
+  PetscBool   ok = PETSC_FALSE;
+
+  PetscFunctionBeginUser;
+  PetscCall(ClothSetUp(s->cloth));
+  PetscCall(ClothGetInfo(s->cloth, &info));
+  s->n = 3 * info.nowned;
+  PetscCall(VecCreateMPI(s->comm, 2 * s->n, PETSC_DETERMINE, &s->U));
+  PetscCall(PetscObjectSetName((PetscObject)s->U, "state"));
+  PetscCall(VecGetOwnershipRange(s->U, &rstart, NULL));
+  PetscCall(ISCreateStride(s->comm, s->n, rstart, 1, &s->is_x));
+  PetscCall(ISCreateStride(s->comm, s->n, rstart + s->n, 1, &s->is_v));
+  PetscCall(VecGetArray(s->U, &u));
+  PetscCall(ClothSetInitialState(s->cloth, u, u + s->n));
+  PetscCall(VecRestoreArray(s->U, &u));
+
+  PetscCall(DrapeTSRegisterBEuler());
+  PetscCall(TSCreate(s->comm, &s->ts));
+  PetscCall(TSSetApplicationContext(s->ts, s->cloth));
+  PetscCall(TSSetProblemType(s->ts, TS_NONLINEAR));
+  PetscCall(TSSetType(s->ts, TSBASICSYMPLECTIC));
+  PetscCall(TSBasicSymplecticSetType(s->ts, TSBASICSYMPLECTICSIEULER));
+  PetscCall(TSSetRHSFunction(s->ts, NULL, RHSFirstOrder, s));
+  PetscCall(TSRHSSplitSetIS(s->ts, "position", s->is_x));
+  PetscCall(TSRHSSplitSetIS(s->ts, "momentum", s->is_v));
+  PetscCall(TSRHSSplitSetRHSFunction(s->ts, "position", NULL, RHSPosition, s));
+  PetscCall(TSRHSSplitSetRHSFunction(s->ts, "momentum", NULL, RHSMomentum, s));
+  PetscCall(TSSetMaxTime(s->ts, 2.0));
+  PetscCall(TSSetMaxSteps(s->ts, PETSC_MAX_INT));
+  PetscCall(TSSetTimeStep(s->ts, 1e-4));
+  PetscCall(TSSetExactFinalTime(s->ts, TS_EXACTFINALTIME_MATCHSTEP));
+  PetscCall(TSSetSolution(s->ts, s->U));
+  PetscCall(TSSetFromOptions(s->ts));
+  PetscCall(TSGetType(s->ts, &type));
+  for (const char *const *t = supported_types; *t; t++) {
+    PetscBool match;
+    PetscCall(PetscStrcmp(type, *t, &match));
+    ok = (PetscBool)(ok || match);
+  }
+  PetscCheck(ok, s->comm, PETSC_ERR_USER_INPUT, "-ts_type %s is not supported by drape; use euler (paper scheme 2), basicsymplectic (scheme 3), beuler (scheme 4), rk or ssp", type);
+  {
+    PetscReal dt;
+    PetscCall(TSGetTimeStep(s->ts, &dt));
+    PetscCheck(dt > 0, s->comm, PETSC_ERR_USER_INPUT, "-ts_dt must be positive (seconds); got %g", (double)dt);
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SimulationDestroy(Simulation *sim)
+{
+  Simulation s = *sim;
+
+  PetscFunctionBeginUser;
+  if (!s) PetscFunctionReturn(0);
+  PetscCall(TSDestroy(&s->ts));
+  PetscCall(VecDestroy(&s->U));
+  PetscCall(ISDestroy(&s->is_x));
+  PetscCall(ISDestroy(&s->is_v));
+  PetscCall(OutputDestroy(&s->output));
+  PetscCall(ClothDestroy(&s->cloth));
+  PetscCall(PetscFree(*sim));
+  PetscFunctionReturn(0);
+}
+
+/* Write a frame of the current state (energies computed only here). */
+static PetscErrorCode SimulationWriteFrame(Simulation s, PetscInt step, PetscReal t, const PetscScalar *u)
+{
+  ClothEnergies en;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscLogEventBegin(drape_log.output, 0, 0, 0, 0));
+  PetscCall(ClothComputeEnergies(s->cloth, u, u + s->n, &en));
+  PetscCall(OutputWriteFrame(s->output, s->cloth, step, t, u, u + s->n, &en));
+  PetscCall(PetscLogEventEnd(drape_log.output, 0, 0, 0, 0));
+  PetscFunctionReturn(0);
+}
+
+/* Divergence: NaN, or kinetic + gravitational energy above the initial total
+ * energy by more than factor x scale (internal energy is never negative, and
+ * damping and pins only remove energy, so a sound step cannot do that). */
+static PetscErrorCode CheckDivergence(Simulation s, TS ts, PetscInt step, PetscReal t, const PetscScalar *u)
+{
+  const PetscReal *mass;
+  ClothInfo        info;
+  PetscReal        loc[3] = {0, 0, 0}, sum[3], e;
+  TSType           type;
+  PetscReal        dt;
+
+  PetscFunctionBeginUser;
+  PetscCall(ClothGetMasses(s->cloth, &mass, NULL));
+  PetscCall(ClothGetInfo(s->cloth, &info));
+  for (PetscInt i = 0; i < s->n; i++) {
+    const PetscReal m = mass[i / 3], x = u[i], v = u[s->n + i];
+    loc[0] += 0.5 * m * v * v;
+    loc[1] -= m * info.gravity[i % 3] * x;
+    if (PetscIsInfOrNanReal(x) || PetscIsInfOrNanReal(v)) loc[2] = 1;
+  }
+  PetscCall(MPIU_Allreduce(loc, sum, 3, MPIU_REAL, MPI_SUM, s->comm));
+  e = sum[0] + sum[1];
+  if (step == 0) {
+    ClothEnergies en;
+    PetscReal     g = PetscSqrtReal(PetscSqr(info.gravity[0]) + PetscSqr(info.gravity[1]) + PetscSqr(info.gravity[2]));
+    PetscCall(ClothComputeEnergies(s->cloth, u, u + s->n, &en));
+    s->energy0      = e + en.stretch + en.shear + en.bend;
+    s->energy_scale = info.mass * g * PetscMax(info.size[0], info.size[1]) + PetscAbsReal(s->energy0 - en.gravity) + PETSC_SMALL;
+    PetscFunctionReturn(0);
+  }
+  if (sum[2] == 0 && e - s->energy0 <= s->divergence_factor * s->energy_scale) PetscFunctionReturn(0);
+  PetscCall(TSGetType(ts, &type));
+  PetscCall(TSGetTimeStep(ts, &dt));
+  SETERRQ(s->comm, PETSC_ERR_NOT_CONVERGED,
+          "The run diverged at step %" PetscInt_FMT " (t = %g s): %s. Estimated stability limits: symplectic Euler h < %.4e s, explicit Euler h < %.4e s; this run used -ts_type %s -ts_dt %g. Reduce -ts_dt or use -ts_type beuler",
+          step, (double)t, sum[2] != 0 ? "positions or velocities are not finite" : "the energy grew beyond what gravity and the initial state can supply", (double)s->limits.symplectic, (double)s->limits.euler, type, (double)dt);
+}
+
+static PetscErrorCode Monitor(TS ts, PetscInt step, PetscReal t, Vec U, void *ctx)
+{
+  Simulation         s = (Simulation)ctx;
+  const PetscScalar *u;
+  PetscBool          due;
+
+  PetscFunctionBeginUser;
+  PetscCall(VecGetArrayRead(U, &u));
+  PetscCall(CheckDivergence(s, ts, step, t, u));
+  PetscCall(OutputFrameDue(s->output, step, t, &due));
+  if (due) PetscCall(SimulationWriteFrame(s, step, t, u));
+  PetscCall(VecRestoreArrayRead(U, &u));
+  if (s->progress) {
+    PetscLogDouble now;
+    PetscCall(PetscTime(&now));
+    if (now - s->wall_last > 0.5 && step > 0) {
+      PetscReal tmax, t0 = 0;
+      PetscCall(TSGetMaxTime(ts, &tmax));
+      s->wall_last = now;
+      PetscCall(PetscPrintf(s->comm, "\r  t = %.4g / %.4g s, step %" PetscInt_FMT ", %.0f steps/s, %.0f s left   ", (double)t, (double)tmax, step, step / (now - s->wall0), (double)((now - s->wall0) * (tmax - t) / (t - t0))));
+    }
+  }
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode SimulationViewStart(Simulation s)
+{
+  PetscViewer viewer = PETSC_VIEWER_STDOUT_(s->comm);
+  TSType      type;
+  PetscReal   dt, tmax;
+  const char *name = NULL;
+  SNES        snes;
+  KSP         ksp;
+  PC          pc;
+  ClothInfo   info;
+
+  PetscFunctionBeginUser;
+  PetscCall(ClothGetInfo(s->cloth, &info));
+  PetscCall(TSGetType(s->ts, &type));
+  PetscCall(TSGetTimeStep(s->ts, &dt));
+  PetscCall(TSGetMaxTime(s->ts, &tmax));
+  PetscCall(PetscViewerASCIIPrintf(viewer, "drape %s: %s\n", DRAPE_VERSION, "fabric by the particle method"));
+  PetscCall(ClothView(s->cloth, viewer));
+  if (s->stability_its > 0) {
+    PetscCall(PetscViewerASCIIPrintf(viewer, "Stability (estimated at t = 0, %" PetscInt_FMT " power iterations): Omega_max = %.4e rad/s\n", s->limits.iterations, (double)s->limits.omega));
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  symplectic Euler: stable for h < %.4e s (2/Omega_max, reduced by damping)\n", (double)s->limits.symplectic));
+    if (s->limits.euler > 0) PetscCall(PetscViewerASCIIPrintf(viewer, "  explicit Euler: stable for h < %.4e s at damping %g 1/s (c/Omega_max^2)\n", (double)s->limits.euler, (double)info.damping));
+    else PetscCall(PetscViewerASCIIPrintf(viewer, "  explicit Euler: unstable at every step without damping (energy grows by 1 + (Omega h)^2 per step)\n"));
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  backward Euler: no step limit\n"));
+  }
+  if (!strcmp(type, TSBASICSYMPLECTIC)) PetscCall(TSBasicSymplecticGetType(s->ts, (TSBasicSymplecticType *)&name));
+  PetscCall(PetscViewerASCIIPrintf(viewer, "Integrator: -ts_type %s%s%s, h = %g s", type, name ? " -ts_basicsymplectic_type " : "", name ? name : "", (double)dt));
+  if (s->stability_its > 0 && s->limits.symplectic < PETSC_INFINITY) PetscCall(PetscViewerASCIIPrintf(viewer, " (%.3g x the symplectic limit)", (double)(dt / s->limits.symplectic)));
+  PetscCall(PetscViewerASCIIPrintf(viewer, ", to t = %g s\n", (double)tmax));
+  if (!strcmp(type, TSBEULER)) {
+    KSPType kt;
+    PCType  pt;
+    SNESType st;
+    PetscCall(TSGetSNES(s->ts, &snes));
+    PetscCall(SNESGetType(snes, &st));
+    PetscCall(SNESGetKSP(snes, &ksp));
+    PetscCall(KSPGetType(ksp, &kt));
+    PetscCall(KSPGetPC(ksp, &pc));
+    PetscCall(PCGetType(pc, &pt));
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  solver: SNES %s, KSP %s, PC %s on an assembled %s matrix (block size 3)\n", st, kt, pt, MATAIJ));
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SimulationRun(Simulation s)
+{
+  PetscLogDouble     t1;
+  const PetscScalar *u;
+  PetscInt           steps, last, its;
+  PetscReal          t;
+  ClothInfo          info;
+  char               description[1024];
+  PetscBool          enabled;
+
+  PetscFunctionBeginUser;
+  PetscCall(ClothGetInfo(s->cloth, &info));
+  if (s->stability_its > 0) {
+    PetscCall(VecGetArrayRead(s->U, &u));
+    PetscCall(StabilityEstimate(s->cloth, u, s->stability_its, &s->limits));
+    PetscCall(VecRestoreArrayRead(s->U, &u));
+  } else s->limits.symplectic = s->limits.euler = PETSC_INFINITY;
+  PetscCall(SimulationViewStart(s));
+  PetscCall(DrapeCheckUnusedOptions(s->comm));
+  if (s->help) PetscFunctionReturn(0);
+  PetscCall(OutputEnabled(s->output, &enabled));
+  if (enabled) {
+    TSType    type;
+    PetscReal dt;
+    PetscCall(TSGetType(s->ts, &type));
+    PetscCall(TSGetTimeStep(s->ts, &dt));
+    PetscCall(PetscSNPrintf(description, sizeof description, "ts_type=%s dt=%g omega_max=%g symplectic_limit=%g euler_limit=%g", type, (double)dt, (double)s->limits.omega, (double)s->limits.symplectic, (double)s->limits.euler));
+    PetscCall(OutputOpen(s->output, s->cloth, description));
+  }
+  PetscCall(TSMonitorSet(s->ts, Monitor, s, NULL));
+  PetscCall(PetscTime(&s->wall0));
+  s->wall_last = s->wall0;
+  PetscCall(PetscLogStagePush(drape_log.timeloop));
+  PetscCall(TSSolve(s->ts, s->U));
+  PetscCall(PetscLogStagePop());
+  PetscCall(PetscTime(&t1));
+  PetscCall(TSGetStepNumber(s->ts, &steps));
+  PetscCall(TSGetTime(s->ts, &t));
+  PetscCall(OutputLastStep(s->output, &last));
+  if (enabled && last != steps) {
+    PetscCall(VecGetArrayRead(s->U, &u));
+    PetscCall(SimulationWriteFrame(s, steps, t, u));
+    PetscCall(VecRestoreArrayRead(s->U, &u));
+  }
+  if (s->progress) PetscCall(PetscPrintf(s->comm, "\n"));
+  if (s->summary) {
+    PetscReal wall = (PetscReal)(t1 - s->wall0);
+    PetscCall(TSGetKSPIterations(s->ts, &its));
+    PetscCall(PetscPrintf(s->comm, "Summary: %" PetscInt_FMT " steps to t = %g s in %.3f s wall, %.4e particle-steps/s", steps, (double)t, (double)wall, wall > 0 ? (double)(steps * info.nparticles / wall) : 0.0));
+    if (its > 0) PetscCall(PetscPrintf(s->comm, ", %.2f CG iterations per step", (double)its / PetscMax(steps, 1)));
+    PetscCall(PetscPrintf(s->comm, "\n"));
+  }
+  PetscFunctionReturn(0);
+}

@@ -1,0 +1,254 @@
+/* HDF5 frames through PetscViewerHDF5, in natural lattice order whatever the
+ * number of ranks, and an XDMF index beside the file for ParaView.
+ *
+ * File layout (t = frame index):
+ *   /position, /velocity   [t][My][Mx][3]   (m, m/s)
+ *   /time, /step, /energy_kinetic, /energy_gravity, /energy_stretch,
+ *   /energy_shear, /energy_bend   [t][1]    (s, -, J)
+ *   attributes of /: drape_version, options (as given), description, lattice.
+ * /time is written last in each frame, so its length counts the complete frames;
+ * every frame is flushed, so a run killed later leaves them readable. */
+#include <output.h>
+#include <drape.h>
+#include <petscviewerhdf5.h>
+
+#define NSCALARS 7
+static const char *const scalar_names[NSCALARS] = {"step", "energy_kinetic", "energy_gravity", "energy_stretch", "energy_shear", "energy_bend", "time"};
+
+struct _p_Output {
+  MPI_Comm    comm;
+  char        file[PETSC_MAX_PATH_LEN], xdmf[PETSC_MAX_PATH_LEN];
+  PetscBool   enabled;
+  PetscReal   interval, next_time;
+  PetscInt    every, nframes, last_step, Mx, My, nalloc;
+  PetscReal  *times;
+  PetscViewer viewer;
+  Vec         X, V, scalars[NSCALARS];
+};
+
+PetscErrorCode OutputCreate(MPI_Comm comm, Output *out)
+{
+  Output o;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscNew(&o));
+  o->comm      = comm;
+  o->interval  = 1.0 / 30;
+  o->last_step = -1;
+  *out         = o;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode OutputSetFromOptions(Output o)
+{
+  PetscBool flg;
+
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(o->comm, NULL, "Output", "Output");
+  PetscCall(PetscOptionsString("-output_file", "HDF5 file for the frames (nothing is written without it)", "OutputSetFromOptions", o->file, o->file, sizeof o->file, &o->enabled));
+  PetscCall(PetscOptionsReal("-output_interval", "Simulated time between frames (s); 0: use -output_steps", "OutputSetFromOptions", o->interval, &o->interval, NULL));
+  PetscCall(PetscOptionsInt("-output_steps", "Steps between frames (0: use -output_interval)", "OutputSetFromOptions", o->every, &o->every, &flg));
+  PetscOptionsEnd();
+  if (flg && o->every > 0) o->interval = 0;
+  PetscCheck(o->interval >= 0, o->comm, PETSC_ERR_USER_INPUT, "-output_interval must be zero or positive (seconds); got %g", (double)o->interval);
+  PetscCheck(o->every >= 0, o->comm, PETSC_ERR_USER_INPUT, "-output_steps must be zero or positive; got %" PetscInt_FMT, o->every);
+  if (o->enabled) {
+    char     *slash, *dot, dir[PETSC_MAX_PATH_LEN];
+    PetscBool ok, isdir;
+    PetscCheck(o->file[0], o->comm, PETSC_ERR_USER_INPUT, "-output_file needs a file name, e.g. -output_file run.h5");
+    PetscCall(PetscStrncpy(dir, o->file, sizeof dir));
+    slash = strrchr(dir, '/');
+    if (slash) *slash = 0;
+    else PetscCall(PetscStrcpy(dir, "."));
+    if (!dir[0]) PetscCall(PetscStrcpy(dir, "/"));
+    PetscCall(PetscTestDirectory(dir, 'w', &ok));
+    PetscCheck(ok, o->comm, PETSC_ERR_FILE_OPEN, "Cannot write -output_file %s: directory %s does not exist or is not writable", o->file, dir);
+    PetscCall(PetscTestDirectory(o->file, 'r', &isdir));
+    PetscCheck(!isdir, o->comm, PETSC_ERR_FILE_OPEN, "Cannot write -output_file %s: it is a directory", o->file);
+    PetscCall(PetscStrncpy(o->xdmf, o->file, sizeof o->xdmf));
+    dot   = strrchr(o->xdmf, '.');
+    slash = strrchr(o->xdmf, '/');
+    if (dot && (!slash || dot > slash)) *dot = 0;
+    PetscCall(PetscStrlcat(o->xdmf, ".xmf", sizeof o->xdmf));
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode OutputEnabled(Output o, PetscBool *enabled)
+{
+  PetscFunctionBeginUser;
+  *enabled = o->enabled;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode OutputLastStep(Output o, PetscInt *step)
+{
+  PetscFunctionBeginUser;
+  *step = o->last_step;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode OutputOpen(Output o, Cloth cloth, const char *description)
+{
+  DM          da;
+  ClothInfo   info;
+  char       *given;
+  PetscMPIInt rank;
+  PetscInt    lattice[2];
+  PetscReal   material[9];
+
+  PetscFunctionBeginUser;
+  if (!o->enabled) PetscFunctionReturn(0);
+  PetscCall(ClothGetDM(cloth, &da));
+  PetscCall(ClothGetInfo(cloth, &info));
+  o->Mx = info.Mx;
+  o->My = info.My;
+  PetscCall(DMCreateGlobalVector(da, &o->X));
+  PetscCall(DMCreateGlobalVector(da, &o->V));
+  PetscCall(PetscObjectSetName((PetscObject)o->X, "position"));
+  PetscCall(PetscObjectSetName((PetscObject)o->V, "velocity"));
+  PetscCallMPI(MPI_Comm_rank(o->comm, &rank));
+  for (PetscInt k = 0; k < NSCALARS; k++) {
+    PetscCall(VecCreateMPI(o->comm, rank ? 0 : 1, 1, &o->scalars[k]));
+    PetscCall(PetscObjectSetName((PetscObject)o->scalars[k], scalar_names[k]));
+  }
+  PetscCall(PetscViewerHDF5Open(o->comm, o->file, FILE_MODE_WRITE, &o->viewer));
+  PetscCall(PetscOptionsGetAll(NULL, &given));
+  PetscCall(PetscViewerHDF5WriteAttribute(o->viewer, "/", "drape_version", PETSC_STRING, DRAPE_VERSION));
+  PetscCall(PetscViewerHDF5WriteAttribute(o->viewer, "/", "options", PETSC_STRING, given));
+  PetscCall(PetscViewerHDF5WriteAttribute(o->viewer, "/", "description", PETSC_STRING, description));
+  PetscCall(PetscFree(given));
+  lattice[0] = info.Mx;
+  lattice[1] = info.My;
+  PetscCall(PetscViewerHDF5WriteAttribute(o->viewer, "/", "lattice_Mx", PETSC_INT, &lattice[0]));
+  PetscCall(PetscViewerHDF5WriteAttribute(o->viewer, "/", "lattice_My", PETSC_INT, &lattice[1]));
+  material[0] = info.size[0];
+  material[1] = info.size[1];
+  material[2] = info.mass;
+  material[3] = info.damping;
+  material[4] = info.stretch[0];
+  material[5] = info.stretch[1];
+  material[6] = info.shear;
+  material[7] = info.bend[0];
+  material[8] = info.bend[1];
+  {
+    const char *names[9] = {"size_warp", "size_weft", "mass", "damping", "stretch_warp", "stretch_weft", "shear", "bend_warp", "bend_weft"};
+    for (PetscInt k = 0; k < 9; k++) PetscCall(PetscViewerHDF5WriteAttribute(o->viewer, "/", names[k], PETSC_REAL, &material[k]));
+  }
+  PetscCall(PetscViewerHDF5PushTimestepping(o->viewer));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode OutputFrameDue(Output o, PetscInt step, PetscReal t, PetscBool *due)
+{
+  PetscFunctionBeginUser;
+  *due = PETSC_FALSE;
+  if (!o->enabled) PetscFunctionReturn(0);
+  if (o->nframes == 0) *due = PETSC_TRUE;
+  else if (o->every > 0) *due = (PetscBool)(step % o->every == 0);
+  else if (o->interval > 0) *due = (PetscBool)(t >= o->next_time - 1e-9 * o->interval);
+  PetscFunctionReturn(0);
+}
+
+/* Rewrite the XDMF index (rank 0, through a temporary file and a rename, so a
+ * reader never sees half of it). */
+static PetscErrorCode OutputWriteXDMF(Output o)
+{
+  char        tmp[PETSC_MAX_PATH_LEN + 8];
+  const char *h5 = strrchr(o->file, '/') ? strrchr(o->file, '/') + 1 : o->file;
+  FILE       *fp;
+  PetscMPIInt rank;
+
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(o->comm, &rank));
+  if (rank) PetscFunctionReturn(0);
+  PetscCall(PetscSNPrintf(tmp, sizeof tmp, "%s.tmp", o->xdmf));
+  PetscCall(PetscFOpen(PETSC_COMM_SELF, tmp, "w", &fp));
+  PetscCall(PetscFPrintf(PETSC_COMM_SELF, fp, "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"2.0\">\n <Domain>\n  <Grid Name=\"cloth\" GridType=\"Collection\" CollectionType=\"Temporal\">\n"));
+  for (PetscInt k = 0; k < o->nframes; k++) {
+    PetscCall(PetscFPrintf(PETSC_COMM_SELF, fp, "   <Grid Name=\"frame %" PetscInt_FMT "\" GridType=\"Uniform\">\n    <Time Value=\"%.10g\"/>\n", k, (double)o->times[k]));
+    PetscCall(PetscFPrintf(PETSC_COMM_SELF, fp, "    <Topology TopologyType=\"2DSMesh\" Dimensions=\"%" PetscInt_FMT " %" PetscInt_FMT "\"/>\n", o->My, o->Mx));
+    for (PetscInt f = 0; f < 2; f++) {
+      const char *name = f ? "velocity" : "position";
+      PetscCall(PetscFPrintf(PETSC_COMM_SELF, fp, f ? "    <Attribute Name=\"velocity\" AttributeType=\"Vector\" Center=\"Node\">\n" : "    <Geometry GeometryType=\"XYZ\">\n"));
+      PetscCall(PetscFPrintf(PETSC_COMM_SELF, fp, "     <DataItem ItemType=\"HyperSlab\" Dimensions=\"%" PetscInt_FMT " %" PetscInt_FMT " 3\" Type=\"HyperSlab\">\n", o->My, o->Mx));
+      PetscCall(PetscFPrintf(PETSC_COMM_SELF, fp, "      <DataItem Dimensions=\"3 4\" Format=\"XML\">%" PetscInt_FMT " 0 0 0 1 1 1 1 1 %" PetscInt_FMT " %" PetscInt_FMT " 3</DataItem>\n", k, o->My, o->Mx));
+      PetscCall(PetscFPrintf(PETSC_COMM_SELF, fp, "      <DataItem Dimensions=\"%" PetscInt_FMT " %" PetscInt_FMT " %" PetscInt_FMT " 3\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">%s:/%s</DataItem>\n", o->nframes, o->My, o->Mx, h5, name));
+      PetscCall(PetscFPrintf(PETSC_COMM_SELF, fp, f ? "     </DataItem>\n    </Attribute>\n" : "     </DataItem>\n    </Geometry>\n"));
+    }
+    PetscCall(PetscFPrintf(PETSC_COMM_SELF, fp, "   </Grid>\n"));
+  }
+  PetscCall(PetscFPrintf(PETSC_COMM_SELF, fp, "  </Grid>\n </Domain>\n</Xdmf>\n"));
+  PetscCall(PetscFClose(PETSC_COMM_SELF, fp));
+  PetscCheck(rename(tmp, o->xdmf) == 0, PETSC_COMM_SELF, PETSC_ERR_FILE_WRITE, "Cannot rename %s to %s", tmp, o->xdmf);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode OutputWriteFrame(Output o, Cloth cloth, PetscInt step, PetscReal t, const PetscScalar *x, const PetscScalar *v, const ClothEnergies *en)
+{
+  PetscScalar *a;
+  PetscInt     n;
+  PetscReal    values[NSCALARS];
+  hid_t        fid;
+
+  PetscFunctionBeginUser;
+  if (!o->enabled) PetscFunctionReturn(0);
+  values[0] = (PetscReal)step;
+  values[1] = en->kinetic;
+  values[2] = en->gravity;
+  values[3] = en->stretch;
+  values[4] = en->shear;
+  values[5] = en->bend;
+  values[6] = t;
+  PetscCall(VecGetLocalSize(o->X, &n));
+  PetscCall(VecGetArray(o->X, &a));
+  PetscCall(PetscArraycpy(a, x, n));
+  PetscCall(VecRestoreArray(o->X, &a));
+  PetscCall(VecGetArray(o->V, &a));
+  PetscCall(PetscArraycpy(a, v, n));
+  PetscCall(VecRestoreArray(o->V, &a));
+  PetscCall(PetscViewerHDF5SetTimestep(o->viewer, o->nframes));
+  PetscCall(VecView(o->X, o->viewer));
+  PetscCall(VecView(o->V, o->viewer));
+  for (PetscInt k = 0; k < NSCALARS; k++) {
+    PetscInt nl;
+    PetscCall(VecGetLocalSize(o->scalars[k], &nl));
+    if (nl) {
+      PetscCall(VecGetArray(o->scalars[k], &a));
+      a[0] = values[k];
+      PetscCall(VecRestoreArray(o->scalars[k], &a));
+    }
+    PetscCall(VecView(o->scalars[k], o->viewer));
+  }
+  PetscCall(PetscViewerHDF5GetFileId(o->viewer, &fid));
+  PetscCheck(H5Fflush(fid, H5F_SCOPE_GLOBAL) >= 0, o->comm, PETSC_ERR_FILE_WRITE, "Cannot flush frame %" PetscInt_FMT " to %s", o->nframes, o->file);
+  if (o->nframes >= o->nalloc) {
+    PetscReal *times;
+    o->nalloc = 2 * o->nalloc + 64;
+    PetscCall(PetscMalloc1(o->nalloc, &times));
+    if (o->nframes) PetscCall(PetscArraycpy(times, o->times, o->nframes));
+    PetscCall(PetscFree(o->times));
+    o->times = times;
+  }
+  o->times[o->nframes++] = t;
+  o->last_step           = step;
+  if (o->interval > 0)
+    while (o->next_time <= t + 1e-9 * o->interval) o->next_time += o->interval;
+  PetscCall(OutputWriteXDMF(o));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode OutputDestroy(Output *out)
+{
+  Output o = *out;
+
+  PetscFunctionBeginUser;
+  if (!o) PetscFunctionReturn(0);
+  PetscCall(PetscViewerDestroy(&o->viewer));
+  PetscCall(VecDestroy(&o->X));
+  PetscCall(VecDestroy(&o->V));
+  for (PetscInt k = 0; k < NSCALARS; k++) PetscCall(VecDestroy(&o->scalars[k]));
+  PetscCall(PetscFree(o->times));
+  PetscCall(PetscFree(*out));
+  PetscFunctionReturn(0);
+}
