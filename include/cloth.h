@@ -51,10 +51,10 @@ PETSC_EXTERN PetscErrorCode ClothComputeAcceleration(Cloth, const PetscScalar *x
 PETSC_EXTERN PetscErrorCode ClothComputeInternalForce(Cloth, const PetscScalar *x, PetscScalar *f);
 /* Energies of the state (x, v), summed over all ranks. */
 PETSC_EXTERN PetscErrorCode ClothComputeEnergies(Cloth, const PetscScalar *x, const PetscScalar *v, ClothEnergies *);
-/* y = H(x) z with H the (SPD-projected) Hessian of the internal energy; pinned rows
- * and columns removed. Matrix-free: used for the stability estimate. */
+/* y = H(x) z with H the exact Hessian of the internal energy; pinned rows and
+ * columns removed. Matrix-free: used for the stability estimate. */
 PETSC_EXTERN PetscErrorCode ClothApplyHessian(Cloth, const PetscScalar *x, const PetscScalar *z, PetscScalar *y);
 /* A MATAIJ (block size 3) preallocated for the pattern of a*M + b*H. */
 PETSC_EXTERN PetscErrorCode ClothCreateMatrix(Cloth, Mat *);
-/* J = a M + b H(x); pinned particles get a*m*I on the diagonal and nothing else. */
+/* J = a M + b H(x); pinned particles get m*I on the diagonal and nothing else. */
 PETSC_EXTERN PetscErrorCode ClothAssembleMatrix(Cloth, const PetscScalar *x, PetscReal a, PetscReal b, Mat J);

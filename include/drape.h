@@ -18,6 +18,8 @@ PETSC_EXTERN DrapeLog drape_log;
 /* Register log events and install drape's error handler (user errors print one
  * sentence; internal errors keep PETSc's traceback). */
 PETSC_EXTERN PetscErrorCode DrapeInitialize(void);
+/* Undo DrapeInitialize() (the error handler). */
+PETSC_EXTERN PetscErrorCode DrapeFinalize(void);
 /* Refuse options in drape's own namespaces (-cloth_, -output_, -drape_, ...) that
  * no component read: a misspelt drape option is an error, not a silent default. */
 PETSC_EXTERN PetscErrorCode DrapeCheckUnusedOptions(MPI_Comm);

@@ -57,6 +57,13 @@ PetscErrorCode DrapeInitialize(void)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode DrapeFinalize(void)
+{
+  PetscFunctionBeginUser;
+  PetscCall(PetscPopErrorHandler());
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode DrapeCheckUnusedOptions(MPI_Comm comm)
 {
   static const char *const prefixes[] = {"cloth_", "output_", "drape_", "gravity", "solid_", "contact_", NULL};

@@ -10,7 +10,6 @@ static PetscErrorCode Run(void)
   Simulation sim;
 
   PetscFunctionBeginUser;
-  PetscCall(DrapeInitialize());
   PetscCall(PetscLogStagePush(drape_log.setup));
   PetscCall(SimulationCreate(PETSC_COMM_WORLD, &sim));
   PetscCall(SimulationSetFromOptions(sim));
@@ -26,7 +25,9 @@ int main(int argc, char **argv)
   PetscErrorCode ierr;
 
   PetscCall(PetscInitialize(&argc, &argv, NULL, help));
+  PetscCall(DrapeInitialize());
   ierr = Run();
+  PetscCall(DrapeFinalize());
   PetscCall(PetscFinalize());
   return ierr ? 1 : 0;
 }

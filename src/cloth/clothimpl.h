@@ -53,6 +53,9 @@ struct _p_Cloth {
   ClothElements stretch_el, shear_el, bend_el;
   PetscInt      nstretch, nshear, nbend, npinned; /* global counts            */
   PetscReal     total_mass;
+  /* fast AIJ assembly (forces.c): CSR value positions for map_mat */
+  Mat       map_mat;
+  PetscInt *map, *map_diag, map_nnzA;
 };
 
 /* forces.c */

@@ -131,9 +131,8 @@ PetscErrorCode ClothComputeEnergies(Cloth c, const PetscScalar *x, const PetscSc
 }
 
 /* Element Hessian (particles p[0..n-1]); H is (3n x 3n) row-major. */
-static inline void ElementHessian(Cloth c, PetscInt kind, const PetscReal *xl, const PetscInt *p, PetscReal coef, PetscReal rest, PetscReal *H)
+static inline void ElementHessian(PetscBool project, PetscInt kind, const PetscReal *xl, const PetscInt *p, PetscReal coef, PetscReal rest, PetscReal *H)
 {
-  PetscBool project = (PetscBool)!c->exact_hessian;
   if (kind == 0) KernelStretch(xl + 3 * p[0], xl + 3 * p[1], coef, rest, NULL, H, project);
   else KernelAngle(kind == 1 ? KERNEL_SHEAR : KERNEL_BEND, xl + 3 * p[0], xl + 3 * p[1], xl + 3 * p[2], coef, NULL, H, project);
 }
@@ -162,7 +161,7 @@ PetscErrorCode ClothApplyHessian(Cloth c, const PetscScalar *x, const PetscScala
     const PetscInt       n  = kind ? 3 : 2, m = 3 * n;
     for (PetscInt e = 0; e < el->n; e++) {
       const PetscInt *p = el->p + n * e;
-      ElementHessian(c, kind, xl, p, el->coef[e], el->rest ? el->rest[e] : 0, H);
+      ElementHessian(PETSC_FALSE, kind, xl, p, el->coef[e], el->rest ? el->rest[e] : 0, H);
       for (PetscInt i = 0; i < m; i++) {
         PetscReal s = 0;
         for (PetscInt j = 0; j < m; j++) s += H[m * i + j] * zl[3 * p[j / 3] + j % 3];
@@ -198,7 +197,7 @@ static PetscErrorCode ClothAddToMatrix(Cloth c, const PetscReal *xl, PetscReal a
         cols[i] = c->col_map[p[i]];
       }
       if (xl) {
-        ElementHessian(c, kind, xl, p, el->coef[e], el->rest ? el->rest[e] : 0, H);
+        ElementHessian((PetscBool)!c->exact_hessian, kind, xl, p, el->coef[e], el->rest ? el->rest[e] : 0, H);
         for (PetscInt i = 0; i < 9 * n * n; i++) H[i] *= b;
       }
       PetscCall(MatSetValuesBlocked(J, n, rows, n, cols, H, ADD_VALUES));
@@ -207,7 +206,7 @@ static PetscErrorCode ClothAddToMatrix(Cloth c, const PetscReal *xl, PetscReal a
   for (PetscInt k = 0; k < c->nowned; k++) {
     PetscInt g = c->global[c->owned_local[k]];
     PetscCall(PetscArrayzero(D, 9));
-    D[0] = D[4] = D[8] = a * c->mass[k];
+    D[0] = D[4] = D[8] = (c->pinned[k] ? 1 : a) * c->mass[k];
     PetscCall(MatSetValuesBlocked(J, 1, &g, 1, &g, D, ADD_VALUES));
   }
   PetscFunctionReturn(0);
@@ -242,15 +241,159 @@ PetscErrorCode ClothCreateMatrix(Cloth c, Mat *J)
   PetscFunctionReturn(0);
 }
 
+/* Fast assembly for AIJ matrices: for every element block and row, the position
+ * in the CSR value arrays (diagonal part first, then off-diagonal part) of the
+ * first of its three column entries; -1 where the row or column is skipped.
+ * Built once per matrix from its (preallocated, fixed) nonzero pattern. */
+static PetscErrorCode FindColumn(const PetscInt *ia, const PetscInt *ja, const PetscInt *garray, PetscInt row, PetscInt col, PetscInt *pos)
+{
+  PetscInt lo = ia[row], hi = ia[row + 1] - 1;
+
+  PetscFunctionBeginUser;
+  while (lo <= hi) {
+    PetscInt mid = (lo + hi) / 2, c = garray ? garray[ja[mid]] : ja[mid];
+    if (c == col) {
+      *pos = mid;
+      PetscFunctionReturn(0);
+    }
+    if (c < col) lo = mid + 1;
+    else hi = mid - 1;
+  }
+  SETERRQ(PETSC_COMM_SELF, PETSC_ERR_PLIB, "Column %" PetscInt_FMT " of row %" PetscInt_FMT " is not in the matrix pattern", col, row);
+}
+
+static PetscErrorCode ClothBuildAssemblyMap(Cloth c, Mat J)
+{
+  const ClothElements *lists[3] = {&c->stretch_el, &c->shear_el, &c->bend_el};
+  Mat                  Ad, Ao = NULL;
+  const PetscInt      *ia, *ja, *ib = NULL, *jb = NULL, *garray = NULL;
+  PetscInt             nrows, rstart, cstart, cend, total = 0, nnzA;
+  PetscBool            done, ismpi, isseq;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectTypeCompare((PetscObject)J, MATMPIAIJ, &ismpi));
+  PetscCall(PetscObjectTypeCompare((PetscObject)J, MATSEQAIJ, &isseq));
+  c->map_mat = J;
+  if (!ismpi && !isseq) PetscFunctionReturn(0); /* other types: MatSetValuesBlocked */
+  if (ismpi) PetscCall(MatMPIAIJGetSeqAIJ(J, &Ad, &Ao, &garray));
+  else Ad = J;
+  PetscCall(MatGetOwnershipRange(J, &rstart, NULL));
+  PetscCall(MatGetOwnershipRangeColumn(J, &cstart, &cend));
+  PetscCall(MatGetRowIJ(Ad, 0, PETSC_FALSE, PETSC_FALSE, &nrows, &ia, &ja, &done));
+  PetscCheck(done, PETSC_COMM_SELF, PETSC_ERR_SUP, "Cannot read the matrix pattern");
+  if (Ao) {
+    PetscCall(MatGetRowIJ(Ao, 0, PETSC_FALSE, PETSC_FALSE, &nrows, &ib, &jb, &done));
+    PetscCheck(done, PETSC_COMM_SELF, PETSC_ERR_SUP, "Cannot read the matrix pattern");
+  }
+  nnzA = ia[nrows];
+  for (PetscInt kind = 0; kind < 3; kind++) {
+    const PetscInt n = kind ? 3 : 2;
+    total += lists[kind]->n * n * n * 3;
+  }
+  PetscCall(PetscFree(c->map));
+  PetscCall(PetscMalloc1(total + 1, &c->map));
+  total = 0;
+  for (PetscInt kind = 0; kind < 3; kind++) {
+    const ClothElements *el = lists[kind];
+    const PetscInt       n  = kind ? 3 : 2;
+    for (PetscInt e = 0; e < el->n; e++) {
+      const PetscInt *p = el->p + n * e;
+      for (PetscInt a = 0; a < n; a++) {
+        for (PetscInt b = 0; b < n; b++) {
+          for (PetscInt d = 0; d < 3; d++, total++) {
+            PetscInt row = c->row_map[p[a]], col = c->col_map[p[b]], r, pos = -1;
+            c->map[total] = -1;
+            if (row < 0 || col < 0) continue;
+            r = 3 * row + d - rstart;
+            if (3 * col >= cstart && 3 * col < cend) {
+              PetscCall(FindColumn(ia, ja, NULL, r, 3 * col - cstart, &pos));
+              c->map[total] = pos;
+            } else {
+              PetscCall(FindColumn(ib, jb, garray, r, 3 * col, &pos));
+              c->map[total] = nnzA + pos;
+            }
+          }
+        }
+      }
+    }
+  }
+  PetscCall(PetscFree(c->map_diag));
+  PetscCall(PetscMalloc1(3 * c->nowned + 1, &c->map_diag));
+  for (PetscInt k = 0; k < c->nowned; k++) {
+    PetscInt g = c->global[c->owned_local[k]];
+    for (PetscInt d = 0; d < 3; d++) PetscCall(FindColumn(ia, ja, NULL, 3 * g + d - rstart, 3 * g - cstart, &c->map_diag[3 * k + d]));
+  }
+  PetscCall(MatRestoreRowIJ(Ad, 0, PETSC_FALSE, PETSC_FALSE, &nrows, &ia, &ja, &done));
+  if (Ao) PetscCall(MatRestoreRowIJ(Ao, 0, PETSC_FALSE, PETSC_FALSE, &nrows, &ib, &jb, &done));
+  c->map_nnzA = nnzA;
+  PetscFunctionReturn(0);
+}
+
+/* J = a M + b H(xl) straight into the CSR value arrays through the map. */
+static PetscErrorCode ClothAddToMatrixFast(Cloth c, const PetscReal *xl, PetscReal a, PetscReal b, Mat J)
+{
+  const ClothElements *lists[3] = {&c->stretch_el, &c->shear_el, &c->bend_el};
+  Mat                  Ad, Ao = NULL;
+  PetscScalar         *va, *vb = NULL;
+  PetscInt             nnzB = 0, total = 0;
+  PetscReal            H[81];
+  PetscBool            ismpi;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectTypeCompare((PetscObject)J, MATMPIAIJ, &ismpi));
+  if (ismpi) PetscCall(MatMPIAIJGetSeqAIJ(J, &Ad, &Ao, NULL));
+  else Ad = J;
+  PetscCall(MatSeqAIJGetArray(Ad, &va));
+  PetscCall(PetscArrayzero(va, c->map_nnzA));
+  if (Ao) {
+    MatInfo info;
+    PetscCall(MatGetInfo(Ao, MAT_LOCAL, &info));
+    nnzB = (PetscInt)info.nz_used;
+    PetscCall(MatSeqAIJGetArray(Ao, &vb));
+    PetscCall(PetscArrayzero(vb, nnzB));
+  }
+  for (PetscInt kind = 0; kind < 3; kind++) {
+    const ClothElements *el = lists[kind];
+    const PetscInt       n  = kind ? 3 : 2, m = 3 * n;
+    for (PetscInt e = 0; e < el->n; e++) {
+      const PetscInt *p = el->p + n * e;
+      ElementHessian((PetscBool)!c->exact_hessian, kind, xl, p, el->coef[e], el->rest ? el->rest[e] : 0, H);
+      for (PetscInt pa = 0; pa < n; pa++) {
+        for (PetscInt pb = 0; pb < n; pb++) {
+          for (PetscInt d = 0; d < 3; d++, total++) {
+            const PetscInt   pos = c->map[total];
+            const PetscReal *h   = H + m * (3 * pa + d) + 3 * pb;
+            PetscScalar     *v;
+            if (pos < 0) continue;
+            v = pos < c->map_nnzA ? va + pos : vb + (pos - c->map_nnzA);
+            v[0] += b * h[0];
+            v[1] += b * h[1];
+            v[2] += b * h[2];
+          }
+        }
+      }
+    }
+  }
+  for (PetscInt k = 0; k < c->nowned; k++)
+    for (PetscInt d = 0; d < 3; d++) va[c->map_diag[3 * k + d] + d] += (c->pinned[k] ? 1 : a) * c->mass[k];
+  PetscCall(MatSeqAIJRestoreArray(Ad, &va));
+  if (Ao) PetscCall(MatSeqAIJRestoreArray(Ao, &vb));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode ClothAssembleMatrix(Cloth c, const PetscScalar *x, PetscReal a, PetscReal b, Mat J)
 {
   const PetscScalar *xl;
 
   PetscFunctionBeginUser;
   PetscCall(PetscLogEventBegin(drape_log.jacobian, 0, 0, 0, 0));
-  PetscCall(MatZeroEntries(J));
+  if (c->map_mat != J) PetscCall(ClothBuildAssemblyMap(c, J));
   PetscCall(ClothScatterPositions(c, x, &xl));
-  PetscCall(ClothAddToMatrix(c, xl, a, b, J));
+  if (c->map) PetscCall(ClothAddToMatrixFast(c, xl, a, b, J));
+  else {
+    PetscCall(MatZeroEntries(J));
+    PetscCall(ClothAddToMatrix(c, xl, a, b, J));
+  }
   PetscCall(ClothEndScatter(c, &xl));
   PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
   PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));

@@ -22,11 +22,14 @@ typedef struct {
   PetscScalar       *xt, *vt, *at;
   const PetscScalar *x0, *v0;
   const PetscReal   *mass;
+  const PetscBool   *pinned;
   PetscReal          h, damping;
   PetscInt           n; /* 3 x owned particles */
 } TS_DrapeBE;
 
-/* Trial state of the step: v_t = v0 + dv, x_t = x0 + h v_t. */
+/* Trial state of the step: v_t = v0 + dv, x_t = x0 + h v_t; pinned particles stay
+ * put whatever dv holds, so R of the free particles does not depend on their dv
+ * (the eliminated rows and columns of the matrix). */
 static PetscErrorCode TrialState(TS_DrapeBE *be, Vec DV)
 {
   const PetscScalar *dv;
@@ -34,7 +37,7 @@ static PetscErrorCode TrialState(TS_DrapeBE *be, Vec DV)
   PetscFunctionBeginUser;
   PetscCall(VecGetArrayRead(DV, &dv));
   for (PetscInt i = 0; i < be->n; i++) {
-    be->vt[i] = be->v0[i] + dv[i];
+    be->vt[i] = be->v0[i] + (be->pinned[i / 3] ? 0 : dv[i]);
     be->xt[i] = be->x0[i] + be->h * be->vt[i];
   }
   PetscCall(VecRestoreArrayRead(DV, &dv));
@@ -78,14 +81,13 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
   SNES        snes;
   DM          da;
   ClothInfo   info;
-  const PetscBool *pinned;
 
   PetscFunctionBeginUser;
   PetscCall(TSGetApplicationContext(ts, &be->cloth));
   PetscCheck(be->cloth, PetscObjectComm((PetscObject)ts), PETSC_ERR_ARG_WRONGSTATE, "TS type beuler (drape) needs the Cloth as TS application context");
   PetscCall(ClothGetInfo(be->cloth, &info));
   PetscCall(ClothGetDM(be->cloth, &da));
-  PetscCall(ClothGetMasses(be->cloth, &be->mass, &pinned));
+  PetscCall(ClothGetMasses(be->cloth, &be->mass, &be->pinned));
   be->damping = info.damping;
   be->n       = 3 * info.nowned;
   PetscCall(DMCreateGlobalVector(da, &be->DV));
@@ -200,7 +202,7 @@ static PetscErrorCode TSCreate_DrapeBE(TS ts)
   PetscCall(KSPSetType(ksp, KSPCG));
   PetscCall(KSPSetTolerances(ksp, 1e-6, 1e-50, PETSC_DEFAULT, 1000));
   PetscCall(KSPGetPC(ksp, &pc));
-  PetscCall(PCSetType(pc, PCJACOBI));
+  PetscCall(PCSetType(pc, PCBJACOBI)); /* one block per rank, ILU(0) = ICC(0) on an SPD block */
   PetscFunctionReturn(0);
 }
 

@@ -1,0 +1,84 @@
+"""Shared helpers for drape's test suite: run the program, read its HDF5 output.
+
+Every successful run is made with -malloc_debug -malloc_dump -options_left and is
+checked for leaks and unused options, so each test also guards those."""
+import os
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+BUILD = ROOT / os.environ.get("DRAPE_BUILD", "build")
+DRAPE = BUILD / "drape"
+LEAK = re.compile(r"^\[\s*\d+\]\s*\d+ bytes", re.M)
+
+
+def mpiexec(np_):
+    cmd = ["mpiexec"]
+    if os.geteuid() == 0:
+        cmd.append("--allow-run-as-root")
+    return cmd + ["--oversubscribe", "-np", str(np_)]
+
+
+class Result:
+    def __init__(self, proc):
+        self.returncode = proc.returncode
+        self.stdout = proc.stdout
+        self.stderr = proc.stderr
+
+    def value(self, pattern, cast=float):
+        """First group of `pattern` in stdout."""
+        m = re.search(pattern, self.stdout)
+        assert m, f"{pattern!r} not in output:\n{self.stdout}"
+        return cast(m.group(1))
+
+
+def run(args, np_=1, check=True, checks=True, timeout=600):
+    """Run drape with `args` (a list or a string) on np_ ranks."""
+    if isinstance(args, str):
+        args = args.split()
+    extra = ["-drape_progress", "0"]
+    if check and checks:
+        extra += ["-malloc_debug", "-malloc_dump", "-options_left"]
+    cmd = (mpiexec(np_) if np_ > 1 else []) + [str(DRAPE)] + list(args) + extra
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=ROOT)
+    res = Result(proc)
+    if check:
+        assert proc.returncode == 0, f"{' '.join(cmd)} failed:\n{proc.stdout}\n{proc.stderr}"
+        if checks:
+            assert "There are no unused options." in proc.stdout, f"unused options:\n{proc.stdout}"
+            assert not LEAK.search(proc.stdout + proc.stderr), f"memory leak:\n{proc.stdout}{proc.stderr}"
+    return res
+
+
+class Frames:
+    """The complete frames of a drape HDF5 file."""
+
+    def __init__(self, path):
+        with h5py.File(path, "r") as f:
+            n = f["time"].shape[0]
+            self.time = f["time"][:n].ravel()
+            self.step = f["step"][:n].ravel()
+            self.x = f["position"][:n]
+            self.v = f["velocity"][:n]
+            self.energy = {k[7:]: f[k][:n].ravel() for k in f if k.startswith("energy_")}
+            self.attrs = dict(f.attrs)
+
+    @property
+    def total_energy(self):
+        return sum(self.energy.values())
+
+
+@pytest.fixture
+def tmp(tmp_path):
+    return tmp_path
+
+
+def pytest_configure(config):
+    if not DRAPE.exists():
+        raise pytest.UsageError(f"{DRAPE} is missing: build with 'make all' (or run 'make test')")
