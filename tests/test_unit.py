@@ -24,3 +24,17 @@ def test_kernels():
     proc, output = run_unit("test_kernels")
     assert proc.returncode == 0, f"test_kernels exited with code {proc.returncode}\n{output}"
     assert re.search(r"^\d+ passed, 0 failed$", proc.stdout, re.MULTILINE), f"no 'N passed, 0 failed' line\n{output}"
+
+
+@pytest.mark.parametrize("np_", [1, 2])
+def test_cloth_rigid_motion_and_force_balance(np_):
+    """A rigidly moved cloth at rest feels no internal force; forces rotate with the
+    cloth and have no resultant or torque (1 and 2 ranks, no leaks)."""
+    exe = BUILD / "tests" / "test_cloth"
+    cmd = [str(exe), "-da_grid_x", "9", "-da_grid_y", "7", "-cloth_pin", "edge_corners", "-malloc_debug", "-malloc_dump"]
+    if np_ > 1:
+        cmd = ["mpiexec"] + (["--allow-run-as-root"] if os.geteuid() == 0 else []) + ["--oversubscribe", "-np", str(np_)] + cmd
+    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert re.search(r"^3 passed, 0 failed$", proc.stdout, re.MULTILINE), proc.stdout
+    assert " bytes " not in proc.stdout + proc.stderr, "memory leak"

@@ -1,0 +1,132 @@
+"""Integration: whole runs on 1, 2 and 4 ranks, output files, bad input."""
+import hashlib
+import subprocess
+import time
+
+import h5py
+import numpy as np
+import pytest
+
+from conftest import DRAPE, ROOT, Frames, run
+
+SCENE = "-da_grid_x 13 -da_grid_y 11 -cloth_pin edge_corners -ts_max_time 0.05 -output_interval 0.01"
+
+
+@pytest.mark.parametrize("scheme,args,tol", [
+    ("symplectic", "-ts_type basicsymplectic -ts_dt 2e-4", 1e-12),
+    ("euler", "-ts_type euler -ts_dt 2e-6 -ts_max_time 2e-3 -output_interval 5e-4", 1e-12),
+    ("beuler", "-ts_type beuler -ts_dt 2e-3 -ksp_rtol 1e-12", 1e-9),
+])
+def test_same_frames_on_1_2_4_ranks(tmp, scheme, args, tol):
+    """The same run on 1, 2 and 4 ranks writes the same frames, in natural lattice
+    order: round-off for the explicit schemes, solver tolerance for backward Euler."""
+    frames = {}
+    for np_ in (1, 2, 4):
+        out = tmp / f"{scheme}{np_}.h5"
+        run(f"{SCENE} {args} -output_file {out}", np_=np_)
+        frames[np_] = Frames(out)
+    ref = frames[1]
+    assert len(ref.time) >= 5
+    for np_ in (2, 4):
+        fr = frames[np_]
+        assert np.array_equal(fr.time, ref.time)
+        assert np.abs(fr.x - ref.x).max() <= tol * np.abs(ref.x).max(), f"positions differ on {np_} ranks"
+        assert np.abs(fr.v - ref.v).max() <= tol * np.abs(ref.v).max(), f"velocities differ on {np_} ranks"
+
+
+def test_output_file_contents(tmp):
+    """Frames, energies, attributes and the XDMF index are written as documented."""
+    out = tmp / "hang.h5"
+    run(f"{SCENE} -ts_type beuler -ts_dt 1e-3 -output_file {out}")
+    fr = Frames(out)
+    assert fr.x.shape == (6, 11, 13, 3)
+    assert np.allclose(fr.time, np.arange(6) * 0.01)
+    assert set(fr.energy) == {"kinetic", "gravity", "stretch", "shear", "bend"}
+    assert fr.energy["kinetic"][0] == 0 and fr.energy["kinetic"][-1] > 0
+    assert fr.energy["gravity"][-1] < fr.energy["gravity"][0]  # the cloth falls
+    # the two pinned corners (last weft row, first and last column) do not move
+    assert np.array_equal(fr.x[:, -1, 0], np.repeat(fr.x[:1, -1, 0], 6, axis=0))
+    assert np.array_equal(fr.x[:, -1, -1], np.repeat(fr.x[:1, -1, -1], 6, axis=0))
+    assert b"-ts_type beuler" in fr.attrs["options"]
+    assert fr.attrs["drape_version"]
+    assert abs(float(fr.attrs["mass"]) - 0.15) < 1e-12
+    xmf = (tmp / "hang.xmf").read_text()
+    assert xmf.count("<Time Value=") == 6 and "hang.h5:/position" in xmf
+
+
+def test_killed_run_leaves_readable_frames(tmp):
+    """A run killed part-way (SIGKILL) leaves every frame written before readable."""
+    out = tmp / "killed.h5"
+    cmd = [str(DRAPE)] + (f"-da_grid_x 40 -da_grid_y 40 -cloth_pin edge_corners -ts_type basicsymplectic "
+                          f"-ts_dt 1e-4 -ts_max_time 100 -output_steps 20 -drape_progress 0 -output_file {out}").split()
+    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 60
+    while time.time() < deadline:
+        time.sleep(0.5)
+        try:
+            with h5py.File(out, "r", locking=False) as f:
+                if f["time"].shape[0] >= 3:
+                    break
+        except (OSError, KeyError):
+            pass
+    proc.kill()
+    proc.wait()
+    fr = Frames(out)
+    assert len(fr.time) >= 3
+    assert np.all(np.isfinite(fr.x)) and np.all(np.diff(fr.time) > 0)
+
+
+BAD = [
+    ("-cloth_pin sideways", "-cloth_pin"),
+    ("-cloth_size -1", "-cloth_size must be positive"),
+    ("-da_grid_x 0", "at least 2 x 2 particles"),
+    ("-da_grid_y 1", "at least 2 x 2 particles"),
+    ("-cloth_density 0", "-cloth_density must be positive"),
+    ("-cloth_damping -1", "-cloth_damping must be zero or positive"),
+    ("-cloth_stretch -5", "must be zero or positive"),
+    ("-gravity 0,-9.81", "-gravity needs three components"),
+    ("-cloth_pin list -cloth_pin_list 3,99", "outside the"),
+    ("-cloth_pin list", "needs -cloth_pin_list"),
+    ("-ts_type alpha2", "not supported by drape"),
+    ("-ts_type nosuchscheme", "nosuchscheme"),
+    ("-ts_dt -1e-3", "-ts_dt must be positive"),
+    ("-output_file /nonexistent/dir/out.h5", "does not exist or is not writable"),
+    ("-output_interval -1 -output_file x.h5", "-output_interval must be zero or positive"),
+    ("-cloth_stiffnes 3", "Unknown option -cloth_stiffnes"),
+    ("-drape_stability_its -2", "-drape_stability_its must be zero or positive"),
+]
+
+
+@pytest.mark.parametrize("args,message", BAD, ids=[b[0] for b in BAD])
+def test_bad_input_is_one_clear_sentence(tmp, args, message):
+    """Bad input ends with one 'drape: error:' sentence naming the problem, a non-zero
+    exit, no PETSc traceback, and does not touch output already written."""
+    existing = tmp / "x.h5"
+    existing.write_bytes(b"earlier results")
+    digest = hashlib.sha256(existing.read_bytes()).hexdigest()
+    res = subprocess.run([str(DRAPE)] + args.split() + ["-ts_max_steps", "2"], capture_output=True, text=True, cwd=tmp)
+    assert res.returncode != 0
+    lines = [l for l in res.stderr.splitlines() if l.strip()]
+    assert len(lines) == 1 and lines[0].startswith("drape: error:"), res.stderr
+    assert message in lines[0], lines[0]
+    assert hashlib.sha256(existing.read_bytes()).hexdigest() == digest
+
+
+def test_divergence_is_caught_and_earlier_frames_survive(tmp):
+    """A step far above the symplectic limit is stopped with a message naming the step
+    and the limit; the frames written before it stay readable and finite."""
+    out = tmp / "div.h5"
+    res = run(f"-da_grid_x 10 -da_grid_y 10 -cloth_pin edge_corners -ts_type basicsymplectic -ts_dt 2e-3 "
+              f"-ts_max_time 10 -output_steps 1 -output_interval 0 -output_file {out}", check=False)
+    assert res.returncode != 0
+    assert "diverged at step" in res.stderr and "symplectic Euler h <" in res.stderr
+    fr = Frames(out)
+    assert len(fr.time) >= 1 and np.all(np.isfinite(fr.x))
+
+
+def test_help_lists_drape_options():
+    res = subprocess.run([str(DRAPE), "-help"], capture_output=True, text=True, cwd=ROOT)
+    assert res.returncode == 0
+    for opt in ("-cloth_size", "-cloth_density", "-cloth_damping", "-cloth_stretch", "-cloth_shear", "-cloth_bend",
+                "-cloth_pin", "-gravity", "-output_file", "-output_interval", "-drape_progress", "-ts_type"):
+        assert opt in res.stdout, opt

@@ -1,0 +1,125 @@
+static const char help[] = "Cloth-level checks: rigid motions feel no internal force; internal forces\n"
+                           "rotate with the cloth and have zero resultant and zero torque.\n";
+
+#include <cloth.h>
+#include <drape.h>
+
+/* A random rotation (unit quaternion) and translation. */
+static PetscErrorCode RandomRigidMotion(PetscRandom rnd, PetscReal R[9], PetscReal t[3])
+{
+  PetscReal q[4], n = 0;
+
+  PetscFunctionBeginUser;
+  for (PetscInt i = 0; i < 4; i++) {
+    PetscCall(PetscRandomGetValueReal(rnd, &q[i]));
+    q[i] -= 0.5;
+    n += q[i] * q[i];
+  }
+  for (PetscInt i = 0; i < 4; i++) q[i] /= PetscSqrtReal(n);
+  R[0] = 1 - 2 * (q[2] * q[2] + q[3] * q[3]);
+  R[1] = 2 * (q[1] * q[2] - q[0] * q[3]);
+  R[2] = 2 * (q[1] * q[3] + q[0] * q[2]);
+  R[3] = 2 * (q[1] * q[2] + q[0] * q[3]);
+  R[4] = 1 - 2 * (q[1] * q[1] + q[3] * q[3]);
+  R[5] = 2 * (q[2] * q[3] - q[0] * q[1]);
+  R[6] = 2 * (q[1] * q[3] - q[0] * q[2]);
+  R[7] = 2 * (q[2] * q[3] + q[0] * q[1]);
+  R[8] = 1 - 2 * (q[1] * q[1] + q[2] * q[2]);
+  for (PetscInt i = 0; i < 3; i++) {
+    PetscCall(PetscRandomGetValueReal(rnd, &t[i]));
+    t[i] = 4 * (t[i] - 0.5);
+  }
+  PetscFunctionReturn(0);
+}
+
+static void Apply(const PetscReal R[9], const PetscReal t[3], PetscInt n, const PetscScalar *x, PetscScalar *y)
+{
+  for (PetscInt k = 0; k < n; k++)
+    for (PetscInt i = 0; i < 3; i++) y[3 * k + i] = R[3 * i] * x[3 * k] + R[3 * i + 1] * x[3 * k + 1] + R[3 * i + 2] * x[3 * k + 2] + (t ? t[i] : 0);
+}
+
+static PetscErrorCode MaxAbs(MPI_Comm comm, PetscInt n, const PetscScalar *a, PetscReal *m)
+{
+  PetscReal loc = 0;
+
+  PetscFunctionBeginUser;
+  for (PetscInt i = 0; i < n; i++) loc = PetscMax(loc, PetscAbsReal(a[i]));
+  PetscCall(MPIU_Allreduce(&loc, m, 1, MPIU_REAL, MPI_MAX, comm));
+  PetscFunctionReturn(0);
+}
+
+int main(int argc, char **argv)
+{
+  MPI_Comm      comm;
+  Cloth         cloth;
+  ClothInfo     info;
+  ClothEnergies en;
+  PetscRandom   rnd;
+  PetscScalar  *x, *v, *y, *f, *g, *Rf;
+  PetscReal     R[9], t[3], fscale, m, loc[6], sum[6];
+  PetscInt      n, passed = 0;
+
+  PetscCall(PetscInitialize(&argc, &argv, NULL, help));
+  comm = PETSC_COMM_WORLD;
+  PetscCall(DrapeInitialize());
+  PetscCall(ClothCreate(comm, &cloth));
+  PetscCall(ClothSetFromOptions(cloth));
+  PetscCall(ClothSetUp(cloth));
+  PetscCall(ClothGetInfo(cloth, &info));
+  n = 3 * info.nowned;
+  PetscCall(PetscMalloc6(n, &x, n, &v, n, &y, n, &f, n, &g, n, &Rf));
+  PetscCall(PetscRandomCreate(comm, &rnd));
+  PetscCall(PetscRandomSetSeed(rnd, 7));
+  PetscCall(PetscRandomSeed(rnd));
+  fscale = PetscMax(info.stretch[0], info.stretch[1]) * info.spacing[0];
+
+  /* 1. the flat sheet at rest, moved rigidly: no internal force, no internal energy */
+  PetscCall(ClothSetInitialState(cloth, x, v));
+  PetscCall(RandomRigidMotion(rnd, R, t));
+  Apply(R, t, info.nowned, x, y);
+  PetscCall(ClothComputeInternalForce(cloth, y, f));
+  PetscCall(MaxAbs(comm, n, f, &m));
+  PetscCall(ClothComputeEnergies(cloth, y, v, &en));
+  PetscCall(PetscPrintf(comm, "rigid motion of the rest state: max |F_int| = %.3e (scale %.3e), internal energy %.3e J\n", (double)m, (double)fscale, (double)(en.stretch + en.shear + en.bend)));
+  PetscCheck(m < 1e-9 * fscale && en.stretch + en.shear + en.bend < 1e-12 * fscale * info.size[0], comm, PETSC_ERR_PLIB, "a rigidly moved cloth feels internal forces");
+  passed++;
+
+  /* 2. a random deformation: forces rotate with the cloth, sum to zero, no torque */
+  for (PetscInt i = 0; i < n; i++) {
+    PetscReal r;
+    PetscCall(PetscRandomGetValueReal(rnd, &r));
+    x[i] += 0.2 * info.spacing[0] * (r - 0.5);
+  }
+  PetscCall(ClothComputeInternalForce(cloth, x, f));
+  Apply(R, t, info.nowned, x, y);
+  PetscCall(ClothComputeInternalForce(cloth, y, g));
+  Apply(R, NULL, info.nowned, f, Rf);
+  for (PetscInt i = 0; i < n; i++) Rf[i] -= g[i];
+  PetscCall(MaxAbs(comm, n, Rf, &m));
+  PetscCall(MaxAbs(comm, n, f, &fscale));
+  PetscCall(PetscPrintf(comm, "deformed cloth: max |R F(x) - F(Rx + t)| = %.3e (max |F| %.3e)\n", (double)m, (double)fscale));
+  PetscCheck(m < 1e-11 * fscale, comm, PETSC_ERR_PLIB, "internal forces do not rotate with the cloth");
+  passed++;
+  for (PetscInt i = 0; i < 6; i++) loc[i] = 0;
+  for (PetscInt k = 0; k < info.nowned; k++) {
+    const PetscScalar *p = x + 3 * k, *q = f + 3 * k;
+    for (PetscInt i = 0; i < 3; i++) loc[i] += q[i];
+    loc[3] += p[1] * q[2] - p[2] * q[1];
+    loc[4] += p[2] * q[0] - p[0] * q[2];
+    loc[5] += p[0] * q[1] - p[1] * q[0];
+  }
+  PetscCall(MPIU_Allreduce(loc, sum, 6, MPIU_REAL, MPI_SUM, comm));
+  m = 0;
+  for (PetscInt i = 0; i < 6; i++) m = PetscMax(m, PetscAbsReal(sum[i]));
+  PetscCall(PetscPrintf(comm, "deformed cloth: |resultant|, |torque| <= %.3e (max |F| %.3e)\n", (double)m, (double)fscale));
+  PetscCheck(m < 1e-10 * fscale * info.nparticles, comm, PETSC_ERR_PLIB, "internal forces have a resultant or a torque");
+  passed++;
+
+  PetscCall(PetscPrintf(comm, "%" PetscInt_FMT " passed, 0 failed\n", passed));
+  PetscCall(PetscRandomDestroy(&rnd));
+  PetscCall(PetscFree6(x, v, y, f, g, Rf));
+  PetscCall(ClothDestroy(&cloth));
+  PetscCall(DrapeFinalize());
+  PetscCall(PetscFinalize());
+  return 0;
+}
