@@ -20,14 +20,14 @@ typedef struct {
 
 /* Summary numbers a driver prints or writes next to the results. */
 typedef struct {
-  PetscInt  Mx, My;                  /* lattice size (warp x weft)           */
-  PetscInt  nparticles, npinned;     /* global counts                        */
-  PetscInt  nstretch, nshear, nbend; /* global element counts                */
-  PetscInt  nowned;                  /* particles owned by this rank         */
-  PetscReal mass;                    /* total mass, kg                       */
-  PetscReal damping;                 /* mass-proportional damping, 1/s       */
-  PetscReal gravity[3];              /* m/s^2                                */
-  PetscReal size[2], spacing[2];     /* cloth size and lattice spacing, m    */
+  PetscInt  Mx, My;                     /* lattice size (warp x weft)           */
+  PetscInt  nparticles, npinned;        /* global counts                        */
+  PetscInt  nstretch, nshear, nbend;    /* global element counts                */
+  PetscInt  nowned;                     /* particles owned by this rank         */
+  PetscReal mass;                       /* total mass, kg                       */
+  PetscReal damping;                    /* mass-proportional damping, 1/s       */
+  PetscReal gravity[3];                 /* m/s^2                                */
+  PetscReal size[2], spacing[2];        /* cloth size and lattice spacing, m    */
   PetscReal stretch[2], shear, bend[2]; /* continuum rigidities (see README) */
 } ClothInfo;
 

@@ -36,7 +36,7 @@ static PetscErrorCode DrapeErrorHandler(MPI_Comm comm, int line, const char *fun
   if (!error_is_user) return PetscTraceBackErrorHandler(comm, line, fun, file, n, p, mess, ctx);
   if (p == PETSC_ERROR_INITIAL) {
     if (comm != MPI_COMM_NULL) MPI_Comm_rank(comm, &rank);
-    if (!rank) (void)PetscFPrintf(PETSC_COMM_SELF, PETSC_STDERR, "drape: error: %s\n", mess ? mess : "(no message)");
+    if (!rank) (void) PetscFPrintf(PETSC_COMM_SELF, PETSC_STDERR, "drape: error: %s\n", mess ? mess : "(no message)");
   }
   return n;
 }

@@ -18,8 +18,8 @@ PetscErrorCode ClothCreate(MPI_Comm comm, Cloth *cloth)
   c->damping     = 0.2;   /* 1/s: light air drag on a 1 m cloth                     */
   c->stretch[0]  = 500.0; /* N/m: tensile rigidity per unit width at small strain   */
   c->stretch[1]  = 500.0;
-  c->shear       = 30.0;   /* N/m per rad: KES G ~ 0.5 gf/(cm deg)                  */
-  c->bend[0]     = 5e-6;   /* N m: KES B ~ 0.05 gf cm^2/cm                           */
+  c->shear       = 30.0; /* N/m per rad: KES G ~ 0.5 gf/(cm deg)                  */
+  c->bend[0]     = 5e-6; /* N m: KES B ~ 0.05 gf cm^2/cm                           */
   c->bend[1]     = 5e-6;
   c->gravity[2]  = -9.81;
   c->origin[2]   = 1.0;
@@ -39,7 +39,7 @@ static PetscErrorCode OptionsWarpWeft(PetscOptionItems *PetscOptionsObject, cons
   char      deflt[64];
 
   PetscFunctionBeginUser;
-  PetscCall(PetscSNPrintf(deflt, sizeof deflt, "%g,%g", (double)value[0], (double)value[1]));
+  PetscCall(PetscSNPrintf(deflt, sizeof deflt, "%g,%g", (double) value[0], (double) value[1]));
   PetscCall(PetscOptionsRealArray(name, text, deflt, value, &n, &set));
   if (set && n == 1) value[1] = value[0];
   PetscCheck(!set || n > 0, PETSC_COMM_WORLD, PETSC_ERR_USER_INPUT, "Option %s needs one value (warp = weft) or two (warp,weft)", name);
@@ -48,8 +48,8 @@ static PetscErrorCode OptionsWarpWeft(PetscOptionItems *PetscOptionsObject, cons
 
 PetscErrorCode ClothSetFromOptions(Cloth c)
 {
-  PetscInt  n, npin = 0, ipin = (PetscInt)c->pin, iorient = (PetscInt)c->orientation, hess = 0;
-  PetscBool set;
+  PetscInt          n, npin = 0, ipin = (PetscInt) c->pin, iorient = (PetscInt) c->orientation, hess = 0;
+  PetscBool         set;
   const char *const hessian_names[] = {"projected", "exact", "ClothHessian", "", NULL};
 
   PetscFunctionBeginUser;
@@ -78,37 +78,37 @@ PetscErrorCode ClothSetFromOptions(Cloth c)
   c->npin_list = set ? npin / 2 : 0;
   PetscCall(PetscOptionsEList("-cloth_hessian", "Hessian in the implicit matrix: projected (SPD, default) or exact (may be indefinite)", "ClothSetFromOptions", hessian_names, 2, hessian_names[0], &hess, NULL));
   PetscOptionsEnd();
-  c->pin           = (ClothPinType)ipin;
-  c->orientation   = (ClothOrientation)iorient;
+  c->pin           = (ClothPinType) ipin;
+  c->orientation   = (ClothOrientation) iorient;
   c->exact_hessian = hess == 1 ? PETSC_TRUE : PETSC_FALSE;
 
   PetscCheck(c->Mx >= 2 && c->My >= 2, c->comm, PETSC_ERR_USER_INPUT, "The lattice must have at least 2 x 2 particles; got -da_grid_x %" PetscInt_FMT " -da_grid_y %" PetscInt_FMT, c->Mx, c->My);
-  PetscCheck(c->size[0] > 0 && c->size[1] > 0, c->comm, PETSC_ERR_USER_INPUT, "-cloth_size must be positive (metres); got %g,%g", (double)c->size[0], (double)c->size[1]);
-  PetscCheck(c->density > 0, c->comm, PETSC_ERR_USER_INPUT, "-cloth_density must be positive (kg/m^2); got %g", (double)c->density);
-  PetscCheck(c->damping >= 0, c->comm, PETSC_ERR_USER_INPUT, "-cloth_damping must be zero or positive (1/s); got %g", (double)c->damping);
+  PetscCheck(c->size[0] > 0 && c->size[1] > 0, c->comm, PETSC_ERR_USER_INPUT, "-cloth_size must be positive (metres); got %g,%g", (double) c->size[0], (double) c->size[1]);
+  PetscCheck(c->density > 0, c->comm, PETSC_ERR_USER_INPUT, "-cloth_density must be positive (kg/m^2); got %g", (double) c->density);
+  PetscCheck(c->damping >= 0, c->comm, PETSC_ERR_USER_INPUT, "-cloth_damping must be zero or positive (1/s); got %g", (double) c->damping);
   PetscCheck(c->stretch[0] >= 0 && c->stretch[1] >= 0 && c->shear >= 0 && c->bend[0] >= 0 && c->bend[1] >= 0, c->comm, PETSC_ERR_USER_INPUT, "Material rigidities (-cloth_stretch, -cloth_shear, -cloth_bend) must be zero or positive");
   PetscCheck(c->pin != CLOTH_PIN_LIST || c->npin_list > 0, c->comm, PETSC_ERR_USER_INPUT, "-cloth_pin list needs -cloth_pin_list i0,j0,i1,j1,...");
   PetscCheck(c->npin_list == 0 || c->pin == CLOTH_PIN_LIST, c->comm, PETSC_ERR_USER_INPUT, "-cloth_pin_list is used only with -cloth_pin list");
   PetscCheck(npin % 2 == 0, c->comm, PETSC_ERR_USER_INPUT, "-cloth_pin_list needs pairs i,j; got %" PetscInt_FMT " numbers", npin);
   for (PetscInt p = 0; p < c->npin_list; p++) {
     PetscInt i = c->pin_list[2 * p], j = c->pin_list[2 * p + 1];
-    PetscCheck(i >= 0 && i < c->Mx && j >= 0 && j < c->My, c->comm, PETSC_ERR_USER_INPUT, "-cloth_pin_list entry (%" PetscInt_FMT ",%" PetscInt_FMT ") is outside the %" PetscInt_FMT " x %" PetscInt_FMT " lattice (indices start at 0)", i, j, c->Mx, c->My);
+    PetscCheck(i >= 0 && i < c->Mx && j >= 0 && j < c->My, c->comm, PETSC_ERR_USER_INPUT, "-cloth_pin_list entry (%" PetscInt_FMT ",%" PetscInt_FMT ") is outside the %" PetscInt_FMT " x %" PetscInt_FMT " lattice (indices start at 0)", i, j, c->Mx,
+               c->My);
   }
   PetscFunctionReturn(0);
 }
 
-
 static PetscBool IsPinned(Cloth c, PetscInt i, PetscInt j)
 {
-  PetscBool last_row = (PetscBool)(j == c->My - 1), end_col = (PetscBool)(i == 0 || i == c->Mx - 1);
+  PetscBool last_row = (PetscBool) (j == c->My - 1), end_col = (PetscBool) (i == 0 || i == c->Mx - 1);
 
   switch (c->pin) {
   case CLOTH_PIN_NONE:
     return PETSC_FALSE;
   case CLOTH_PIN_CORNERS:
-    return (PetscBool)(end_col && (j == 0 || last_row));
+    return (PetscBool) (end_col && (j == 0 || last_row));
   case CLOTH_PIN_EDGE_CORNERS:
-    return (PetscBool)(end_col && last_row);
+    return (PetscBool) (end_col && last_row);
   case CLOTH_PIN_EDGE:
     return last_row;
   case CLOTH_PIN_LIST:
@@ -148,7 +148,7 @@ static PetscErrorCode ClothBuildElements(Cloth c)
   PetscInt        gxs = c->gxs, gys = c->gys, gxe = c->gxs + c->gxm, gye = c->gys + c->gym, nl = c->nlocal;
   ClothElements  *st = &c->stretch_el, *sh = &c->shear_el, *be = &c->bend_el;
 
-#define LOCAL(i, j) (((j) - gys) * c->gxm + ((i) - gxs))
+#define LOCAL(i, j) (((j) -gys) * c->gxm + ((i) -gxs))
 #define OWNED(i, j) ((i) >= c->xs && (i) < c->xs + c->xm && (j) >= c->ys && (j) < c->ys + c->ym)
   PetscFunctionBeginUser;
   PetscCall(ElementsAllocate(st, 2 * nl, 2, PETSC_TRUE));
@@ -158,52 +158,48 @@ static PetscErrorCode ClothBuildElements(Cloth c)
     for (PetscInt i = gxs; i < gxe; i++) {
       /* stretch along the warp (i) and the weft (j) */
       if (c->stretch[0] > 0 && i + 1 < gxe && (OWNED(i, j) || OWNED(i + 1, j))) {
-        PetscInt e = st->n++;
-        st->p[2 * e] = LOCAL(i, j);
+        PetscInt e       = st->n++;
+        st->p[2 * e]     = LOCAL(i, j);
         st->p[2 * e + 1] = LOCAL(i + 1, j);
-        st->coef[e] = c->stretch[0] * dy * EdgeWeight(j, c->My) / dx;
-        st->rest[e] = dx;
-        st->own[e]  = (unsigned char)OWNED(i, j);
+        st->coef[e]      = c->stretch[0] * dy * EdgeWeight(j, c->My) / dx;
+        st->rest[e]      = dx;
+        st->own[e]       = (unsigned char) OWNED(i, j);
       }
       if (c->stretch[1] > 0 && j + 1 < gye && (OWNED(i, j) || OWNED(i, j + 1))) {
-        PetscInt e = st->n++;
-        st->p[2 * e] = LOCAL(i, j);
+        PetscInt e       = st->n++;
+        st->p[2 * e]     = LOCAL(i, j);
         st->p[2 * e + 1] = LOCAL(i, j + 1);
-        st->coef[e] = c->stretch[1] * dx * EdgeWeight(i, c->Mx) / dy;
-        st->rest[e] = dy;
-        st->own[e]  = (unsigned char)OWNED(i, j);
+        st->coef[e]      = c->stretch[1] * dx * EdgeWeight(i, c->Mx) / dy;
+        st->rest[e]      = dy;
+        st->own[e]       = (unsigned char) OWNED(i, j);
       }
       /* shear: the four corners of cell (i, j) as (a: warp end, b: weft end, c: vertex) */
       if (c->shear > 0 && i + 1 < gxe && j + 1 < gye && (OWNED(i, j) || OWNED(i + 1, j) || OWNED(i, j + 1) || OWNED(i + 1, j + 1))) {
         const PetscInt corner[4][3] = {
-          {LOCAL(i + 1, j),     LOCAL(i, j + 1),     LOCAL(i, j)        },
-          {LOCAL(i, j),         LOCAL(i + 1, j + 1), LOCAL(i + 1, j)    },
-          {LOCAL(i + 1, j + 1), LOCAL(i, j),         LOCAL(i, j + 1)    },
-          {LOCAL(i, j + 1),     LOCAL(i + 1, j),     LOCAL(i + 1, j + 1)}
-        };
+          {LOCAL(i + 1, j), LOCAL(i, j + 1), LOCAL(i, j)}, {LOCAL(i, j), LOCAL(i + 1, j + 1), LOCAL(i + 1, j)}, {LOCAL(i + 1, j + 1), LOCAL(i, j), LOCAL(i, j + 1)}, {LOCAL(i, j + 1), LOCAL(i + 1, j), LOCAL(i + 1, j + 1)}};
         for (PetscInt k = 0; k < 4; k++) {
           PetscInt e = sh->n++;
           for (PetscInt q = 0; q < 3; q++) sh->p[3 * e + q] = corner[k][q];
           sh->coef[e] = c->shear / 8;
-          sh->own[e]  = (unsigned char)OWNED(i, j);
+          sh->own[e]  = (unsigned char) OWNED(i, j);
         }
       }
       /* bending: triples along the warp and the weft centred on (i, j) */
       if (c->bend[0] > 0 && i - 1 >= gxs && i + 1 < gxe && (OWNED(i - 1, j) || OWNED(i, j) || OWNED(i + 1, j))) {
-        PetscInt e = be->n++;
-        be->p[3 * e] = LOCAL(i - 1, j);
+        PetscInt e       = be->n++;
+        be->p[3 * e]     = LOCAL(i - 1, j);
         be->p[3 * e + 1] = LOCAL(i + 1, j);
         be->p[3 * e + 2] = LOCAL(i, j);
-        be->coef[e] = c->bend[0] * dy * EdgeWeight(j, c->My) / dx;
-        be->own[e]  = (unsigned char)OWNED(i, j);
+        be->coef[e]      = c->bend[0] * dy * EdgeWeight(j, c->My) / dx;
+        be->own[e]       = (unsigned char) OWNED(i, j);
       }
       if (c->bend[1] > 0 && j - 1 >= gys && j + 1 < gye && (OWNED(i, j - 1) || OWNED(i, j) || OWNED(i, j + 1))) {
-        PetscInt e = be->n++;
-        be->p[3 * e] = LOCAL(i, j - 1);
+        PetscInt e       = be->n++;
+        be->p[3 * e]     = LOCAL(i, j - 1);
         be->p[3 * e + 1] = LOCAL(i, j + 1);
         be->p[3 * e + 2] = LOCAL(i, j);
-        be->coef[e] = c->bend[1] * dx * EdgeWeight(i, c->Mx) / dy;
-        be->own[e]  = (unsigned char)OWNED(i, j);
+        be->coef[e]      = c->bend[1] * dx * EdgeWeight(i, c->Mx) / dy;
+        be->own[e]       = (unsigned char) OWNED(i, j);
       }
     }
   }
@@ -221,10 +217,10 @@ static PetscInt CountOwned(const ClothElements *el, PetscInt per)
 
 PetscErrorCode ClothSetUp(Cloth c)
 {
-  const PetscInt *gidx;
+  const PetscInt        *gidx;
   ISLocalToGlobalMapping ltog;
-  PetscInt        k, counts[4], sums[4];
-  PetscReal       mass;
+  PetscInt               k, counts[4], sums[4];
+  PetscReal              mass;
 
   PetscFunctionBeginUser;
   if (c->setup) PetscFunctionReturn(0);
@@ -252,8 +248,8 @@ PetscErrorCode ClothSetUp(Cloth c)
   PetscCall(PetscMalloc4(c->nlocal, &c->row_map, c->nlocal, &c->col_map, c->nlocal, &c->pinned_local, c->nlocal, &c->global));
   for (PetscInt j = c->gys; j < c->gys + c->gym; j++) {
     for (PetscInt i = c->gxs; i < c->gxs + c->gxm; i++) {
-      PetscInt  l     = (j - c->gys) * c->gxm + (i - c->gxs);
-      PetscBool owned = (PetscBool)(i >= c->xs && i < c->xs + c->xm && j >= c->ys && j < c->ys + c->ym);
+      PetscInt  l        = (j - c->gys) * c->gxm + (i - c->gxs);
+      PetscBool owned    = (PetscBool) (i >= c->xs && i < c->xs + c->xm && j >= c->ys && j < c->ys + c->ym);
       c->pinned_local[l] = IsPinned(c, i, j);
       c->global[l]       = gidx[l];
       c->col_map[l]      = c->pinned_local[l] ? -1 : gidx[l];
@@ -371,9 +367,11 @@ PetscErrorCode ClothSetInitialState(Cloth c, PetscScalar *x, PetscScalar *v)
 PetscErrorCode ClothView(Cloth c, PetscViewer viewer)
 {
   PetscFunctionBeginUser;
-  PetscCall(PetscViewerASCIIPrintf(viewer, "Cloth: %" PetscInt_FMT " x %" PetscInt_FMT " particles (%g x %g m, spacing %g x %g m), %" PetscInt_FMT " pinned, mass %g kg\n", c->Mx, c->My, (double)c->size[0], (double)c->size[1], (double)c->spacing[0], (double)c->spacing[1], c->npinned, (double)c->total_mass));
+  PetscCall(PetscViewerASCIIPrintf(viewer, "Cloth: %" PetscInt_FMT " x %" PetscInt_FMT " particles (%g x %g m, spacing %g x %g m), %" PetscInt_FMT " pinned, mass %g kg\n", c->Mx, c->My, (double) c->size[0], (double) c->size[1],
+                                   (double) c->spacing[0], (double) c->spacing[1], c->npinned, (double) c->total_mass));
   PetscCall(PetscViewerASCIIPrintf(viewer, "  interactions: %" PetscInt_FMT " stretch edges, %" PetscInt_FMT " shear cells, %" PetscInt_FMT " bending triples\n", c->nstretch, c->nshear, c->nbend));
-  PetscCall(PetscViewerASCIIPrintf(viewer, "  material: stretch %g,%g N/m, shear %g N/m, bend %g,%g N m, density %g kg/m^2, damping %g 1/s\n", (double)c->stretch[0], (double)c->stretch[1], (double)c->shear, (double)c->bend[0], (double)c->bend[1], (double)c->density, (double)c->damping));
-  PetscCall(PetscViewerASCIIPrintf(viewer, "  gravity (%g, %g, %g) m/s^2, Hessian %s\n", (double)c->gravity[0], (double)c->gravity[1], (double)c->gravity[2], c->exact_hessian ? "exact" : "SPD-projected"));
+  PetscCall(PetscViewerASCIIPrintf(viewer, "  material: stretch %g,%g N/m, shear %g N/m, bend %g,%g N m, density %g kg/m^2, damping %g 1/s\n", (double) c->stretch[0], (double) c->stretch[1], (double) c->shear, (double) c->bend[0],
+                                   (double) c->bend[1], (double) c->density, (double) c->damping));
+  PetscCall(PetscViewerASCIIPrintf(viewer, "  gravity (%g, %g, %g) m/s^2, Hessian %s\n", (double) c->gravity[0], (double) c->gravity[1], (double) c->gravity[2], c->exact_hessian ? "exact" : "SPD-projected"));
   PetscFunctionReturn(0);
 }

@@ -38,18 +38,18 @@ struct _p_Cloth {
   PetscBool        exact_hessian;       /* keep indefinite Hessians (tests only)  */
   PetscBool        setup;
   /* lattice */
-  DM        da;
-  Vec       Xg, Xl, Yl; /* global (array placed), local ghosted work vectors */
-  PetscInt  Mx, My;
-  PetscReal spacing[2];
-  PetscInt  xs, ys, xm, ym, gxs, gys, gxm, gym;
-  PetscInt  nowned, nlocal;
-  PetscInt *owned_local;          /* local index of each owned particle       */
-  PetscInt *row_map, *col_map;    /* local -> global block index, or -1       */
-  PetscInt *global;               /* local -> global block index              */
-  PetscReal *mass;                /* owned particles                          */
-  PetscBool *pinned;              /* owned particles                          */
-  PetscBool *pinned_local;        /* owned + ghost                            */
+  DM            da;
+  Vec           Xg, Xl, Yl; /* global (array placed), local ghosted work vectors */
+  PetscInt      Mx, My;
+  PetscReal     spacing[2];
+  PetscInt      xs, ys, xm, ym, gxs, gys, gxm, gym;
+  PetscInt      nowned, nlocal;
+  PetscInt     *owned_local;       /* local index of each owned particle       */
+  PetscInt     *row_map, *col_map; /* local -> global block index, or -1       */
+  PetscInt     *global;            /* local -> global block index              */
+  PetscReal    *mass;              /* owned particles                          */
+  PetscBool    *pinned;            /* owned particles                          */
+  PetscBool    *pinned_local;      /* owned + ghost                            */
   ClothElements stretch_el, shear_el, bend_el;
   PetscInt      nstretch, nshear, nbend, npinned; /* global counts            */
   PetscReal     total_mass;

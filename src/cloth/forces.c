@@ -133,8 +133,10 @@ PetscErrorCode ClothComputeEnergies(Cloth c, const PetscScalar *x, const PetscSc
 /* Element Hessian (particles p[0..n-1]); H is (3n x 3n) row-major. */
 static inline void ElementHessian(PetscBool project, PetscInt kind, const PetscReal *xl, const PetscInt *p, PetscReal coef, PetscReal rest, PetscReal *H)
 {
-  if (kind == 0) KernelStretch(xl + 3 * p[0], xl + 3 * p[1], coef, rest, NULL, H, project);
-  else KernelAngle(kind == 1 ? KERNEL_SHEAR : KERNEL_BEND, xl + 3 * p[0], xl + 3 * p[1], xl + 3 * p[2], coef, NULL, H, project);
+  if (kind == 0)
+    KernelStretch(xl + 3 * p[0], xl + 3 * p[1], coef, rest, NULL, H, project);
+  else
+    KernelAngle(kind == 1 ? KERNEL_SHEAR : KERNEL_BEND, xl + 3 * p[0], xl + 3 * p[1], xl + 3 * p[2], coef, NULL, H, project);
 }
 
 PetscErrorCode ClothApplyHessian(Cloth c, const PetscScalar *x, const PetscScalar *z, PetscScalar *y)
@@ -158,7 +160,7 @@ PetscErrorCode ClothApplyHessian(Cloth c, const PetscScalar *x, const PetscScala
     if (c->pinned_local[l]) zl[3 * l] = zl[3 * l + 1] = zl[3 * l + 2] = 0;
   for (PetscInt kind = 0; kind < 3; kind++) {
     const ClothElements *el = lists[kind];
-    const PetscInt       n  = kind ? 3 : 2, m = 3 * n;
+    const PetscInt       n = kind ? 3 : 2, m = 3 * n;
     for (PetscInt e = 0; e < el->n; e++) {
       const PetscInt *p = el->p + n * e;
       ElementHessian(PETSC_FALSE, kind, xl, p, el->coef[e], el->rest ? el->rest[e] : 0, H);
@@ -197,7 +199,7 @@ static PetscErrorCode ClothAddToMatrix(Cloth c, const PetscReal *xl, PetscReal a
         cols[i] = c->col_map[p[i]];
       }
       if (xl) {
-        ElementHessian((PetscBool)!c->exact_hessian, kind, xl, p, el->coef[e], el->rest ? el->rest[e] : 0, H);
+        ElementHessian((PetscBool) !c->exact_hessian, kind, xl, p, el->coef[e], el->rest ? el->rest[e] : 0, H);
         for (PetscInt i = 0; i < 9 * n * n; i++) H[i] *= b;
       }
       PetscCall(MatSetValuesBlocked(J, n, rows, n, cols, H, ADD_VALUES));
@@ -256,8 +258,10 @@ static PetscErrorCode FindColumn(const PetscInt *ia, const PetscInt *ja, const P
       *pos = mid;
       PetscFunctionReturn(0);
     }
-    if (c < col) lo = mid + 1;
-    else hi = mid - 1;
+    if (c < col)
+      lo = mid + 1;
+    else
+      hi = mid - 1;
   }
   SETERRQ(PETSC_COMM_SELF, PETSC_ERR_PLIB, "Column %" PetscInt_FMT " of row %" PetscInt_FMT " is not in the matrix pattern", col, row);
 }
@@ -267,16 +271,18 @@ static PetscErrorCode ClothBuildAssemblyMap(Cloth c, Mat J)
   const ClothElements *lists[3] = {&c->stretch_el, &c->shear_el, &c->bend_el};
   Mat                  Ad, Ao = NULL;
   const PetscInt      *ia, *ja, *ib = NULL, *jb = NULL, *garray = NULL;
-  PetscInt             nrows, rstart, cstart, cend, total = 0, nnzA;
+  PetscInt             nrows, rstart, cstart, cend, total       = 0, nnzA;
   PetscBool            done, ismpi, isseq;
 
   PetscFunctionBeginUser;
-  PetscCall(PetscObjectTypeCompare((PetscObject)J, MATMPIAIJ, &ismpi));
-  PetscCall(PetscObjectTypeCompare((PetscObject)J, MATSEQAIJ, &isseq));
+  PetscCall(PetscObjectTypeCompare((PetscObject) J, MATMPIAIJ, &ismpi));
+  PetscCall(PetscObjectTypeCompare((PetscObject) J, MATSEQAIJ, &isseq));
   c->map_mat = J;
   if (!ismpi && !isseq) PetscFunctionReturn(0); /* other types: MatSetValuesBlocked */
-  if (ismpi) PetscCall(MatMPIAIJGetSeqAIJ(J, &Ad, &Ao, &garray));
-  else Ad = J;
+  if (ismpi)
+    PetscCall(MatMPIAIJGetSeqAIJ(J, &Ad, &Ao, &garray));
+  else
+    Ad = J;
   PetscCall(MatGetOwnershipRange(J, &rstart, NULL));
   PetscCall(MatGetOwnershipRangeColumn(J, &cstart, &cend));
   PetscCall(MatGetRowIJ(Ad, 0, PETSC_FALSE, PETSC_FALSE, &nrows, &ia, &ja, &done));
@@ -333,31 +339,33 @@ static PetscErrorCode ClothBuildAssemblyMap(Cloth c, Mat J)
 static PetscErrorCode ClothAddToMatrixFast(Cloth c, const PetscReal *xl, PetscReal a, PetscReal b, Mat J)
 {
   const ClothElements *lists[3] = {&c->stretch_el, &c->shear_el, &c->bend_el};
-  Mat                  Ad, Ao = NULL;
+  Mat                  Ad, Ao  = NULL;
   PetscScalar         *va, *vb = NULL;
   PetscInt             nnzB = 0, total = 0;
   PetscReal            H[81];
   PetscBool            ismpi;
 
   PetscFunctionBeginUser;
-  PetscCall(PetscObjectTypeCompare((PetscObject)J, MATMPIAIJ, &ismpi));
-  if (ismpi) PetscCall(MatMPIAIJGetSeqAIJ(J, &Ad, &Ao, NULL));
-  else Ad = J;
+  PetscCall(PetscObjectTypeCompare((PetscObject) J, MATMPIAIJ, &ismpi));
+  if (ismpi)
+    PetscCall(MatMPIAIJGetSeqAIJ(J, &Ad, &Ao, NULL));
+  else
+    Ad = J;
   PetscCall(MatSeqAIJGetArray(Ad, &va));
   PetscCall(PetscArrayzero(va, c->map_nnzA));
   if (Ao) {
     MatInfo info;
     PetscCall(MatGetInfo(Ao, MAT_LOCAL, &info));
-    nnzB = (PetscInt)info.nz_used;
+    nnzB = (PetscInt) info.nz_used;
     PetscCall(MatSeqAIJGetArray(Ao, &vb));
     PetscCall(PetscArrayzero(vb, nnzB));
   }
   for (PetscInt kind = 0; kind < 3; kind++) {
     const ClothElements *el = lists[kind];
-    const PetscInt       n  = kind ? 3 : 2, m = 3 * n;
+    const PetscInt       n = kind ? 3 : 2, m = 3 * n;
     for (PetscInt e = 0; e < el->n; e++) {
       const PetscInt *p = el->p + n * e;
-      ElementHessian((PetscBool)!c->exact_hessian, kind, xl, p, el->coef[e], el->rest ? el->rest[e] : 0, H);
+      ElementHessian((PetscBool) !c->exact_hessian, kind, xl, p, el->coef[e], el->rest ? el->rest[e] : 0, H);
       for (PetscInt pa = 0; pa < n; pa++) {
         for (PetscInt pb = 0; pb < n; pb++) {
           for (PetscInt d = 0; d < 3; d++, total++) {
@@ -389,7 +397,8 @@ PetscErrorCode ClothAssembleMatrix(Cloth c, const PetscScalar *x, PetscReal a, P
   PetscCall(PetscLogEventBegin(drape_log.jacobian, 0, 0, 0, 0));
   if (c->map_mat != J) PetscCall(ClothBuildAssemblyMap(c, J));
   PetscCall(ClothScatterPositions(c, x, &xl));
-  if (c->map) PetscCall(ClothAddToMatrixFast(c, xl, a, b, J));
+  if (c->map)
+    PetscCall(ClothAddToMatrixFast(c, xl, a, b, J));
   else {
     PetscCall(MatZeroEntries(J));
     PetscCall(ClothAddToMatrix(c, xl, a, b, J));

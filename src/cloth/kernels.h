@@ -95,7 +95,7 @@ static inline void KernelProjectPSD2(PetscReal *a, PetscReal *b, PetscReal *d)
 static inline PetscReal KernelStretch(const PetscReal *xa, const PetscReal *xb, PetscReal k, PetscReal L, PetscReal *g, PetscReal *H, PetscBool project)
 {
   PetscReal e[3] = {xb[0] - xa[0], xb[1] - xa[1], xb[2] - xa[2]};
-  PetscReal l    = PetscSqrtReal(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]), dl = l - L;
+  PetscReal l = PetscSqrtReal(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]), dl = l - L;
 
   if (g) {
     PetscReal t = k * dl / l;
@@ -109,11 +109,11 @@ static inline PetscReal KernelStretch(const PetscReal *xa, const PetscReal *xb, 
     if (project && s < 0) s = 0;
     for (PetscInt i = 0; i < 3; i++) {
       for (PetscInt j = 0; j < 3; j++) {
-        PetscReal h = k * ((1 - s) * u[i] * u[j] + (i == j ? s : 0));
-        H[6 * i + j]             = h;
-        H[6 * (i + 3) + j + 3]   = h;
-        H[6 * i + j + 3]         = -h;
-        H[6 * (i + 3) + j]       = -h;
+        PetscReal h            = k * ((1 - s) * u[i] * u[j] + (i == j ? s : 0));
+        H[6 * i + j]           = h;
+        H[6 * (i + 3) + j + 3] = h;
+        H[6 * i + j + 3]       = -h;
+        H[6 * (i + 3) + j]     = -h;
       }
     }
   }
@@ -211,10 +211,12 @@ static inline PetscReal KernelAngle(KernelAngleKind kind, const PetscReal *xa, c
   PetscReal           u = e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2], w = e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2];
   PetscReal           s     = e1[0] * e2[0] + e1[1] * e2[1] + e1[2] * e2[2];
   PetscInt            order = H ? 2 : (g ? 1 : 0);
-  KernelAnglePartials d = {0};
+  KernelAnglePartials d     = {0};
 
-  if (kind == KERNEL_SHEAR) KernelShearPartials(kappa, u, w, s, order, &d);
-  else KernelBendPartials(kappa, u, w, s, order, &d);
+  if (kind == KERNEL_SHEAR)
+    KernelShearPartials(kappa, u, w, s, order, &d);
+  else
+    KernelBendPartials(kappa, u, w, s, order, &d);
   if (g) {
     for (PetscInt i = 0; i < 3; i++) {
       g[i]     = 2 * d.Eu * e1[i] + d.Es * e2[i];
@@ -231,11 +233,11 @@ static inline PetscReal KernelAngle(KernelAngleKind kind, const PetscReal *xa, c
       KernelProjectPSD2(&a, &b, &c);
     }
     for (PetscInt i = 0; i < 3; i++) {
-      Jm[0][i] = 2 * e1[i];
+      Jm[0][i]     = 2 * e1[i];
       Jm[0][3 + i] = 0;
-      Jm[1][i] = 0;
+      Jm[1][i]     = 0;
       Jm[1][3 + i] = 2 * e2[i];
-      Jm[2][i] = e2[i];
+      Jm[2][i]     = e2[i];
       Jm[2][3 + i] = e1[i];
     }
     for (PetscInt i = 0; i < 6; i++) {
@@ -253,15 +255,15 @@ static inline PetscReal KernelAngle(KernelAngleKind kind, const PetscReal *xa, c
     for (PetscInt i = 0; i < 3; i++) {
       for (PetscInt j = 0; j < 3; j++) {
         PetscReal h11 = H6[i][j], h12 = H6[i][3 + j], h21 = H6[3 + i][j], h22 = H6[3 + i][3 + j];
-        H[9 * i + j]                 = h11;
-        H[9 * i + 3 + j]             = h12;
-        H[9 * i + 6 + j]             = -(h11 + h12);
-        H[9 * (3 + i) + j]           = h21;
-        H[9 * (3 + i) + 3 + j]       = h22;
-        H[9 * (3 + i) + 6 + j]       = -(h21 + h22);
-        H[9 * (6 + i) + j]           = -(h11 + h21);
-        H[9 * (6 + i) + 3 + j]       = -(h12 + h22);
-        H[9 * (6 + i) + 6 + j]       = h11 + h12 + h21 + h22;
+        H[9 * i + j]           = h11;
+        H[9 * i + 3 + j]       = h12;
+        H[9 * i + 6 + j]       = -(h11 + h12);
+        H[9 * (3 + i) + j]     = h21;
+        H[9 * (3 + i) + 3 + j] = h22;
+        H[9 * (3 + i) + 6 + j] = -(h21 + h22);
+        H[9 * (6 + i) + j]     = -(h11 + h21);
+        H[9 * (6 + i) + 3 + j] = -(h12 + h22);
+        H[9 * (6 + i) + 6 + j] = h11 + h12 + h21 + h22;
       }
     }
   }

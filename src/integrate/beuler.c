@@ -46,7 +46,7 @@ static PetscErrorCode TrialState(TS_DrapeBE *be, Vec DV)
 
 static PetscErrorCode BEFunction(SNES snes, Vec DV, Vec R, void *ctx)
 {
-  TS_DrapeBE        *be = (TS_DrapeBE *)ctx;
+  TS_DrapeBE        *be = (TS_DrapeBE *) ctx;
   const PetscScalar *dv;
   PetscScalar       *r;
 
@@ -63,7 +63,7 @@ static PetscErrorCode BEFunction(SNES snes, Vec DV, Vec R, void *ctx)
 
 static PetscErrorCode BEJacobian(SNES snes, Vec DV, Mat J, Mat P, void *ctx)
 {
-  TS_DrapeBE *be = (TS_DrapeBE *)ctx;
+  TS_DrapeBE *be = (TS_DrapeBE *) ctx;
 
   PetscFunctionBeginUser;
   PetscCall(TrialState(be, DV));
@@ -77,14 +77,14 @@ static PetscErrorCode BEJacobian(SNES snes, Vec DV, Mat J, Mat P, void *ctx)
 
 static PetscErrorCode TSSetUp_DrapeBE(TS ts)
 {
-  TS_DrapeBE *be = (TS_DrapeBE *)ts->data;
+  TS_DrapeBE *be = (TS_DrapeBE *) ts->data;
   SNES        snes;
   DM          da;
   ClothInfo   info;
 
   PetscFunctionBeginUser;
   PetscCall(TSGetApplicationContext(ts, &be->cloth));
-  PetscCheck(be->cloth, PetscObjectComm((PetscObject)ts), PETSC_ERR_ARG_WRONGSTATE, "TS type beuler (drape) needs the Cloth as TS application context");
+  PetscCheck(be->cloth, PetscObjectComm((PetscObject) ts), PETSC_ERR_ARG_WRONGSTATE, "TS type beuler (drape) needs the Cloth as TS application context");
   PetscCall(ClothGetInfo(be->cloth, &info));
   PetscCall(ClothGetDM(be->cloth, &da));
   PetscCall(ClothGetMasses(be->cloth, &be->mass, &be->pinned));
@@ -103,7 +103,7 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
 
 static PetscErrorCode TSStep_DrapeBE(TS ts)
 {
-  TS_DrapeBE         *be = (TS_DrapeBE *)ts->data;
+  TS_DrapeBE         *be = (TS_DrapeBE *) ts->data;
   SNES                snes;
   KSP                 ksp;
   SNESConvergedReason sreason;
@@ -132,9 +132,10 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
   ts->ksp_its += lits;
   if (sreason < 0 || kreason < 0) {
     PetscCall(VecRestoreArray(ts->vec_sol, &u));
-    SETERRQ(PetscObjectComm((PetscObject)ts), PETSC_ERR_NOT_CONVERGED,
-            "The backward-Euler solve of step %" PetscInt_FMT " (t = %g s, h = %g s) failed: SNES %s, KSP %s after %" PetscInt_FMT " linear iterations. An indefinite matrix points at -cloth_hessian exact; otherwise raise -ksp_max_it or reduce -ts_dt",
-            ts->steps, (double)ts->ptime, (double)ts->time_step, SNESConvergedReasons[sreason], KSPConvergedReasons[kreason], lits);
+    SETERRQ(PetscObjectComm((PetscObject) ts), PETSC_ERR_NOT_CONVERGED,
+            "The backward-Euler solve of step %" PetscInt_FMT " (t = %g s, h = %g s) failed: SNES %s, KSP %s after %" PetscInt_FMT
+            " linear iterations. An indefinite matrix points at -cloth_hessian exact; otherwise raise -ksp_max_it or reduce -ts_dt",
+            ts->steps, (double) ts->ptime, (double) ts->time_step, SNESConvergedReasons[sreason], KSPConvergedReasons[kreason], lits);
   }
   PetscCall(VecGetArrayRead(be->DV, &dv));
   for (PetscInt i = 0; i < be->n; i++) {
@@ -150,7 +151,7 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
 
 static PetscErrorCode TSReset_DrapeBE(TS ts)
 {
-  TS_DrapeBE *be = (TS_DrapeBE *)ts->data;
+  TS_DrapeBE *be = (TS_DrapeBE *) ts->data;
 
   PetscFunctionBeginUser;
   PetscCall(VecDestroy(&be->DV));
@@ -173,7 +174,7 @@ static PetscErrorCode TSView_DrapeBE(TS ts, PetscViewer viewer)
   PetscBool isascii;
 
   PetscFunctionBeginUser;
-  PetscCall(PetscObjectTypeCompare((PetscObject)viewer, PETSCVIEWERASCII, &isascii));
+  PetscCall(PetscObjectTypeCompare((PetscObject) viewer, PETSCVIEWERASCII, &isascii));
   if (isascii) PetscCall(PetscViewerASCIIPrintf(viewer, "  drape backward Euler: (M - h dF/dv - h^2 dF/dx) dv = h F, velocity form\n"));
   PetscFunctionReturn(0);
 }
@@ -187,13 +188,13 @@ static PetscErrorCode TSCreate_DrapeBE(TS ts)
 
   PetscFunctionBeginUser;
   PetscCall(PetscNew(&be));
-  ts->data           = (void *)be;
-  ts->ops->setup     = TSSetUp_DrapeBE;
-  ts->ops->step      = TSStep_DrapeBE;
-  ts->ops->reset     = TSReset_DrapeBE;
-  ts->ops->destroy   = TSDestroy_DrapeBE;
-  ts->ops->view      = TSView_DrapeBE;
-  ts->usessnes       = PETSC_TRUE;
+  ts->data               = (void *) be;
+  ts->ops->setup         = TSSetUp_DrapeBE;
+  ts->ops->step          = TSStep_DrapeBE;
+  ts->ops->reset         = TSReset_DrapeBE;
+  ts->ops->destroy       = TSDestroy_DrapeBE;
+  ts->ops->view          = TSView_DrapeBE;
+  ts->usessnes           = PETSC_TRUE;
   ts->default_adapt_type = TSADAPTNONE;
   /* drape's defaults; -snes_type, -ksp_type, -pc_type ... override them */
   PetscCall(TSGetSNES(ts, &snes));

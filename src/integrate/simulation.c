@@ -27,14 +27,14 @@ struct _p_Simulation {
   PetscReal       divergence_factor;
   PetscBool       progress, summary, help;
   /* monitor state */
-  PetscReal       energy0, energy_scale, wall0, wall_last;
+  PetscReal energy0, energy_scale, wall0, wall_last;
 };
 
 static const char *const supported_types[] = {TSEULER, TSBASICSYMPLECTIC, TSBEULER, TSRK, TSSSP, NULL};
 
 static PetscErrorCode RHSFirstOrder(TS ts, PetscReal t, Vec U, Vec G, void *ctx)
 {
-  Simulation         sim = (Simulation)ctx;
+  Simulation         sim = (Simulation) ctx;
   const PetscScalar *u;
   PetscScalar       *g;
 
@@ -60,7 +60,7 @@ static PetscErrorCode RHSPosition(TS ts, PetscReal t, Vec V, Vec G, void *ctx)
  * are contiguous views of U, so U holds the current v. */
 static PetscErrorCode RHSMomentum(TS ts, PetscReal t, Vec X, Vec A, void *ctx)
 {
-  Simulation         sim = (Simulation)ctx;
+  Simulation         sim = (Simulation) ctx;
   const PetscScalar *x, *u;
   PetscScalar       *a;
 
@@ -80,7 +80,7 @@ static PetscErrorCode RHSMomentum(TS ts, PetscReal t, Vec X, Vec A, void *ctx)
  * one, and accumulated round-off must not add a spurious extra step. */
 static PetscErrorCode PreStep(TS ts)
 {
-  PetscReal            t, dt, tmax, rest;
+  PetscReal              t, dt, tmax, rest;
   TSExactFinalTimeOption eftopt;
 
   PetscFunctionBeginUser;
@@ -104,7 +104,7 @@ PetscErrorCode SimulationCreate(MPI_Comm comm, Simulation *sim)
   s->stability_its     = 30;
   s->divergence_factor = 1.0;
   s->summary           = PETSC_TRUE;
-  s->progress          = (PetscBool)(isatty(1) && !getenv("CI"));
+  s->progress          = (PetscBool) (isatty(1) && !getenv("CI"));
   PetscCall(ClothCreate(comm, &s->cloth));
   PetscCall(OutputCreate(comm, &s->output));
   *sim = s;
@@ -122,7 +122,7 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
   PetscCall(PetscOptionsBool("-drape_summary", "One-line summary at the end of the run", "SimulationRun", s->summary, &s->summary, NULL));
   PetscOptionsEnd();
   PetscCheck(s->stability_its >= 0, s->comm, PETSC_ERR_USER_INPUT, "-drape_stability_its must be zero or positive; got %" PetscInt_FMT, s->stability_its);
-  PetscCheck(s->divergence_factor > 0, s->comm, PETSC_ERR_USER_INPUT, "-drape_divergence_factor must be positive; got %g", (double)s->divergence_factor);
+  PetscCheck(s->divergence_factor > 0, s->comm, PETSC_ERR_USER_INPUT, "-drape_divergence_factor must be positive; got %g", (double) s->divergence_factor);
   PetscCall(ClothSetFromOptions(s->cloth));
   PetscCall(OutputSetFromOptions(s->output));
   PetscFunctionReturn(0);
@@ -130,18 +130,18 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
 
 PetscErrorCode SimulationSetUp(Simulation s)
 {
-  ClothInfo   info;
-  PetscInt    rstart;
+  ClothInfo    info;
+  PetscInt     rstart;
   PetscScalar *u;
-  TSType      type;
-  PetscBool   ok = PETSC_FALSE;
+  TSType       type;
+  PetscBool    ok = PETSC_FALSE;
 
   PetscFunctionBeginUser;
   PetscCall(ClothSetUp(s->cloth));
   PetscCall(ClothGetInfo(s->cloth, &info));
   s->n = 3 * info.nowned;
   PetscCall(VecCreateMPI(s->comm, 2 * s->n, PETSC_DETERMINE, &s->U));
-  PetscCall(PetscObjectSetName((PetscObject)s->U, "state"));
+  PetscCall(PetscObjectSetName((PetscObject) s->U, "state"));
   PetscCall(VecGetOwnershipRange(s->U, &rstart, NULL));
   PetscCall(ISCreateStride(s->comm, s->n, rstart, 1, &s->is_x));
   PetscCall(ISCreateStride(s->comm, s->n, rstart + s->n, 1, &s->is_v));
@@ -171,13 +171,13 @@ PetscErrorCode SimulationSetUp(Simulation s)
   for (const char *const *t = supported_types; *t; t++) {
     PetscBool match;
     PetscCall(PetscStrcmp(type, *t, &match));
-    ok = (PetscBool)(ok || match);
+    ok = (PetscBool) (ok || match);
   }
   PetscCheck(ok, s->comm, PETSC_ERR_USER_INPUT, "-ts_type %s is not supported by drape; use euler (paper scheme 2), basicsymplectic (scheme 3), beuler (scheme 4), rk or ssp", type);
   {
     PetscReal dt;
     PetscCall(TSGetTimeStep(s->ts, &dt));
-    PetscCheck(dt > 0, s->comm, PETSC_ERR_USER_INPUT, "-ts_dt must be positive (seconds); got %g", (double)dt);
+    PetscCheck(dt > 0, s->comm, PETSC_ERR_USER_INPUT, "-ts_dt must be positive (seconds); got %g", (double) dt);
   }
   PetscFunctionReturn(0);
 }
@@ -245,16 +245,18 @@ static PetscErrorCode CheckDivergence(Simulation s, TS ts, PetscInt step, PetscR
   if (sum[2] == 0 && e - s->energy0 <= s->divergence_factor * s->energy_scale) PetscFunctionReturn(0);
   PetscCall(TSGetType(ts, &type));
   PetscCall(TSGetTimeStep(ts, &dt));
-  if (s->limits.euler > 0) PetscCall(PetscSNPrintf(euler, sizeof euler, "h < %.4e s", (double)s->limits.euler));
-  else PetscCall(PetscStrcpy(euler, "unstable at every step without damping"));
+  if (s->limits.euler > 0)
+    PetscCall(PetscSNPrintf(euler, sizeof euler, "h < %.4e s", (double) s->limits.euler));
+  else
+    PetscCall(PetscStrcpy(euler, "unstable at every step without damping"));
   SETERRQ(s->comm, PETSC_ERR_NOT_CONVERGED,
-          "The run diverged at step %" PetscInt_FMT " (t = %g s): %s. Estimated stability limits: symplectic Euler h < %.4e s, explicit Euler %s; this run used -ts_type %s -ts_dt %g. Reduce -ts_dt or use -ts_type beuler",
-          step, (double)t, sum[2] != 0 ? "positions or velocities are not finite" : "the energy grew beyond what gravity and the initial state can supply", (double)s->limits.symplectic, euler, type, (double)dt);
+          "The run diverged at step %" PetscInt_FMT " (t = %g s): %s. Estimated stability limits: symplectic Euler h < %.4e s, explicit Euler %s; this run used -ts_type %s -ts_dt %g. Reduce -ts_dt or use -ts_type beuler", step, (double) t,
+          sum[2] != 0 ? "positions or velocities are not finite" : "the energy grew beyond what gravity and the initial state can supply", (double) s->limits.symplectic, euler, type, (double) dt);
 }
 
 static PetscErrorCode Monitor(TS ts, PetscInt step, PetscReal t, Vec U, void *ctx)
 {
-  Simulation         s = (Simulation)ctx;
+  Simulation         s = (Simulation) ctx;
   const PetscScalar *u;
   PetscBool          due;
 
@@ -271,7 +273,7 @@ static PetscErrorCode Monitor(TS ts, PetscInt step, PetscReal t, Vec U, void *ct
       PetscReal tmax, t0 = 0;
       PetscCall(TSGetMaxTime(ts, &tmax));
       s->wall_last = now;
-      PetscCall(PetscPrintf(s->comm, "\r  t = %.4g / %.4g s, step %" PetscInt_FMT ", %.0f steps/s, %.0f s left   ", (double)t, (double)tmax, step, step / (now - s->wall0), (double)((now - s->wall0) * (tmax - t) / (t - t0))));
+      PetscCall(PetscPrintf(s->comm, "\r  t = %.4g / %.4g s, step %" PetscInt_FMT ", %.0f steps/s, %.0f s left   ", (double) t, (double) tmax, step, step / (now - s->wall0), (double) ((now - s->wall0) * (tmax - t) / (t - t0))));
     }
   }
   PetscFunctionReturn(0);
@@ -296,19 +298,21 @@ static PetscErrorCode SimulationViewStart(Simulation s)
   PetscCall(PetscViewerASCIIPrintf(viewer, "drape %s: %s\n", DRAPE_VERSION, "fabric by the particle method"));
   PetscCall(ClothView(s->cloth, viewer));
   if (s->stability_its > 0) {
-    PetscCall(PetscViewerASCIIPrintf(viewer, "Stability (estimated at t = 0, %" PetscInt_FMT " power iterations): Omega_max = %.4e rad/s\n", s->limits.iterations, (double)s->limits.omega));
-    PetscCall(PetscViewerASCIIPrintf(viewer, "  symplectic Euler: stable for h < %.4e s (2/Omega_max, reduced by damping)\n", (double)s->limits.symplectic));
-    if (s->limits.euler > 0) PetscCall(PetscViewerASCIIPrintf(viewer, "  explicit Euler: stable for h < %.4e s at damping %g 1/s (c/Omega_max^2)\n", (double)s->limits.euler, (double)info.damping));
-    else PetscCall(PetscViewerASCIIPrintf(viewer, "  explicit Euler: unstable at every step without damping (energy grows by 1 + (Omega h)^2 per step)\n"));
+    PetscCall(PetscViewerASCIIPrintf(viewer, "Stability (estimated at t = 0, %" PetscInt_FMT " power iterations): Omega_max = %.4e rad/s\n", s->limits.iterations, (double) s->limits.omega));
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  symplectic Euler: stable for h < %.4e s (2/Omega_max, reduced by damping)\n", (double) s->limits.symplectic));
+    if (s->limits.euler > 0)
+      PetscCall(PetscViewerASCIIPrintf(viewer, "  explicit Euler: stable for h < %.4e s at damping %g 1/s (c/Omega_max^2)\n", (double) s->limits.euler, (double) info.damping));
+    else
+      PetscCall(PetscViewerASCIIPrintf(viewer, "  explicit Euler: unstable at every step without damping (energy grows by 1 + (Omega h)^2 per step)\n"));
     PetscCall(PetscViewerASCIIPrintf(viewer, "  backward Euler: no step limit\n"));
   }
-  if (!strcmp(type, TSBASICSYMPLECTIC)) PetscCall(TSBasicSymplecticGetType(s->ts, (TSBasicSymplecticType *)&name));
-  PetscCall(PetscViewerASCIIPrintf(viewer, "Integrator: -ts_type %s%s%s, h = %g s", type, name ? " -ts_basicsymplectic_type " : "", name ? name : "", (double)dt));
-  if (s->stability_its > 0 && s->limits.symplectic < PETSC_INFINITY) PetscCall(PetscViewerASCIIPrintf(viewer, " (%.3g x the symplectic limit)", (double)(dt / s->limits.symplectic)));
-  PetscCall(PetscViewerASCIIPrintf(viewer, ", to t = %g s\n", (double)tmax));
+  if (!strcmp(type, TSBASICSYMPLECTIC)) PetscCall(TSBasicSymplecticGetType(s->ts, (TSBasicSymplecticType *) &name));
+  PetscCall(PetscViewerASCIIPrintf(viewer, "Integrator: -ts_type %s%s%s, h = %g s", type, name ? " -ts_basicsymplectic_type " : "", name ? name : "", (double) dt));
+  if (s->stability_its > 0 && s->limits.symplectic < PETSC_INFINITY) PetscCall(PetscViewerASCIIPrintf(viewer, " (%.3g x the symplectic limit)", (double) (dt / s->limits.symplectic)));
+  PetscCall(PetscViewerASCIIPrintf(viewer, ", to t = %g s\n", (double) tmax));
   if (!strcmp(type, TSBEULER)) {
-    KSPType kt;
-    PCType  pt;
+    KSPType  kt;
+    PCType   pt;
     SNESType st;
     PetscCall(TSGetSNES(s->ts, &snes));
     PetscCall(SNESGetType(snes, &st));
@@ -337,7 +341,8 @@ PetscErrorCode SimulationRun(Simulation s)
     PetscCall(VecGetArrayRead(s->U, &u));
     PetscCall(StabilityEstimate(s->cloth, u, s->stability_its, &s->limits));
     PetscCall(VecRestoreArrayRead(s->U, &u));
-  } else s->limits.symplectic = s->limits.euler = PETSC_INFINITY;
+  } else
+    s->limits.symplectic = s->limits.euler = PETSC_INFINITY;
   PetscCall(SimulationViewStart(s));
   PetscCall(DrapeCheckUnusedOptions(s->comm));
   if (s->help) PetscFunctionReturn(0);
@@ -347,7 +352,7 @@ PetscErrorCode SimulationRun(Simulation s)
     PetscReal dt;
     PetscCall(TSGetType(s->ts, &type));
     PetscCall(TSGetTimeStep(s->ts, &dt));
-    PetscCall(PetscSNPrintf(description, sizeof description, "ts_type=%s dt=%g omega_max=%g symplectic_limit=%g euler_limit=%g", type, (double)dt, (double)s->limits.omega, (double)s->limits.symplectic, (double)s->limits.euler));
+    PetscCall(PetscSNPrintf(description, sizeof description, "ts_type=%s dt=%g omega_max=%g symplectic_limit=%g euler_limit=%g", type, (double) dt, (double) s->limits.omega, (double) s->limits.symplectic, (double) s->limits.euler));
     PetscCall(OutputOpen(s->output, s->cloth, description));
   }
   PetscCall(TSMonitorSet(s->ts, Monitor, s, NULL));
@@ -367,10 +372,10 @@ PetscErrorCode SimulationRun(Simulation s)
   }
   if (s->progress) PetscCall(PetscPrintf(s->comm, "\n"));
   if (s->summary) {
-    PetscReal wall = (PetscReal)(t1 - s->wall0);
+    PetscReal wall = (PetscReal) (t1 - s->wall0);
     PetscCall(TSGetKSPIterations(s->ts, &its));
-    PetscCall(PetscPrintf(s->comm, "Summary: %" PetscInt_FMT " steps to t = %g s in %.3f s wall, %.4e particle-steps/s", steps, (double)t, (double)wall, wall > 0 ? (double)(steps * info.nparticles / wall) : 0.0));
-    if (its > 0) PetscCall(PetscPrintf(s->comm, ", %.2f CG iterations per step", (double)its / PetscMax(steps, 1)));
+    PetscCall(PetscPrintf(s->comm, "Summary: %" PetscInt_FMT " steps to t = %g s in %.3f s wall, %.4e particle-steps/s", steps, (double) t, (double) wall, wall > 0 ? (double) (steps * info.nparticles / wall) : 0.0));
+    if (its > 0) PetscCall(PetscPrintf(s->comm, ", %.2f CG iterations per step", (double) its / PetscMax(steps, 1)));
     PetscCall(PetscPrintf(s->comm, "\n"));
   }
   PetscFunctionReturn(0);

@@ -27,7 +27,7 @@ PetscErrorCode StabilityEstimate(Cloth cloth, const PetscScalar *x, PetscInt ite
   PetscCall(ClothGetInfo(cloth, &info));
   PetscCall(ClothGetMasses(cloth, &mass, &pinned));
   PetscCall(ClothGetDM(cloth, &da));
-  comm = PetscObjectComm((PetscObject)da);
+  comm = PetscObjectComm((PetscObject) da);
   n    = 3 * info.nowned;
   PetscCall(PetscMalloc2(n, &z, n, &w));
   PetscCall(PetscRandomCreate(comm, &rnd));
@@ -61,9 +61,12 @@ PetscErrorCode StabilityEstimate(Cloth cloth, const PetscScalar *x, PetscInt ite
   lim->iterations = iterations;
   if (Om2 > 0) {
     lim->symplectic = (PetscSqrtReal(c * c + 4 * Om2) - c) / Om2;
-    if (c <= 0) lim->euler = 0;
-    else if (c < 2 * lim->omega) lim->euler = c / Om2;
-    else lim->euler = 2 / (0.5 * c + PetscSqrtReal(0.25 * c * c - Om2));
+    if (c <= 0)
+      lim->euler = 0;
+    else if (c < 2 * lim->omega)
+      lim->euler = c / Om2;
+    else
+      lim->euler = 2 / (0.5 * c + PetscSqrtReal(0.25 * c * c - Om2));
   } else {
     lim->symplectic = PETSC_INFINITY;
     lim->euler      = c > 0 ? 2 / c : PETSC_INFINITY;

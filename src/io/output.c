@@ -50,7 +50,7 @@ PetscErrorCode OutputSetFromOptions(Output o)
   PetscCall(PetscOptionsInt("-output_steps", "Steps between frames (0: use -output_interval)", "OutputSetFromOptions", o->every, &o->every, &flg));
   PetscOptionsEnd();
   if (flg && o->every > 0) o->interval = 0;
-  PetscCheck(o->interval >= 0, o->comm, PETSC_ERR_USER_INPUT, "-output_interval must be zero or positive (seconds); got %g", (double)o->interval);
+  PetscCheck(o->interval >= 0, o->comm, PETSC_ERR_USER_INPUT, "-output_interval must be zero or positive (seconds); got %g", (double) o->interval);
   PetscCheck(o->every >= 0, o->comm, PETSC_ERR_USER_INPUT, "-output_steps must be zero or positive; got %" PetscInt_FMT, o->every);
   if (o->enabled) {
     char     *slash, *dot, dir[PETSC_MAX_PATH_LEN];
@@ -58,8 +58,10 @@ PetscErrorCode OutputSetFromOptions(Output o)
     PetscCheck(o->file[0], o->comm, PETSC_ERR_USER_INPUT, "-output_file needs a file name, e.g. -output_file run.h5");
     PetscCall(PetscStrncpy(dir, o->file, sizeof dir));
     slash = strrchr(dir, '/');
-    if (slash) *slash = 0;
-    else PetscCall(PetscStrcpy(dir, "."));
+    if (slash)
+      *slash = 0;
+    else
+      PetscCall(PetscStrcpy(dir, "."));
     if (!dir[0]) PetscCall(PetscStrcpy(dir, "/"));
     PetscCall(PetscTestDirectory(dir, 'w', &ok));
     PetscCheck(ok, o->comm, PETSC_ERR_FILE_OPEN, "Cannot write -output_file %s: directory %s does not exist or is not writable", o->file, dir);
@@ -105,12 +107,12 @@ PetscErrorCode OutputOpen(Output o, Cloth cloth, const char *description)
   o->My = info.My;
   PetscCall(DMCreateGlobalVector(da, &o->X));
   PetscCall(DMCreateGlobalVector(da, &o->V));
-  PetscCall(PetscObjectSetName((PetscObject)o->X, "position"));
-  PetscCall(PetscObjectSetName((PetscObject)o->V, "velocity"));
+  PetscCall(PetscObjectSetName((PetscObject) o->X, "position"));
+  PetscCall(PetscObjectSetName((PetscObject) o->V, "velocity"));
   PetscCallMPI(MPI_Comm_rank(o->comm, &rank));
   for (PetscInt k = 0; k < NSCALARS; k++) {
     PetscCall(VecCreateMPI(o->comm, rank ? 0 : 1, 1, &o->scalars[k]));
-    PetscCall(PetscObjectSetName((PetscObject)o->scalars[k], scalar_names[k]));
+    PetscCall(PetscObjectSetName((PetscObject) o->scalars[k], scalar_names[k]));
   }
   PetscCall(PetscViewerHDF5Open(o->comm, o->file, FILE_MODE_WRITE, &o->viewer));
   PetscCall(PetscOptionsGetAll(NULL, &given));
@@ -144,9 +146,12 @@ PetscErrorCode OutputFrameDue(Output o, PetscInt step, PetscReal t, PetscBool *d
   PetscFunctionBeginUser;
   *due = PETSC_FALSE;
   if (!o->enabled) PetscFunctionReturn(0);
-  if (o->nframes == 0) *due = PETSC_TRUE;
-  else if (o->every > 0) *due = (PetscBool)(step % o->every == 0);
-  else if (o->interval > 0) *due = (PetscBool)(t >= o->next_time - 1e-9 * o->interval);
+  if (o->nframes == 0)
+    *due = PETSC_TRUE;
+  else if (o->every > 0)
+    *due = (PetscBool) (step % o->every == 0);
+  else if (o->interval > 0)
+    *due = (PetscBool) (t >= o->next_time - 1e-9 * o->interval);
   PetscFunctionReturn(0);
 }
 
@@ -166,7 +171,7 @@ static PetscErrorCode OutputWriteXDMF(Output o)
   PetscCall(PetscFOpen(PETSC_COMM_SELF, tmp, "w", &fp));
   PetscCall(PetscFPrintf(PETSC_COMM_SELF, fp, "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"2.0\">\n <Domain>\n  <Grid Name=\"cloth\" GridType=\"Collection\" CollectionType=\"Temporal\">\n"));
   for (PetscInt k = 0; k < o->nframes; k++) {
-    PetscCall(PetscFPrintf(PETSC_COMM_SELF, fp, "   <Grid Name=\"frame %" PetscInt_FMT "\" GridType=\"Uniform\">\n    <Time Value=\"%.10g\"/>\n", k, (double)o->times[k]));
+    PetscCall(PetscFPrintf(PETSC_COMM_SELF, fp, "   <Grid Name=\"frame %" PetscInt_FMT "\" GridType=\"Uniform\">\n    <Time Value=\"%.10g\"/>\n", k, (double) o->times[k]));
     PetscCall(PetscFPrintf(PETSC_COMM_SELF, fp, "    <Topology TopologyType=\"2DSMesh\" Dimensions=\"%" PetscInt_FMT " %" PetscInt_FMT "\"/>\n", o->My, o->Mx));
     for (PetscInt f = 0; f < 2; f++) {
       const char *name = f ? "velocity" : "position";
@@ -193,7 +198,7 @@ PetscErrorCode OutputWriteFrame(Output o, Cloth cloth, PetscInt step, PetscReal 
 
   PetscFunctionBeginUser;
   if (!o->enabled) PetscFunctionReturn(0);
-  values[0] = (PetscReal)step;
+  values[0] = (PetscReal) step;
   values[1] = en->kinetic;
   values[2] = en->gravity;
   values[3] = en->stretch;

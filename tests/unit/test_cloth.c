@@ -80,7 +80,7 @@ int main(int argc, char **argv)
   PetscCall(ClothComputeInternalForce(cloth, y, f));
   PetscCall(MaxAbs(comm, n, f, &m));
   PetscCall(ClothComputeEnergies(cloth, y, v, &en));
-  PetscCall(PetscPrintf(comm, "rigid motion of the rest state: max |F_int| = %.3e (scale %.3e), internal energy %.3e J\n", (double)m, (double)fscale, (double)(en.stretch + en.shear + en.bend)));
+  PetscCall(PetscPrintf(comm, "rigid motion of the rest state: max |F_int| = %.3e (scale %.3e), internal energy %.3e J\n", (double) m, (double) fscale, (double) (en.stretch + en.shear + en.bend)));
   PetscCheck(m < 1e-9 * fscale && en.stretch + en.shear + en.bend < 1e-12 * fscale * info.size[0], comm, PETSC_ERR_PLIB, "a rigidly moved cloth feels internal forces");
   passed++;
 
@@ -97,7 +97,7 @@ int main(int argc, char **argv)
   for (PetscInt i = 0; i < n; i++) Rf[i] -= g[i];
   PetscCall(MaxAbs(comm, n, Rf, &m));
   PetscCall(MaxAbs(comm, n, f, &fscale));
-  PetscCall(PetscPrintf(comm, "deformed cloth: max |R F(x) - F(Rx + t)| = %.3e (max |F| %.3e)\n", (double)m, (double)fscale));
+  PetscCall(PetscPrintf(comm, "deformed cloth: max |R F(x) - F(Rx + t)| = %.3e (max |F| %.3e)\n", (double) m, (double) fscale));
   PetscCheck(m < 1e-11 * fscale, comm, PETSC_ERR_PLIB, "internal forces do not rotate with the cloth");
   passed++;
   for (PetscInt i = 0; i < 6; i++) loc[i] = 0;
@@ -111,7 +111,7 @@ int main(int argc, char **argv)
   PetscCall(MPIU_Allreduce(loc, sum, 6, MPIU_REAL, MPI_SUM, comm));
   m = 0;
   for (PetscInt i = 0; i < 6; i++) m = PetscMax(m, PetscAbsReal(sum[i]));
-  PetscCall(PetscPrintf(comm, "deformed cloth: |resultant|, |torque| <= %.3e (max |F| %.3e)\n", (double)m, (double)fscale));
+  PetscCall(PetscPrintf(comm, "deformed cloth: |resultant|, |torque| <= %.3e (max |F| %.3e)\n", (double) m, (double) fscale));
   PetscCheck(m < 1e-10 * fscale * info.nparticles, comm, PETSC_ERR_PLIB, "internal forces have a resultant or a torque");
   passed++;
 

@@ -22,12 +22,12 @@ static const char *const ElemKindNames[] = {"stretch", "shear", "bend"};
 
 typedef struct {
   ElemKind  kind;
-  PetscInt  n;         /* number of coordinates: 6 (edge) or 9 (angle) */
-  PetscReal x[9];      /* [x_a, x_b] or [x_a, x_b, x_c] (c the vertex) */
-  PetscReal k, L;      /* stretch */
-  PetscReal kappa;     /* shear, bend */
-  PetscReal ell;       /* length scale: shortest edge */
-  PetscReal escale;    /* energy scale, for round-off estimates */
+  PetscInt  n;      /* number of coordinates: 6 (edge) or 9 (angle) */
+  PetscReal x[9];   /* [x_a, x_b] or [x_a, x_b, x_c] (c the vertex) */
+  PetscReal k, L;   /* stretch */
+  PetscReal kappa;  /* shear, bend */
+  PetscReal ell;    /* length scale: shortest edge */
+  PetscReal escale; /* energy scale, for round-off estimates */
   PetscBool compressed;
   char      label[96];
 } Elem;
@@ -37,8 +37,10 @@ typedef struct {
 static PetscErrorCode ElemEval(const Elem *el, const PetscReal *x, PetscReal *E, PetscReal *g, PetscReal *H, PetscBool project)
 {
   PetscFunctionBeginUser;
-  if (el->kind == ELEM_STRETCH) *E = KernelStretch(x, x + 3, el->k, el->L, g, H, project);
-  else *E = KernelAngle(el->kind == ELEM_SHEAR ? KERNEL_SHEAR : KERNEL_BEND, x, x + 3, x + 6, el->kappa, g, H, project);
+  if (el->kind == ELEM_STRETCH)
+    *E = KernelStretch(x, x + 3, el->k, el->L, g, H, project);
+  else
+    *E = KernelAngle(el->kind == ELEM_SHEAR ? KERNEL_SHEAR : KERNEL_BEND, x, x + 3, x + 6, el->kappa, g, H, project);
   PetscFunctionReturn(0);
 }
 
@@ -178,13 +180,14 @@ static PetscErrorCode SymEigMinMax(PetscInt n, const PetscReal *H, PetscReal *lm
   *lmax = PETSC_MIN_REAL;
   for (PetscInt i = 0; i < n; i++) {
     PetscReal l = A[n * i + i];
-    *lmin = PetscMin(*lmin, l);
-    *lmax = PetscMax(*lmax, l);
+    *lmin       = PetscMin(*lmin, l);
+    *lmax       = PetscMax(*lmax, l);
     sl += l;
     sl2 += l * l;
   }
   scale = PetscSqrtReal(fro);
-  PetscCheck(PetscAbsReal(sl - tr) <= 1e-12 * scale + 1e-300 && PetscAbsReal(sl2 - fro) <= 1e-12 * fro + 1e-300, PETSC_COMM_SELF, PETSC_ERR_PLIB, "test's Jacobi eigen-solver did not converge (trace %g vs %g, |A|_F^2 %g vs %g)", (double)sl, (double)tr, (double)sl2, (double)fro);
+  PetscCheck(PetscAbsReal(sl - tr) <= 1e-12 * scale + 1e-300 && PetscAbsReal(sl2 - fro) <= 1e-12 * fro + 1e-300, PETSC_COMM_SELF, PETSC_ERR_PLIB, "test's Jacobi eigen-solver did not converge (trace %g vs %g, |A|_F^2 %g vs %g)", (double) sl,
+             (double) tr, (double) sl2, (double) fro);
   PetscFunctionReturn(0);
 }
 
@@ -204,8 +207,8 @@ static PetscErrorCode SetStretch(Elem *el, const PetscReal xa[3], const PetscRea
   el->L          = L;
   el->ell        = len;
   el->escale     = k * L * L;
-  el->compressed = (PetscBool)(len < L);
-  PetscCall(PetscSNPrintf(el->label, sizeof(el->label), "stretch l/L = %.4f (%s)", (double)(len / L), len < L ? "compressed" : "extended"));
+  el->compressed = (PetscBool) (len < L);
+  PetscCall(PetscSNPrintf(el->label, sizeof(el->label), "stretch l/L = %.4f (%s)", (double) (len / L), len < L ? "compressed" : "extended"));
   PetscFunctionReturn(0);
 }
 
@@ -224,7 +227,7 @@ static PetscErrorCode SetAngle(Elem *el, ElemKind kind, const PetscReal xc[3], c
   el->kappa  = kappa;
   el->ell    = PetscMin(l1, l2);
   el->escale = kind == ELEM_SHEAR ? kappa * l1 * l2 : kappa;
-  PetscCall(PetscSNPrintf(el->label, sizeof(el->label), "%s theta = %.4f (pi - theta = %.4f), |e1| = %.3f, |e2| = %.3f", ElemKindNames[kind], (double)th, (double)(PETSC_PI - th), (double)l1, (double)l2));
+  PetscCall(PetscSNPrintf(el->label, sizeof(el->label), "%s theta = %.4f (pi - theta = %.4f), |e1| = %.3f, |e2| = %.3f", ElemKindNames[kind], (double) th, (double) (PETSC_PI - th), (double) l1, (double) l2));
   PetscFunctionReturn(0);
 }
 
@@ -320,7 +323,8 @@ static PetscErrorCode PickDirection(PetscRandom rnd, const Elem *el, PetscBool s
     }
     PetscCall(ElemEval(el, xp, &Ep, gp, NULL, PETSC_FALSE));
     PetscCall(ElemEval(el, xm, &Em, gm, NULL, PETSC_FALSE));
-    if (!second) q = PetscAbsReal(Ep - 2 * E0 + Em);
+    if (!second)
+      q = PetscAbsReal(Ep - 2 * E0 + Em);
     else {
       for (PetscInt i = 0; i < el->n; i++) gp[i] = gp[i] - 2 * g0[i] + gm[i];
       PetscCall(Norm(el->n, gp, &q));
@@ -358,16 +362,16 @@ static PetscErrorCode CheckOrders(const Elem *el, const char *what, const PetscR
   PetscCall(PetscSNPrintf(buf, sizeof(buf), "orders"));
   for (PetscInt k = 0; k < nclean; k++) {
     PetscCall(PetscStrlen(buf, &len));
-    PetscCall(PetscSNPrintf(buf + len, sizeof(buf) - len, " %.3f", (double)ord[k]));
+    PetscCall(PetscSNPrintf(buf + len, sizeof(buf) - len, " %.3f", (double) ord[k]));
   }
   PetscCall(PetscStrlen(buf, &len));
   PetscCall(PetscSNPrintf(buf + len, sizeof(buf) - len, "; r(eps) for eps = 1e-2 * 2^-k:"));
   for (PetscInt k = 0; k < NEPS; k++) {
     PetscCall(PetscStrlen(buf, &len));
-    PetscCall(PetscSNPrintf(buf + len, sizeof(buf) - len, " %.3e", (double)r[k]));
+    PetscCall(PetscSNPrintf(buf + len, sizeof(buf) - len, " %.3e", (double) r[k]));
   }
   PetscCall(PetscStrlen(buf, &len));
-  PetscCall(PetscSNPrintf(buf + len, sizeof(buf) - len, " (round-off level %.1e)", (double)noise[NEPS - 1]));
+  PetscCall(PetscSNPrintf(buf + len, sizeof(buf) - len, " (round-off level %.1e)", (double) noise[NEPS - 1]));
   PetscCheck(nclean >= 3 && ngood >= nclean - 1, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED %s Taylor test on [%s]: %" PetscInt_FMT " of %" PetscInt_FMT " clean halvings have order in [1.8, 2.2]; %s", what, el->label, ngood, nclean, buf);
   for (PetscInt k = 0; k < nclean; k++) {
     st->omin = PetscMin(st->omin, ord[k]);
@@ -452,7 +456,7 @@ static PetscErrorCode CheckSymmetry(const Elem *el, PetscReal *worst)
     PetscBool project = p ? PETSC_TRUE : PETSC_FALSE;
     PetscCall(ElemEval(el, el->x, &E, NULL, H, project));
     PetscCall(Asymmetry(el->n, H, &rel));
-    PetscCheck(rel <= 1e-12, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED symmetry of the %s Hessian on [%s]: max|H - H^T| / max|H| = %g > 1e-12", project ? "projected" : "exact", el->label, (double)rel);
+    PetscCheck(rel <= 1e-12, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED symmetry of the %s Hessian on [%s]: max|H - H^T| / max|H| = %g > 1e-12", project ? "projected" : "exact", el->label, (double) rel);
     *worst = PetscMax(*worst, rel);
   }
   PetscFunctionReturn(0);
@@ -468,7 +472,7 @@ static PetscErrorCode CheckPSD(const Elem *el, PetscReal *proj_rel, PetscReal *e
   PetscCall(MaxAbs(el->n * el->n, H, &m));
   PetscCall(SymEigMinMax(el->n, H, &lmin, &lmax));
   PetscCheck(m > 0, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED: projected %s Hessian is identically zero on [%s]", ElemKindNames[el->kind], el->label);
-  PetscCheck(lmin >= -1e-10 * m, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED: projected %s Hessian is not PSD on [%s]: lambda_min = %g, max|H| = %g, ratio %g < -1e-10", ElemKindNames[el->kind], el->label, (double)lmin, (double)m, (double)(lmin / m));
+  PetscCheck(lmin >= -1e-10 * m, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED: projected %s Hessian is not PSD on [%s]: lambda_min = %g, max|H| = %g, ratio %g < -1e-10", ElemKindNames[el->kind], el->label, (double) lmin, (double) m, (double) (lmin / m));
   *proj_rel = lmin / m;
   PetscCall(ElemEval(el, el->x, &E, NULL, H, PETSC_FALSE));
   PetscCall(MaxAbs(el->n * el->n, H, &m));
@@ -486,7 +490,7 @@ typedef struct {
 static PetscErrorCode CheckInvariance(PetscRandom rnd, const Elem *el, InvStats *st)
 {
   PetscReal R[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}, t[3], y[9], E0, E1, g0[9], g1[9], Rg[9], sum[3], tq[3], c[3], ng, scale, tscale, err, nrm, nx, ngi;
-  PetscInt  np = el->n / 3;
+  PetscInt  np   = el->n / 3;
 
   PetscFunctionBeginUser;
   PetscCall(RandomRotation(rnd, R));
@@ -500,7 +504,8 @@ static PetscErrorCode CheckInvariance(PetscRandom rnd, const Elem *el, InvStats 
    * energy scale: a nearly flat bend has E = kappa (1 + cos) ~ 1e-4 kappa, and the
    * cancellation in 1 + cos alone costs ~1e-16 kappa, i.e. ~1e-12 relative to E */
   err = PetscAbsReal(E1 - E0) / PetscMax(PetscAbsReal(E0), 1e-2 * el->escale);
-  PetscCheck(err <= 1e-12, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED rigid-motion invariance of the %s energy on [%s]: E = %.17g, E(R x + t) = %.17g, relative change %g > 1e-12", ElemKindNames[el->kind], el->label, (double)E0, (double)E1, (double)err);
+  PetscCheck(err <= 1e-12, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED rigid-motion invariance of the %s energy on [%s]: E = %.17g, E(R x + t) = %.17g, relative change %g > 1e-12", ElemKindNames[el->kind], el->label, (double) E0, (double) E1,
+             (double) err);
   st->energy    = PetscMax(st->energy, err);
   st->energyraw = PetscMax(st->energyraw, PetscAbsReal(E1 - E0) / PetscAbsReal(E0));
 
@@ -510,7 +515,7 @@ static PetscErrorCode CheckInvariance(PetscRandom rnd, const Elem *el, InvStats 
     for (PetscInt i = 0; i < 3; i++) Rg[3 * p + i] = g1[3 * p + i] - (R[3 * i] * g0[3 * p] + R[3 * i + 1] * g0[3 * p + 1] + R[3 * i + 2] * g0[3 * p + 2]);
   PetscCall(Norm(el->n, Rg, &nrm));
   err = ng > 0 ? nrm / ng : nrm;
-  PetscCheck(err <= 1e-10, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED: %s gradient does not rotate with the element on [%s]: |g(Rx+t) - R g(x)| / |g| = %g > 1e-10", ElemKindNames[el->kind], el->label, (double)err);
+  PetscCheck(err <= 1e-10, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED: %s gradient does not rotate with the element on [%s]: |g(Rx+t) - R g(x)| / |g| = %g > 1e-10", ElemKindNames[el->kind], el->label, (double) err);
   st->grot = PetscMax(st->grot, err);
 
   /* translation invariance: sum_i g_i = 0; rotation invariance: sum_i x_i x g_i = 0 (at both placements) */
@@ -532,11 +537,11 @@ static PetscErrorCode CheckInvariance(PetscRandom rnd, const Elem *el, InvStats 
     }
     PetscCall(Norm(3, sum, &nrm));
     err = scale > 0 ? nrm / scale : nrm;
-    PetscCheck(err <= 1e-10, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED translation invariance of the %s gradient on [%s]: |sum_i g_i| / sum_i |g_i| = %g > 1e-10", ElemKindNames[el->kind], el->label, (double)err);
+    PetscCheck(err <= 1e-10, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED translation invariance of the %s gradient on [%s]: |sum_i g_i| / sum_i |g_i| = %g > 1e-10", ElemKindNames[el->kind], el->label, (double) err);
     st->gsum = PetscMax(st->gsum, err);
     PetscCall(Norm(3, tq, &nrm));
     err = tscale > 0 ? nrm / tscale : nrm;
-    PetscCheck(err <= 1e-10, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED rotation invariance of the %s gradient on [%s]: |sum_i x_i x g_i| / sum_i |x_i||g_i| = %g > 1e-10", ElemKindNames[el->kind], el->label, (double)err);
+    PetscCheck(err <= 1e-10, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED rotation invariance of the %s gradient on [%s]: |sum_i x_i x g_i| / sum_i |x_i||g_i| = %g > 1e-10", ElemKindNames[el->kind], el->label, (double) err);
     st->torque = PetscMax(st->torque, err);
   }
   PetscFunctionReturn(0);
@@ -547,9 +552,9 @@ static PetscErrorCode CheckInvariance(PetscRandom rnd, const Elem *el, InvStats 
 static PetscErrorCode GroupsForKind(PetscRandom rnd, ElemKind kind, PetscReal exact_rel[], Elem el[], PetscInt *ncfg)
 {
   OrderStats  st;
-  InvStats    inv   = {0, 0, 0, 0, 0};
-  PetscReal   asym  = 0, pmin = PETSC_MAX_REAL, emin = PETSC_MAX_REAL, prel = 0;
-  const char *name  = ElemKindNames[kind];
+  InvStats    inv  = {0, 0, 0, 0, 0};
+  PetscReal   asym = 0, pmin = PETSC_MAX_REAL, emin = PETSC_MAX_REAL, prel = 0;
+  const char *name = ElemKindNames[kind];
   PetscInt    n;
 
   PetscFunctionBeginUser;
@@ -558,16 +563,18 @@ static PetscErrorCode GroupsForKind(PetscRandom rnd, ElemKind kind, PetscReal ex
 
   st.omin = PETSC_MAX_REAL, st.omax = PETSC_MIN_REAL, st.nclean = st.ngood = st.ncfg = 0;
   for (PetscInt c = 0; c < n; c++) PetscCall(TaylorGradient(rnd, &el[c], &st));
-  PetscCall(PetscPrintf(PETSC_COMM_WORLD, "PASS %-7s gradient Taylor test: %" PetscInt_FMT " configs, %" PetscInt_FMT "/%" PetscInt_FMT " halvings with order in [1.8, 2.2], observed orders %.3f .. %.3f\n", name, st.ncfg, st.ngood, st.nclean, (double)st.omin, (double)st.omax));
+  PetscCall(PetscPrintf(PETSC_COMM_WORLD, "PASS %-7s gradient Taylor test: %" PetscInt_FMT " configs, %" PetscInt_FMT "/%" PetscInt_FMT " halvings with order in [1.8, 2.2], observed orders %.3f .. %.3f\n", name, st.ncfg, st.ngood, st.nclean,
+                        (double) st.omin, (double) st.omax));
   npassed++;
 
   st.omin = PETSC_MAX_REAL, st.omax = PETSC_MIN_REAL, st.nclean = st.ngood = st.ncfg = 0;
   for (PetscInt c = 0; c < n; c++) PetscCall(TaylorHessian(rnd, &el[c], &st));
-  PetscCall(PetscPrintf(PETSC_COMM_WORLD, "PASS %-7s exact Hessian Taylor test: %" PetscInt_FMT " configs, %" PetscInt_FMT "/%" PetscInt_FMT " halvings with order in [1.8, 2.2], observed orders %.3f .. %.3f\n", name, st.ncfg, st.ngood, st.nclean, (double)st.omin, (double)st.omax));
+  PetscCall(PetscPrintf(PETSC_COMM_WORLD, "PASS %-7s exact Hessian Taylor test: %" PetscInt_FMT " configs, %" PetscInt_FMT "/%" PetscInt_FMT " halvings with order in [1.8, 2.2], observed orders %.3f .. %.3f\n", name, st.ncfg, st.ngood, st.nclean,
+                        (double) st.omin, (double) st.omax));
   npassed++;
 
   for (PetscInt c = 0; c < n; c++) PetscCall(CheckSymmetry(&el[c], &asym));
-  PetscCall(PetscPrintf(PETSC_COMM_WORLD, "PASS %-7s Hessian symmetry (exact and projected): max |H - H^T| / max|H| = %.2e (tol 1e-12)\n", name, (double)asym));
+  PetscCall(PetscPrintf(PETSC_COMM_WORLD, "PASS %-7s Hessian symmetry (exact and projected): max |H - H^T| / max|H| = %.2e (tol 1e-12)\n", name, (double) asym));
   npassed++;
 
   for (PetscInt c = 0; c < n; c++) {
@@ -575,11 +582,12 @@ static PetscErrorCode GroupsForKind(PetscRandom rnd, ElemKind kind, PetscReal ex
     pmin = PetscMin(pmin, prel);
     emin = PetscMin(emin, exact_rel[c]);
   }
-  PetscCall(PetscPrintf(PETSC_COMM_WORLD, "PASS %-7s projected Hessian PSD: min lambda_min / max|H| = %.2e (tol -1e-10); exact Hessian: min lambda_min / max|H| = %.3f\n", name, (double)pmin, (double)emin));
+  PetscCall(PetscPrintf(PETSC_COMM_WORLD, "PASS %-7s projected Hessian PSD: min lambda_min / max|H| = %.2e (tol -1e-10); exact Hessian: min lambda_min / max|H| = %.3f\n", name, (double) pmin, (double) emin));
   npassed++;
 
   for (PetscInt c = 0; c < n; c++) PetscCall(CheckInvariance(rnd, &el[c], &inv));
-  PetscCall(PetscPrintf(PETSC_COMM_WORLD, "PASS %-7s rigid-motion invariance: max rel. energy change %.2e (%.2e vs |E| alone), |g(Rx+t) - Rg| %.2e, |sum g| %.2e, |sum x cross g| %.2e\n", name, (double)inv.energy, (double)inv.energyraw, (double)inv.grot, (double)inv.gsum, (double)inv.torque));
+  PetscCall(PetscPrintf(PETSC_COMM_WORLD, "PASS %-7s rigid-motion invariance: max rel. energy change %.2e (%.2e vs |E| alone), |g(Rx+t) - Rg| %.2e, |sum g| %.2e, |sum x cross g| %.2e\n", name, (double) inv.energy, (double) inv.energyraw,
+                        (double) inv.grot, (double) inv.gsum, (double) inv.torque));
   npassed++;
   PetscFunctionReturn(0);
 }
@@ -595,7 +603,7 @@ static PetscErrorCode GroupIndefinite(const Elem st[], const PetscReal st_rel[],
   for (PetscInt c = 0; c < nst; c++) {
     if (!st[c].compressed) continue;
     ncomp++;
-    PetscCheck(st_rel[c] < -1e-2, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED: exact stretch Hessian of a compressed edge [%s] has no clearly negative eigenvalue: lambda_min / max|H| = %g (expected 2 (1 - L/l) < 0)", st[c].label, (double)st_rel[c]);
+    PetscCheck(st_rel[c] < -1e-2, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED: exact stretch Hessian of a compressed edge [%s] has no clearly negative eigenvalue: lambda_min / max|H| = %g (expected 2 (1 - L/l) < 0)", st[c].label, (double) st_rel[c]);
     worst = PetscMax(worst, st_rel[c]);
   }
   PetscCheck(ncomp > 0, PETSC_COMM_SELF, PETSC_ERR_PLIB, "test setup: no compressed stretch configuration");
@@ -607,8 +615,11 @@ static PetscErrorCode GroupIndefinite(const Elem st[], const PetscReal st_rel[],
     if (be_rel[c] < -1e-2) nbe_neg++;
     be_min = PetscMin(be_min, be_rel[c]);
   }
-  PetscCheck(nsh_neg + nbe_neg > 0, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED: no shear or bend configuration has an exact Hessian with a clearly negative eigenvalue (min lambda_min / max|H|: shear %g, bend %g)", (double)sh_min, (double)be_min);
-  PetscCall(PetscPrintf(PETSC_COMM_WORLD, "PASS exact Hessians are indefinite (projection matters): %" PetscInt_FMT "/%" PetscInt_FMT " compressed edges (lambda_min / max|H| <= %.3f), shear %" PetscInt_FMT "/%" PetscInt_FMT " (min %.3f), bend %" PetscInt_FMT "/%" PetscInt_FMT " (min %.3f)\n", ncomp, ncomp, (double)worst, nsh_neg, nsh, (double)sh_min, nbe_neg, nbe, (double)be_min));
+  PetscCheck(nsh_neg + nbe_neg > 0, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED: no shear or bend configuration has an exact Hessian with a clearly negative eigenvalue (min lambda_min / max|H|: shear %g, bend %g)", (double) sh_min, (double) be_min);
+  PetscCall(PetscPrintf(PETSC_COMM_WORLD,
+                        "PASS exact Hessians are indefinite (projection matters): %" PetscInt_FMT "/%" PetscInt_FMT " compressed edges (lambda_min / max|H| <= %.3f), shear %" PetscInt_FMT "/%" PetscInt_FMT " (min %.3f), bend %" PetscInt_FMT
+                        "/%" PetscInt_FMT " (min %.3f)\n",
+                        ncomp, ncomp, (double) worst, nsh_neg, nsh, (double) sh_min, nbe_neg, nbe, (double) be_min));
   npassed++;
   PetscFunctionReturn(0);
 }
@@ -628,11 +639,11 @@ static PetscErrorCode GroupProjectedEqualsExact(const Elem st[], PetscInt nst)
     PetscCall(MaxAbs(36, He, &m));
     diff = 0;
     for (PetscInt i = 0; i < 36; i++) diff = PetscMax(diff, PetscAbsReal(He[i] - Hp[i]));
-    PetscCheck(diff <= 1e-14 * m, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED: projected and exact stretch Hessians differ on the extended edge [%s]: max|Hp - H| / max|H| = %g", st[c].label, (double)(diff / m));
+    PetscCheck(diff <= 1e-14 * m, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED: projected and exact stretch Hessians differ on the extended edge [%s]: max|Hp - H| / max|H| = %g", st[c].label, (double) (diff / m));
     worst = PetscMax(worst, diff / m);
   }
   PetscCheck(next > 0, PETSC_COMM_SELF, PETSC_ERR_PLIB, "test setup: no extended stretch configuration");
-  PetscCall(PetscPrintf(PETSC_COMM_WORLD, "PASS stretch projected == exact Hessian on %" PetscInt_FMT " extended edges (l > L): max|Hp - H| / max|H| = %.2e\n", next, (double)worst));
+  PetscCall(PetscPrintf(PETSC_COMM_WORLD, "PASS stretch projected == exact Hessian on %" PetscInt_FMT " extended edges (l > L): max|Hp - H| / max|H| = %.2e\n", next, (double) worst));
   npassed++;
   PetscFunctionReturn(0);
 }
@@ -651,15 +662,16 @@ static PetscErrorCode GroupKnownStretch(PetscRandom rnd)
     }
     PetscCall(SetStretch(&el, xa, u, 1.5, 1.0, 2.0));
     PetscCall(ElemEval(&el, el.x, &E, g, NULL, PETSC_FALSE));
-    PetscCheck(PetscAbsReal(E - 0.25) <= 1e-12, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED known value: stretch l = 1.5, L = 1, k = 2 gives E = %.17g, expected 0.25", (double)E);
+    PetscCheck(PetscAbsReal(E - 0.25) <= 1e-12, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED known value: stretch l = 1.5, L = 1, k = 2 gives E = %.17g, expected 0.25", (double) E);
     eE = PetscMax(eE, PetscAbsReal(E - 0.25));
     for (PetscInt i = 0; i < 3; i++) {
       PetscReal da = PetscAbsReal(g[i] + u[i]), db = PetscAbsReal(g[3 + i] - u[i]);
-      PetscCheck(da <= 1e-12 && db <= 1e-12, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED known value: stretch l = 1.5, L = 1, k = 2, edge direction (%g, %g, %g): gradient (%g, %g, %g | %g, %g, %g), expected (-u | +u)", (double)u[0], (double)u[1], (double)u[2], (double)g[0], (double)g[1], (double)g[2], (double)g[3], (double)g[4], (double)g[5]);
+      PetscCheck(da <= 1e-12 && db <= 1e-12, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED known value: stretch l = 1.5, L = 1, k = 2, edge direction (%g, %g, %g): gradient (%g, %g, %g | %g, %g, %g), expected (-u | +u)", (double) u[0], (double) u[1],
+                 (double) u[2], (double) g[0], (double) g[1], (double) g[2], (double) g[3], (double) g[4], (double) g[5]);
       eg = PetscMax(eg, PetscMax(da, db));
     }
   }
-  PetscCall(PetscPrintf(PETSC_COMM_WORLD, "PASS stretch known values (l = 1.5, L = 1, k = 2, 5 placements): |E - 0.25| <= %.2e, |g - (-u, +u)| <= %.2e\n", (double)eE, (double)eg));
+  PetscCall(PetscPrintf(PETSC_COMM_WORLD, "PASS stretch known values (l = 1.5, L = 1, k = 2, 5 placements): |E - 0.25| <= %.2e, |g - (-u, +u)| <= %.2e\n", (double) eE, (double) eg));
   npassed++;
   PetscFunctionReturn(0);
 }
@@ -683,17 +695,19 @@ static PetscErrorCode GroupKnownShear(PetscRandom rnd)
     for (PetscInt i = 0; i < 3; i++) el.x[3 + i] = xc[i] + l2 * nrm[i];
     PetscCall(ElemEval(&el, el.x, &E, g, NULL, PETSC_FALSE));
     PetscCall(Norm(9, g, &ng));
-    PetscCheck(PetscAbsReal(E) <= 1e-14 * el.escale, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED known value: shear corner at a right angle [%s] has E = %g, expected 0", el.label, (double)E);
-    PetscCheck(ng <= 1e-12 * el.escale / el.ell, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED known value: shear corner at a right angle [%s] has |g| = %g, expected 0", el.label, (double)ng);
+    PetscCheck(PetscAbsReal(E) <= 1e-14 * el.escale, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED known value: shear corner at a right angle [%s] has E = %g, expected 0", el.label, (double) E);
+    PetscCheck(ng <= 1e-12 * el.escale / el.ell, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED known value: shear corner at a right angle [%s] has |g| = %g, expected 0", el.label, (double) ng);
     e0  = PetscMax(e0, PetscAbsReal(E) / el.escale);
     eg0 = PetscMax(eg0, ng * el.ell / el.escale);
     /* unit edges at pi/2 + 0.1 */
     PetscCall(SetAngle(&el, ELEM_SHEAR, xc, a, nrm, 1.0, 1.0, PETSC_PI / 2 + 0.1, kappa));
     PetscCall(ElemEval(&el, el.x, &E, NULL, NULL, PETSC_FALSE));
-    PetscCheck(PetscAbsReal(E - kappa * 0.01) <= 1e-12 * kappa * 0.01, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED known value: shear corner, unit edges at pi/2 + 0.1, kappa = %g: E = %.17g, expected kappa * 0.01 = %.17g", (double)kappa, (double)E, (double)(kappa * 0.01));
+    PetscCheck(PetscAbsReal(E - kappa * 0.01) <= 1e-12 * kappa * 0.01, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED known value: shear corner, unit edges at pi/2 + 0.1, kappa = %g: E = %.17g, expected kappa * 0.01 = %.17g", (double) kappa, (double) E,
+               (double) (kappa * 0.01));
     e1 = PetscMax(e1, PetscAbsReal(E - kappa * 0.01) / (kappa * 0.01));
   }
-  PetscCall(PetscPrintf(PETSC_COMM_WORLD, "PASS shear known values (5 placements): right angle |E| / (kappa|e1||e2|) <= %.2e, |g| ell / (kappa|e1||e2|) <= %.2e; pi/2 + 0.1 rel. error of E = 0.01 kappa <= %.2e\n", (double)e0, (double)eg0, (double)e1));
+  PetscCall(
+    PetscPrintf(PETSC_COMM_WORLD, "PASS shear known values (5 placements): right angle |E| / (kappa|e1||e2|) <= %.2e, |g| ell / (kappa|e1||e2|) <= %.2e; pi/2 + 0.1 rel. error of E = 0.01 kappa <= %.2e\n", (double) e0, (double) eg0, (double) e1));
   npassed++;
   PetscFunctionReturn(0);
 }
@@ -718,19 +732,19 @@ static PetscErrorCode GroupKnownBend(PetscRandom rnd)
     for (PetscInt i = 0; i < 3; i++) el.x[3 + i] = xc[i] - l2 * a[i];
     PetscCall(ElemEval(&el, el.x, &E, g, NULL, PETSC_FALSE));
     PetscCall(Norm(9, g, &ng));
-    PetscCheck(PetscAbsReal(E) <= 1e-14 * kappa, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED known value: straight bending triple [%s] has E = %g, expected 0", el.label, (double)E);
-    PetscCheck(ng <= 1e-10 * kappa / el.ell, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED known value: straight bending triple [%s] has |g| = %g, expected 0 (minimum)", el.label, (double)ng);
+    PetscCheck(PetscAbsReal(E) <= 1e-14 * kappa, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED known value: straight bending triple [%s] has E = %g, expected 0", el.label, (double) E);
+    PetscCheck(ng <= 1e-10 * kappa / el.ell, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED known value: straight bending triple [%s] has |g| = %g, expected 0 (minimum)", el.label, (double) ng);
     e0  = PetscMax(e0, PetscAbsReal(E) / kappa);
     eg0 = PetscMax(eg0, ng * el.ell / kappa);
     for (size_t j = 0; j < sizeof(ths) / sizeof(ths[0]); j++) {
       PetscCall(SetAngle(&el, ELEM_BEND, xc, a, nrm, l1, l2, ths[j], kappa));
       PetscCall(ElemEval(&el, el.x, &E, NULL, NULL, PETSC_FALSE));
       Eref = kappa * (1 + PetscCosReal(ths[j]));
-      PetscCheck(PetscAbsReal(E - Eref) <= 1e-12 * kappa, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED known value: bending triple [%s]: E = %.17g, expected kappa (1 + cos theta) = %.17g", el.label, (double)E, (double)Eref);
+      PetscCheck(PetscAbsReal(E - Eref) <= 1e-12 * kappa, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED known value: bending triple [%s]: E = %.17g, expected kappa (1 + cos theta) = %.17g", el.label, (double) E, (double) Eref);
       eth = PetscMax(eth, PetscAbsReal(E - Eref) / kappa);
     }
   }
-  PetscCall(PetscPrintf(PETSC_COMM_WORLD, "PASS bend known values (5 placements): straight |E| / kappa <= %.2e, |g| ell / kappa <= %.2e; 7 angles |E - kappa (1 + cos theta)| / kappa <= %.2e\n", (double)e0, (double)eg0, (double)eth));
+  PetscCall(PetscPrintf(PETSC_COMM_WORLD, "PASS bend known values (5 placements): straight |E| / kappa <= %.2e, |g| ell / kappa <= %.2e; 7 angles |E - kappa (1 + cos theta)| / kappa <= %.2e\n", (double) e0, (double) eg0, (double) eth));
   npassed++;
   PetscFunctionReturn(0);
 }
@@ -746,7 +760,7 @@ static PetscErrorCode Run(void)
   PetscCall(PetscOptionsGetInt(NULL, NULL, "-seed", &seed, NULL));
   PetscCall(PetscRandomCreate(PETSC_COMM_SELF, &rnd));
   PetscCall(PetscRandomSetInterval(rnd, 0.0, 1.0));
-  PetscCall(PetscRandomSetSeed(rnd, (unsigned long)seed));
+  PetscCall(PetscRandomSetSeed(rnd, (unsigned long) seed));
   PetscCall(PetscRandomSeed(rnd));
   PetscCall(PetscPrintf(PETSC_COMM_WORLD, "test_kernels: seed %" PetscInt_FMT "\n", seed));
 
