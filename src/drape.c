@@ -80,7 +80,7 @@ PetscErrorCode DrapeCheckUnusedOptions(MPI_Comm comm)
         char name[256];
         PetscCall(PetscStrncpy(name, names[i], sizeof name));
         PetscCall(PetscOptionsLeftRestore(NULL, &n, &names, &values));
-        SETERRQ(comm, PETSC_ERR_USER_INPUT, "Unknown option -%s: drape has no such option (run with -help for the list)", name);
+        SETERRQ(comm, PETSC_ERR_USER_INPUT, "Unknown option -%s: drape has no such option, or it does not apply to this run (run with -help for the list)", name);
       }
     }
   }
