@@ -16,6 +16,8 @@ typedef struct _p_Cloth *Cloth;
 /* Internal energy split by kind, plus kinetic and gravitational energy. */
 typedef struct {
   PetscReal kinetic, gravity, stretch, shear, bend;
+  PetscReal contact_depth; /* deepest penetration corrected since the last frame, m */
+  PetscInt  contact_count; /* particles in contact after the last step            */
 } ClothEnergies;
 
 /* Summary numbers a driver prints or writes next to the results. */
@@ -58,3 +60,15 @@ PETSC_EXTERN PetscErrorCode ClothApplyHessian(Cloth, const PetscScalar *x, const
 PETSC_EXTERN PetscErrorCode ClothCreateMatrix(Cloth, Mat *);
 /* J = a M + b H(x); pinned particles get m*I on the diagonal and nothing else. */
 PETSC_EXTERN PetscErrorCode ClothAssembleMatrix(Cloth, const PetscScalar *x, PetscReal a, PetscReal b, Mat J);
+
+/* Contact constraints of the implicit solve. fn(ctx, x, &type, n) tells whether a
+ * particle at x is free (0), may only slide along a surface of outward normal n (1),
+ * or is held fixed (2). ClothUpdateConstraints evaluates it for every local
+ * particle at positions x (owned order); ClothAssembleMatrix then returns
+ * S J S + (I - S) M with S the per-particle projector onto the free directions,
+ * which stays SPD. */
+PETSC_EXTERN PetscErrorCode ClothSetConstraintFunction(Cloth, PetscErrorCode (*fn)(void *, const PetscReal *, PetscInt *, PetscReal *), void *ctx, PetscReal friction);
+PETSC_EXTERN PetscErrorCode ClothUpdateConstraints(Cloth, const PetscScalar *x, PetscBool *any);
+/* Owned-order constraint type and normal arrays (NULL when there is no function),
+ * and the Coulomb coefficient of sliding contacts (0: frictionless). */
+PETSC_EXTERN PetscErrorCode ClothGetConstraints(Cloth, const PetscInt **type, const PetscReal **normal, PetscReal *friction);

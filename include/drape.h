@@ -9,7 +9,7 @@
 /* Log events and stages, registered once by DrapeInitialize(); -log_view shows them. */
 typedef struct {
   PetscClassId  classid;
-  PetscLogEvent forces, energies, jacobian, linear_solve, output, stability;
+  PetscLogEvent forces, energies, jacobian, linear_solve, output, stability, contact;
   PetscLogStage setup, timeloop;
 } DrapeLog;
 

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cloth.h>
+#include <solid.h>
 
 typedef struct _p_Output *Output;
 
@@ -10,7 +11,7 @@ PETSC_EXTERN PetscErrorCode OutputCreate(MPI_Comm, Output *);
 PETSC_EXTERN PetscErrorCode OutputSetFromOptions(Output);
 PETSC_EXTERN PetscErrorCode OutputEnabled(Output, PetscBool *);
 /* Open the file and write the run's description (every option, version, lattice). */
-PETSC_EXTERN PetscErrorCode OutputOpen(Output, Cloth, const char *description);
+PETSC_EXTERN PetscErrorCode OutputOpen(Output, Cloth, Solid, const char *description);
 /* Is a frame due at (step, t)? The first frame is always due. */
 PETSC_EXTERN PetscErrorCode OutputFrameDue(Output, PetscInt step, PetscReal t, PetscBool *);
 /* Write one frame and flush it to disk: a run killed later keeps it readable. */

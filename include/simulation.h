@@ -17,8 +17,8 @@ PETSC_EXTERN PetscErrorCode SimulationRun(Simulation);
 PETSC_EXTERN PetscErrorCode SimulationDestroy(Simulation *);
 
 /* beuler.c: drape's backward Euler in the paper's form (A dv = b, SNES + KSP CG on
- * an assembled MATAIJ), registered as TS type "beuler". The TS application
- * context must be the Cloth. */
+ * an assembled MATAIJ), registered as TS type "beuler". The Cloth must be composed
+ * on the TS as a PetscContainer named "drape_cloth". */
 PETSC_EXTERN PetscErrorCode DrapeTSRegisterBEuler(void);
 
 /* stability.c: Omega_max^2 = lambda_max(M^-1 H) by power iteration, and the step

@@ -297,6 +297,7 @@ PetscErrorCode ClothDestroy(Cloth *cloth)
     PetscCall(ElementsDestroy(&c->bend_el));
     PetscCall(PetscFree3(c->owned_local, c->mass, c->pinned));
     PetscCall(PetscFree4(c->row_map, c->col_map, c->pinned_local, c->global));
+    PetscCall(PetscFree4(c->ctype, c->ctype_owned, c->cnormal, c->cnormal_owned));
     PetscCall(PetscFree(c->map));
     PetscCall(PetscFree(c->map_diag));
   }

@@ -53,6 +53,13 @@ struct _p_Cloth {
   ClothElements stretch_el, shear_el, bend_el;
   PetscInt      nstretch, nshear, nbend, npinned; /* global counts            */
   PetscReal     total_mass;
+  /* contact constraints of the implicit solve: 0 free, 1 normal, 2 fixed */
+  PetscErrorCode (*constraint)(void *, const PetscReal *, PetscInt *, PetscReal *);
+  void      *constraint_ctx;
+  PetscReal  friction;
+  PetscInt  *ctype, *ctype_owned;     /* local, owned             */
+  PetscReal *cnormal, *cnormal_owned; /* local, owned (3 each)    */
+  PetscBool  constrained;             /* any on this rank         */
   /* fast AIJ assembly (forces.c): CSR value positions for map_mat */
   Mat       map_mat;
   PetscInt *map, *map_diag, map_nnzA;

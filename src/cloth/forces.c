@@ -130,6 +130,99 @@ PetscErrorCode ClothComputeEnergies(Cloth c, const PetscScalar *x, const PetscSc
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode ClothSetConstraintFunction(Cloth c, PetscErrorCode (*fn)(void *, const PetscReal *, PetscInt *, PetscReal *), void *ctx, PetscReal friction)
+{
+  PetscFunctionBeginUser;
+  c->friction       = friction;
+  c->constraint     = fn;
+  c->constraint_ctx = ctx;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ClothUpdateConstraints(Cloth c, const PetscScalar *x, PetscBool *any)
+{
+  const PetscScalar *xl;
+  PetscInt           count = 0;
+
+  PetscFunctionBeginUser;
+  *any = PETSC_FALSE;
+  if (!c->constraint) PetscFunctionReturn(0);
+  if (!c->ctype) PetscCall(PetscMalloc4(c->nlocal, &c->ctype, c->nowned, &c->ctype_owned, 3 * c->nlocal, &c->cnormal, 3 * c->nowned, &c->cnormal_owned));
+  PetscCall(ClothScatterPositions(c, x, &xl));
+  for (PetscInt l = 0; l < c->nlocal; l++) {
+    c->ctype[l] = 0;
+    if (!c->pinned_local[l]) PetscCall(c->constraint(c->constraint_ctx, xl + 3 * l, &c->ctype[l], c->cnormal + 3 * l));
+    count += c->ctype[l] != 0;
+  }
+  PetscCall(ClothEndScatter(c, &xl));
+  for (PetscInt k = 0; k < c->nowned; k++) {
+    const PetscInt l  = c->owned_local[k];
+    c->ctype_owned[k] = c->ctype[l];
+    for (PetscInt d = 0; d < 3; d++) c->cnormal_owned[3 * k + d] = c->cnormal[3 * l + d];
+  }
+  c->constrained = (PetscBool)(count > 0);
+  PetscCall(MPIU_Allreduce(&c->constrained, any, 1, MPIU_BOOL, MPI_LOR, c->comm));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ClothGetConstraints(Cloth c, const PetscInt **type, const PetscReal **normal, PetscReal *friction)
+{
+  PetscFunctionBeginUser;
+  *friction = c->friction;
+  *type   = c->constraint ? c->ctype_owned : NULL;
+  *normal = c->constraint ? c->cnormal_owned : NULL;
+  PetscFunctionReturn(0);
+}
+
+/* B <- S B (left) or B S (right), S = I - n n^T (type 1) or 0 (type 2); B 3x3 with row stride ld. */
+static inline void ProjectBlock(PetscInt type, const PetscReal *n, PetscReal *B, PetscInt ld, PetscBool left)
+{
+  if (type == 2) {
+    for (PetscInt i = 0; i < 3; i++) B[ld * i] = B[ld * i + 1] = B[ld * i + 2] = 0;
+    return;
+  }
+  if (left) {
+    for (PetscInt j = 0; j < 3; j++) {
+      PetscReal s = n[0] * B[j] + n[1] * B[ld + j] + n[2] * B[2 * ld + j];
+      for (PetscInt i = 0; i < 3; i++) B[ld * i + j] -= n[i] * s;
+    }
+  } else {
+    for (PetscInt i = 0; i < 3; i++) {
+      PetscReal s = B[ld * i] * n[0] + B[ld * i + 1] * n[1] + B[ld * i + 2] * n[2];
+      for (PetscInt j = 0; j < 3; j++) B[ld * i + j] -= s * n[j];
+    }
+  }
+}
+
+/* Element Hessian H (m x m) <- S H S for constrained particles. */
+static inline void FilterElementHessian(Cloth c, PetscInt n, const PetscInt *p, PetscReal *H)
+{
+  const PetscInt m = 3 * n;
+  for (PetscInt a = 0; a < n; a++) {
+    const PetscInt t = c->ctype[p[a]];
+    if (!t) continue;
+    for (PetscInt b = 0; b < n; b++) {
+      ProjectBlock(t, c->cnormal + 3 * p[a], H + m * 3 * a + 3 * b, m, PETSC_TRUE);
+      ProjectBlock(t, c->cnormal + 3 * p[a], H + m * 3 * b + 3 * a, m, PETSC_FALSE);
+    }
+  }
+}
+
+/* Diagonal mass block of owned particle k: a m S + m (I - S). */
+static inline void MassBlock(Cloth c, PetscInt k, PetscReal a, PetscReal D[9])
+{
+  const PetscReal m = c->mass[k];
+  const PetscInt  t = c->pinned[k] ? 2 : (c->constrained ? c->ctype[c->owned_local[k]] : 0);
+
+  for (PetscInt i = 0; i < 9; i++) D[i] = 0;
+  D[0] = D[4] = D[8] = (t == 2 ? 1 : a) * m;
+  if (t == 1) {
+    const PetscReal *n = c->cnormal + 3 * c->owned_local[k];
+    for (PetscInt i = 0; i < 3; i++)
+      for (PetscInt j = 0; j < 3; j++) D[3 * i + j] += (1 - a) * m * n[i] * n[j];
+  }
+}
+
 /* Element Hessian (particles p[0..n-1]); H is (3n x 3n) row-major. */
 static inline void ElementHessian(PetscBool project, PetscInt kind, const PetscReal *xl, const PetscInt *p, PetscReal coef, PetscReal rest, PetscReal *H)
 {
@@ -200,6 +293,7 @@ static PetscErrorCode ClothAddToMatrix(Cloth c, const PetscReal *xl, PetscReal a
       }
       if (xl) {
         ElementHessian((PetscBool) !c->exact_hessian, kind, xl, p, el->coef[e], el->rest ? el->rest[e] : 0, H);
+        if (c->constrained) FilterElementHessian(c, n, p, H);
         for (PetscInt i = 0; i < 9 * n * n; i++) H[i] *= b;
       }
       PetscCall(MatSetValuesBlocked(J, n, rows, n, cols, H, ADD_VALUES));
@@ -207,8 +301,7 @@ static PetscErrorCode ClothAddToMatrix(Cloth c, const PetscReal *xl, PetscReal a
   }
   for (PetscInt k = 0; k < c->nowned; k++) {
     PetscInt g = c->global[c->owned_local[k]];
-    PetscCall(PetscArrayzero(D, 9));
-    D[0] = D[4] = D[8] = (c->pinned[k] ? 1 : a) * c->mass[k];
+    MassBlock(c, k, a, D);
     PetscCall(MatSetValuesBlocked(J, 1, &g, 1, &g, D, ADD_VALUES));
   }
   PetscFunctionReturn(0);
@@ -366,6 +459,7 @@ static PetscErrorCode ClothAddToMatrixFast(Cloth c, const PetscReal *xl, PetscRe
     for (PetscInt e = 0; e < el->n; e++) {
       const PetscInt *p = el->p + n * e;
       ElementHessian((PetscBool) !c->exact_hessian, kind, xl, p, el->coef[e], el->rest ? el->rest[e] : 0, H);
+      if (c->constrained) FilterElementHessian(c, n, p, H);
       for (PetscInt pa = 0; pa < n; pa++) {
         for (PetscInt pb = 0; pb < n; pb++) {
           for (PetscInt d = 0; d < 3; d++, total++) {
@@ -382,8 +476,12 @@ static PetscErrorCode ClothAddToMatrixFast(Cloth c, const PetscReal *xl, PetscRe
       }
     }
   }
-  for (PetscInt k = 0; k < c->nowned; k++)
-    for (PetscInt d = 0; d < 3; d++) va[c->map_diag[3 * k + d] + d] += (c->pinned[k] ? 1 : a) * c->mass[k];
+  for (PetscInt k = 0; k < c->nowned; k++) {
+    PetscReal D[9];
+    MassBlock(c, k, a, D);
+    for (PetscInt d = 0; d < 3; d++)
+      for (PetscInt e = 0; e < 3; e++) va[c->map_diag[3 * k + d] + e] += D[3 * d + e];
+  }
   PetscCall(MatSeqAIJRestoreArray(Ad, &va));
   if (Ao) PetscCall(MatSeqAIJRestoreArray(Ao, &vb));
   PetscFunctionReturn(0);

@@ -10,7 +10,15 @@
  * -snes_type ksponly (the default) takes the single Newton step from dv = 0: the
  * paper's linearised step; -snes_type newtonls iterates to the full backward-Euler
  * solution. Pinned particles keep dv = 0 (their rows and columns are removed).
- * Then v += dv and x += h v. A failed solve stops the run with its reason. */
+ * Then v += dv and x += h v. A failed solve stops the run with its reason.
+ *
+ * Contact (when the Cloth has a constraint function): particles in contact at the
+ * start of the step are constrained inside the solve. With S_i the projector on
+ * particle i's free directions (0 when sticky, I - n n^T when sliding) the unknown
+ * is w with dv = S w + z, z making the constrained velocity components zero, and
+ * SNES solves S R(dv) + (I - S) M w = 0 whose matrix S A S + (I - S) M stays SPD.
+ * With friction, the normal impulse the constraint carried bounds the tangential
+ * velocity change (Coulomb) after the solve. */
 #include <petsc/private/tsimpl.h>
 #include <drape.h>
 #include <simulation.h>
@@ -23,7 +31,11 @@ typedef struct {
   const PetscScalar *x0, *v0;
   const PetscReal   *mass;
   const PetscBool   *pinned;
-  PetscReal          h, damping;
+  const PetscInt    *ctype;   /* contact constraints, owned order (NULL: none) */
+  const PetscReal   *cnormal;
+  PetscScalar       *z;
+  PetscBool          constrained;
+  PetscReal          h, damping, friction;
   PetscInt           n; /* 3 x owned particles */
 } TS_DrapeBE;
 
@@ -36,10 +48,19 @@ static PetscErrorCode TrialState(TS_DrapeBE *be, Vec DV)
 
   PetscFunctionBeginUser;
   PetscCall(VecGetArrayRead(DV, &dv));
-  for (PetscInt i = 0; i < be->n; i++) {
-    be->vt[i] = be->v0[i] + (be->pinned[i / 3] ? 0 : dv[i]);
-    be->xt[i] = be->x0[i] + be->h * be->vt[i];
+  for (PetscInt i = 0; i < be->n; i++) be->vt[i] = be->v0[i] + (be->pinned[i / 3] ? 0 : dv[i]);
+  if (be->constrained) {
+    for (PetscInt k = 0; k < be->n / 3; k++) {
+      const PetscReal *nk = be->cnormal + 3 * k, *w = dv + 3 * k;
+      PetscReal        wn = nk[0] * w[0] + nk[1] * w[1] + nk[2] * w[2];
+      for (PetscInt d = 0; d < 3; d++) {
+        if (be->ctype[k] == 1) be->vt[3 * k + d] -= wn * nk[d];
+        else if (be->ctype[k] == 2) be->vt[3 * k + d] = be->v0[3 * k + d];
+        be->vt[3 * k + d] += be->z[3 * k + d];
+      }
+    }
   }
+  for (PetscInt i = 0; i < be->n; i++) be->xt[i] = be->x0[i] + be->h * be->vt[i];
   PetscCall(VecRestoreArrayRead(DV, &dv));
   PetscFunctionReturn(0);
 }
@@ -55,7 +76,18 @@ static PetscErrorCode BEFunction(SNES snes, Vec DV, Vec R, void *ctx)
   PetscCall(ClothComputeAcceleration(be->cloth, be->xt, be->vt, be->at));
   PetscCall(VecGetArrayRead(DV, &dv));
   PetscCall(VecGetArray(R, &r));
-  for (PetscInt i = 0; i < be->n; i++) r[i] = be->mass[i / 3] * (dv[i] - be->h * be->at[i]);
+  for (PetscInt i = 0; i < be->n; i++) r[i] = be->mass[i / 3] * (be->pinned[i / 3] ? dv[i] : be->vt[i] - be->v0[i] - be->h * be->at[i]);
+  if (be->constrained) {
+    /* S R + (I - S) M w */
+    for (PetscInt k = 0; k < be->n / 3; k++) {
+      const PetscReal *nk = be->cnormal + 3 * k, *w = dv + 3 * k, m = be->mass[k];
+      PetscReal       *rk = r + 3 * k, rn = nk[0] * rk[0] + nk[1] * rk[1] + nk[2] * rk[2], wn = nk[0] * w[0] + nk[1] * w[1] + nk[2] * w[2];
+      if (be->ctype[k] == 2)
+        for (PetscInt d = 0; d < 3; d++) rk[d] = m * w[d];
+      else if (be->ctype[k] == 1)
+        for (PetscInt d = 0; d < 3; d++) rk[d] += (m * wn - rn) * nk[d];
+    }
+  }
   PetscCall(VecRestoreArray(R, &r));
   PetscCall(VecRestoreArrayRead(DV, &dv));
   PetscFunctionReturn(0);
@@ -75,6 +107,31 @@ static PetscErrorCode BEJacobian(SNES snes, Vec DV, Mat J, Mat P, void *ctx)
   PetscFunctionReturn(0);
 }
 
+/* Coulomb friction on sliding contacts: the impulse per unit mass the normal
+ * constraint carried, j = -n.(dv - h a), bounds the tangential velocity change. */
+static PetscErrorCode BEFriction(TS_DrapeBE *be)
+{
+  PetscFunctionBeginUser;
+  PetscCall(ClothComputeAcceleration(be->cloth, be->xt, be->vt, be->at));
+  for (PetscInt k = 0; k < be->n / 3; k++) {
+    const PetscReal *nk = be->cnormal + 3 * k;
+    PetscReal       *v = be->vt + 3 * k, j = 0, vn = 0, vt[3], lt = 0;
+    if (be->ctype[k] != 1) continue;
+    for (PetscInt d = 0; d < 3; d++) {
+      j -= nk[d] * (v[d] - be->v0[3 * k + d] - be->h * be->at[3 * k + d]);
+      vn += nk[d] * v[d];
+    }
+    if (j <= 0) continue;
+    for (PetscInt d = 0; d < 3; d++) {
+      vt[d] = v[d] - vn * nk[d];
+      lt += vt[d] * vt[d];
+    }
+    lt = PetscSqrtReal(lt);
+    for (PetscInt d = 0; d < 3; d++) v[d] -= (lt <= be->friction * j ? 1 : be->friction * j / lt) * vt[d];
+  }
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode TSSetUp_DrapeBE(TS ts)
 {
   TS_DrapeBE *be = (TS_DrapeBE *) ts->data;
@@ -83,8 +140,12 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
   ClothInfo   info;
 
   PetscFunctionBeginUser;
-  PetscCall(TSGetApplicationContext(ts, &be->cloth));
-  PetscCheck(be->cloth, PetscObjectComm((PetscObject) ts), PETSC_ERR_ARG_WRONGSTATE, "TS type beuler (drape) needs the Cloth as TS application context");
+  {
+    PetscContainer container;
+    PetscCall(PetscObjectQuery((PetscObject)ts, "drape_cloth", (PetscObject *)&container));
+    PetscCheck(container, PetscObjectComm((PetscObject)ts), PETSC_ERR_ARG_WRONGSTATE, "TS type beuler (drape) needs the Cloth composed on the TS as \"drape_cloth\"");
+    PetscCall(PetscContainerGetPointer(container, (void **)&be->cloth));
+  }
   PetscCall(ClothGetInfo(be->cloth, &info));
   PetscCall(ClothGetDM(be->cloth, &da));
   PetscCall(ClothGetMasses(be->cloth, &be->mass, &be->pinned));
@@ -93,7 +154,7 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
   PetscCall(DMCreateGlobalVector(da, &be->DV));
   PetscCall(VecDuplicate(be->DV, &be->R));
   PetscCall(ClothCreateMatrix(be->cloth, &be->J));
-  PetscCall(PetscMalloc3(be->n, &be->xt, be->n, &be->vt, be->n, &be->at));
+  PetscCall(PetscMalloc4(be->n, &be->xt, be->n, &be->vt, be->n, &be->at, be->n, &be->z));
   PetscCall(TSGetSNES(ts, &snes));
   PetscCall(SNESSetDM(snes, da));
   PetscCall(SNESSetFunction(snes, be->R, BEFunction, be));
@@ -110,7 +171,6 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
   KSPConvergedReason  kreason;
   PetscInt            its, lits;
   PetscScalar        *u;
-  const PetscScalar  *dv;
 
   PetscFunctionBeginUser;
   PetscCall(TSGetSNES(ts, &snes));
@@ -119,6 +179,16 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
   PetscCall(VecGetArray(ts->vec_sol, &u));
   be->x0 = u;
   be->v0 = u + be->n;
+  PetscCall(ClothUpdateConstraints(be->cloth, be->x0, &be->constrained));
+  if (be->constrained) {
+    /* z: the velocity change that zeroes the constrained components of v0 */
+    PetscCall(ClothGetConstraints(be->cloth, &be->ctype, &be->cnormal, &be->friction));
+    for (PetscInt k = 0; k < be->n / 3; k++) {
+      const PetscReal *nk = be->cnormal + 3 * k, *v = be->v0 + 3 * k;
+      PetscReal        vn = nk[0] * v[0] + nk[1] * v[1] + nk[2] * v[2];
+      for (PetscInt d = 0; d < 3; d++) be->z[3 * k + d] = be->ctype[k] == 2 ? -v[d] : (be->ctype[k] == 1 ? -vn * nk[d] : 0);
+    }
+  }
   PetscCall(VecSet(be->DV, 0.0));
   PetscCall(PetscLogEventBegin(drape_log.linear_solve, 0, 0, 0, 0));
   PetscCall(SNESSolve(snes, NULL, be->DV));
@@ -137,12 +207,12 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
             " linear iterations. An indefinite matrix points at -cloth_hessian exact; otherwise raise -ksp_max_it or reduce -ts_dt",
             ts->steps, (double) ts->ptime, (double) ts->time_step, SNESConvergedReasons[sreason], KSPConvergedReasons[kreason], lits);
   }
-  PetscCall(VecGetArrayRead(be->DV, &dv));
+  PetscCall(TrialState(be, be->DV));
+  if (be->constrained && be->friction > 0) PetscCall(BEFriction(be));
   for (PetscInt i = 0; i < be->n; i++) {
-    u[be->n + i] += dv[i];
-    u[i] += be->h * u[be->n + i];
+    u[be->n + i] = be->vt[i];
+    u[i]         = be->x0[i] + be->h * be->vt[i];
   }
-  PetscCall(VecRestoreArrayRead(be->DV, &dv));
   PetscCall(VecRestoreArray(ts->vec_sol, &u));
   ts->ptime += ts->time_step;
   PetscCall(TSPostStage(ts, ts->ptime, 0, &ts->vec_sol));
@@ -157,7 +227,7 @@ static PetscErrorCode TSReset_DrapeBE(TS ts)
   PetscCall(VecDestroy(&be->DV));
   PetscCall(VecDestroy(&be->R));
   PetscCall(MatDestroy(&be->J));
-  PetscCall(PetscFree3(be->xt, be->vt, be->at));
+  PetscCall(PetscFree4(be->xt, be->vt, be->at, be->z));
   PetscFunctionReturn(0);
 }
 

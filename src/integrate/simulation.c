@@ -11,6 +11,7 @@
 #include <petsc/private/tsimpl.h>
 #include <simulation.h>
 #include <output.h>
+#include <solid.h>
 #include <drape.h>
 #include <unistd.h>
 
@@ -18,6 +19,10 @@ struct _p_Simulation {
   MPI_Comm        comm;
   Cloth           cloth;
   Output          output;
+  Solid           solid;
+  Contact         contact; /* NULL when the scene has no solid */
+  PetscReal       depth;   /* deepest penetration since the last frame, m */
+  PetscInt        ncontact;
   TS              ts;
   Vec             U;
   IS              is_x, is_v;
@@ -94,6 +99,27 @@ static PetscErrorCode PreStep(TS ts)
   PetscFunctionReturn(0);
 }
 
+/* Contact after every step, whatever the scheme: project particles that reached
+ * the solid back onto its contact surface and constrain their velocity. */
+static PetscErrorCode PostStep(TS ts)
+{
+  Simulation       s;
+  PetscScalar     *u;
+  const PetscBool *pinned;
+  PetscReal        depth;
+  PetscInt         ncontact;
+
+  PetscFunctionBeginUser;
+  PetscCall(TSGetApplicationContext(ts, &s));
+  PetscCall(ClothGetMasses(s->cloth, NULL, &pinned));
+  PetscCall(VecGetArray(s->U, &u));
+  PetscCall(ContactProject(s->contact, s->n / 3, u, u + s->n, pinned, 0, &depth, &ncontact));
+  PetscCall(VecRestoreArray(s->U, &u));
+  s->depth    = PetscMax(s->depth, depth);
+  s->ncontact = ncontact;
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode SimulationCreate(MPI_Comm comm, Simulation *sim)
 {
   Simulation s;
@@ -106,6 +132,7 @@ PetscErrorCode SimulationCreate(MPI_Comm comm, Simulation *sim)
   s->summary           = PETSC_TRUE;
   s->progress          = (PetscBool) (isatty(1) && !getenv("CI"));
   PetscCall(ClothCreate(comm, &s->cloth));
+  PetscCall(SolidCreate(comm, &s->solid));
   PetscCall(OutputCreate(comm, &s->output));
   *sim = s;
   PetscFunctionReturn(0);
@@ -124,6 +151,9 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
   PetscCheck(s->stability_its >= 0, s->comm, PETSC_ERR_USER_INPUT, "-drape_stability_its must be zero or positive; got %" PetscInt_FMT, s->stability_its);
   PetscCheck(s->divergence_factor > 0, s->comm, PETSC_ERR_USER_INPUT, "-drape_divergence_factor must be positive; got %g", (double) s->divergence_factor);
   PetscCall(ClothSetFromOptions(s->cloth));
+  PetscCall(SolidSetFromOptions(s->solid));
+  PetscCall(ContactCreate(s->comm, s->solid, &s->contact));
+  PetscCall(ContactSetFromOptions(s->contact));
   PetscCall(OutputSetFromOptions(s->output));
   PetscFunctionReturn(0);
 }
@@ -139,6 +169,18 @@ PetscErrorCode SimulationSetUp(Simulation s)
   PetscFunctionBeginUser;
   PetscCall(ClothSetUp(s->cloth));
   PetscCall(ClothGetInfo(s->cloth, &info));
+  PetscCall(SolidSetUp(s->solid));
+  {
+    PetscBool  empty;
+    ContactMode mode;
+    PetscReal  mu;
+    PetscCall(SolidIsEmpty(s->solid, &empty));
+    if (empty) PetscCall(ContactDestroy(&s->contact)); /* no solid, no contact code */
+    else {
+      PetscCall(ContactGetMode(s->contact, &mode, &mu));
+      PetscCall(ClothSetConstraintFunction(s->cloth, ContactConstraint, s->contact, mu));
+    }
+  }
   s->n = 3 * info.nowned;
   PetscCall(VecCreateMPI(s->comm, 2 * s->n, PETSC_DETERMINE, &s->U));
   PetscCall(PetscObjectSetName((PetscObject) s->U, "state"));
@@ -151,7 +193,14 @@ PetscErrorCode SimulationSetUp(Simulation s)
 
   PetscCall(DrapeTSRegisterBEuler());
   PetscCall(TSCreate(s->comm, &s->ts));
-  PetscCall(TSSetApplicationContext(s->ts, s->cloth));
+  PetscCall(TSSetApplicationContext(s->ts, s));
+  {
+    PetscContainer container; /* the Cloth, for drape's beuler TS type */
+    PetscCall(PetscContainerCreate(s->comm, &container));
+    PetscCall(PetscContainerSetPointer(container, s->cloth));
+    PetscCall(PetscObjectCompose((PetscObject)s->ts, "drape_cloth", (PetscObject)container));
+    PetscCall(PetscContainerDestroy(&container));
+  }
   PetscCall(TSSetProblemType(s->ts, TS_NONLINEAR));
   PetscCall(TSSetType(s->ts, TSBASICSYMPLECTIC));
   PetscCall(TSBasicSymplecticSetType(s->ts, TSBASICSYMPLECTICSIEULER));
@@ -166,6 +215,7 @@ PetscErrorCode SimulationSetUp(Simulation s)
   PetscCall(TSSetExactFinalTime(s->ts, TS_EXACTFINALTIME_MATCHSTEP));
   PetscCall(TSSetSolution(s->ts, s->U));
   PetscCall(TSSetPreStep(s->ts, PreStep));
+  if (s->contact) PetscCall(TSSetPostStep(s->ts, PostStep));
   PetscCall(TSSetFromOptions(s->ts));
   PetscCall(TSGetType(s->ts, &type));
   for (const char *const *t = supported_types; *t; t++) {
@@ -193,6 +243,8 @@ PetscErrorCode SimulationDestroy(Simulation *sim)
   PetscCall(ISDestroy(&s->is_x));
   PetscCall(ISDestroy(&s->is_v));
   PetscCall(OutputDestroy(&s->output));
+  PetscCall(ContactDestroy(&s->contact));
+  PetscCall(SolidDestroy(&s->solid));
   PetscCall(ClothDestroy(&s->cloth));
   PetscCall(PetscFree(*sim));
   PetscFunctionReturn(0);
@@ -206,7 +258,10 @@ static PetscErrorCode SimulationWriteFrame(Simulation s, PetscInt step, PetscRea
   PetscFunctionBeginUser;
   PetscCall(PetscLogEventBegin(drape_log.output, 0, 0, 0, 0));
   PetscCall(ClothComputeEnergies(s->cloth, u, u + s->n, &en));
+  en.contact_depth = s->depth;
+  en.contact_count = s->ncontact;
   PetscCall(OutputWriteFrame(s->output, s->cloth, step, t, u, u + s->n, &en));
+  s->depth = 0;
   PetscCall(PetscLogEventEnd(drape_log.output, 0, 0, 0, 0));
   PetscFunctionReturn(0);
 }
@@ -297,6 +352,8 @@ static PetscErrorCode SimulationViewStart(Simulation s)
   PetscCall(TSGetMaxTime(s->ts, &tmax));
   PetscCall(PetscViewerASCIIPrintf(viewer, "drape %s: %s\n", DRAPE_VERSION, "fabric by the particle method"));
   PetscCall(ClothView(s->cloth, viewer));
+  PetscCall(SolidView(s->solid, viewer));
+  if (s->contact) PetscCall(ContactView(s->contact, viewer));
   if (s->stability_its > 0) {
     PetscCall(PetscViewerASCIIPrintf(viewer, "Stability (estimated at t = 0, %" PetscInt_FMT " power iterations): Omega_max = %.4e rad/s\n", s->limits.iterations, (double) s->limits.omega));
     PetscCall(PetscViewerASCIIPrintf(viewer, "  symplectic Euler: stable for h < %.4e s (2/Omega_max, reduced by damping)\n", (double) s->limits.symplectic));
@@ -353,7 +410,7 @@ PetscErrorCode SimulationRun(Simulation s)
     PetscCall(TSGetType(s->ts, &type));
     PetscCall(TSGetTimeStep(s->ts, &dt));
     PetscCall(PetscSNPrintf(description, sizeof description, "ts_type=%s dt=%g omega_max=%g symplectic_limit=%g euler_limit=%g", type, (double) dt, (double) s->limits.omega, (double) s->limits.symplectic, (double) s->limits.euler));
-    PetscCall(OutputOpen(s->output, s->cloth, description));
+    PetscCall(OutputOpen(s->output, s->cloth, s->solid, description));
   }
   PetscCall(TSMonitorSet(s->ts, Monitor, s, NULL));
   PetscCall(PetscTime(&s->wall0));

@@ -4,7 +4,9 @@
  * File layout (t = frame index):
  *   /position, /velocity   [t][My][Mx][3]   (m, m/s)
  *   /time, /step, /energy_kinetic, /energy_gravity, /energy_stretch,
- *   /energy_shear, /energy_bend   [t][1]    (s, -, J)
+ *   /energy_shear, /energy_bend, /contact_depth, /contact_count   [t][1]
+ *                                           (s, -, J, m, -)
+ *   /solid_triangles  [9 x triangles]       (m) the solid's mesh, for pictures
  *   attributes of /: drape_version, options (as given), description, lattice.
  * /time is written last in each frame, so its length counts the complete frames;
  * every frame is flushed, so a run killed later leaves them readable. */
@@ -12,8 +14,8 @@
 #include <drape.h>
 #include <petscviewerhdf5.h>
 
-#define NSCALARS 7
-static const char *const scalar_names[NSCALARS] = {"step", "energy_kinetic", "energy_gravity", "energy_stretch", "energy_shear", "energy_bend", "time"};
+#define NSCALARS 9
+static const char *const scalar_names[NSCALARS] = {"step", "energy_kinetic", "energy_gravity", "energy_stretch", "energy_shear", "energy_bend", "contact_depth", "contact_count", "time"};
 
 struct _p_Output {
   MPI_Comm    comm;
@@ -90,7 +92,7 @@ PetscErrorCode OutputLastStep(Output o, PetscInt *step)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode OutputOpen(Output o, Cloth cloth, const char *description)
+PetscErrorCode OutputOpen(Output o, Cloth cloth, Solid solid, const char *description)
 {
   DM          da;
   ClothInfo   info;
@@ -136,6 +138,23 @@ PetscErrorCode OutputOpen(Output o, Cloth cloth, const char *description)
   {
     const char *names[9] = {"size_warp", "size_weft", "mass", "damping", "stretch_warp", "stretch_weft", "shear", "bend_warp", "bend_weft"};
     for (PetscInt k = 0; k < 9; k++) PetscCall(PetscViewerHDF5WriteAttribute(o->viewer, "/", names[k], PETSC_REAL, &material[k]));
+  }
+  {
+    PetscInt   ntri;
+    PetscReal *xyz;
+    PetscCall(SolidGetTriangles(solid, &ntri, &xyz));
+    if (ntri) {
+      Vec          T;
+      PetscScalar *a;
+      PetscCall(VecCreateMPI(o->comm, rank ? 0 : 9 * ntri, 9 * ntri, &T));
+      PetscCall(PetscObjectSetName((PetscObject)T, "solid_triangles"));
+      PetscCall(VecGetArray(T, &a));
+      if (!rank) PetscCall(PetscArraycpy(a, xyz, 9 * ntri));
+      PetscCall(VecRestoreArray(T, &a));
+      PetscCall(VecView(T, o->viewer));
+      PetscCall(VecDestroy(&T));
+    }
+    PetscCall(PetscFree(xyz));
   }
   PetscCall(PetscViewerHDF5PushTimestepping(o->viewer));
   PetscFunctionReturn(0);
@@ -204,7 +223,9 @@ PetscErrorCode OutputWriteFrame(Output o, Cloth cloth, PetscInt step, PetscReal 
   values[3] = en->stretch;
   values[4] = en->shear;
   values[5] = en->bend;
-  values[6] = t;
+  values[6] = en->contact_depth;
+  values[7] = (PetscReal)en->contact_count;
+  values[8] = t;
   PetscCall(VecGetLocalSize(o->X, &n));
   PetscCall(VecGetArray(o->X, &a));
   PetscCall(PetscArraycpy(a, x, n));

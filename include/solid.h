@@ -1,0 +1,66 @@
+/* The rigid solid the cloth drapes over, and contact with it.
+ *
+ * A Solid is a set of bodies: closed triangle meshes (read from OFF/OBJ/STL/PLY
+ * files with CGAL's I/O, or generated: box, sphere, cylinder), each held in a CGAL
+ * AABB tree, and optionally a plane. Queries return the signed distance to the
+ * nearest body (positive outside) and the outward normal there. */
+#pragma once
+
+#include <petscsys.h>
+
+/* A closed triangle mesh in a CGAL AABB tree (src/solid/aabb.cxx). */
+typedef struct _p_SolidMesh *SolidMesh;
+PETSC_EXTERN PetscErrorCode SolidMeshCreateFromFile(const char path[], const PetscReal A[9], const PetscReal b[3], SolidMesh *);
+PETSC_EXTERN PetscErrorCode SolidMeshCreateFromArrays(PetscInt nv, const PetscReal v[], PetscInt nt, const PetscInt t[], const char name[], SolidMesh *);
+PETSC_EXTERN PetscErrorCode SolidMeshGetBoundingBox(SolidMesh, PetscReal lo[3], PetscReal hi[3]);
+PETSC_EXTERN PetscErrorCode SolidMeshGetSize(SolidMesh, PetscInt *nv, PetscInt *nt);
+PETSC_EXTERN PetscErrorCode SolidMeshGetTriangles(SolidMesh, PetscReal *xyz); /* 9 per triangle */
+PETSC_EXTERN PetscErrorCode SolidMeshQuery(SolidMesh, const PetscReal p[3], PetscReal closest[3], PetscBool *inside);
+PETSC_EXTERN PetscErrorCode SolidMeshDestroy(SolidMesh *);
+
+typedef struct _p_Solid *Solid;
+PETSC_EXTERN PetscErrorCode SolidCreate(MPI_Comm, Solid *);
+/* -solid_type, -solid_file, -solid_scale, -solid_rotate, -solid_translate,
+ * -solid_size, -solid_radius, -solid_height, -solid_resolution, -solid_plane,
+ * -solid_floor */
+PETSC_EXTERN PetscErrorCode SolidSetFromOptions(Solid);
+PETSC_EXTERN PetscErrorCode SolidSetUp(Solid);
+PETSC_EXTERN PetscErrorCode SolidView(Solid, PetscViewer);
+PETSC_EXTERN PetscErrorCode SolidDestroy(Solid *);
+/* No body at all: a scene without a solid runs no contact code. */
+PETSC_EXTERN PetscErrorCode SolidIsEmpty(Solid, PetscBool *);
+/* Does the box [lo, hi] come within `grow` of a body? (Cheap culling test.) */
+PETSC_EXTERN PetscBool SolidBoxNear(Solid, const PetscReal lo[3], const PetscReal hi[3], PetscReal grow);
+/* Signed distance of p to the nearest body (< 0 inside) and the outward normal. */
+PETSC_EXTERN PetscErrorCode SolidQuery(Solid, const PetscReal p[3], PetscReal *distance, PetscReal normal[3]);
+/* Triangles of the mesh bodies for pictures (9 reals each; caller frees). */
+PETSC_EXTERN PetscErrorCode SolidGetTriangles(Solid, PetscInt *ntri, PetscReal **xyz);
+
+/* Contact of the cloth's particles with the solid (src/solid/contact.c).
+ *   sticky        the paper's condition: a particle that reaches the surface stops (v = 0)
+ *   friction      Coulomb: sticks while the tangential impulse is below mu times
+ *                 the normal one, slides with kinetic friction mu otherwise
+ *   frictionless  only the normal velocity into the solid is removed
+ * A particle is in contact when it is closer than -contact_thickness to the solid. */
+typedef enum {
+  CONTACT_STICKY,
+  CONTACT_FRICTION,
+  CONTACT_FRICTIONLESS
+} ContactMode;
+
+typedef struct _p_Contact *Contact;
+PETSC_EXTERN PetscErrorCode ContactCreate(MPI_Comm, Solid, Contact *);
+/* -contact_mode, -contact_thickness, -contact_friction */
+PETSC_EXTERN PetscErrorCode ContactSetFromOptions(Contact);
+PETSC_EXTERN PetscErrorCode ContactView(Contact, PetscViewer);
+PETSC_EXTERN PetscErrorCode ContactDestroy(Contact *);
+PETSC_EXTERN PetscErrorCode ContactGetMode(Contact, ContactMode *, PetscReal *friction);
+/* After a step: move particles closer than the thickness back onto the contact
+ * surface and constrain their velocity by the mode; n particles, 3 entries each,
+ * pinned particles skipped. Returns the deepest penetration below the contact
+ * surface before the correction (max over all ranks), and the number of particles
+ * in contact. Particles outside the solid's box (grown by `reach`) are not queried. */
+PETSC_EXTERN PetscErrorCode ContactProject(Contact, PetscInt n, PetscScalar *x, PetscScalar *v, const PetscBool *pinned, PetscReal reach, PetscReal *depth, PetscInt *ncontact);
+/* Constraint of a particle at x for the implicit solve: 0 free, 1 normal (slides
+ * along the surface), 2 fixed (sticky); n the outward normal. */
+PETSC_EXTERN PetscErrorCode ContactConstraint(void *contact, const PetscReal x[3], PetscInt *type, PetscReal n[3]);

@@ -1,0 +1,155 @@
+// The one C++ file of drape: a closed triangle mesh in a CGAL AABB tree behind a
+// small C interface (include/solid.h). No exception crosses the extern "C" line.
+#include <CGAL/AABB_face_graph_triangle_primitive.h>
+#include <CGAL/AABB_traits.h>
+#include <CGAL/AABB_tree.h>
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Side_of_triangle_mesh.h>
+#include <CGAL/Surface_mesh.h>
+#include <CGAL/boost/graph/IO/polygon_mesh_io.h>
+#include <CGAL/boost/graph/helpers.h>
+
+#include <memory>
+#include <sstream>
+#include <string>
+
+#include <solid.h>
+
+typedef CGAL::Exact_predicates_inexact_constructions_kernel K;
+typedef K::Point_3                                          Point;
+typedef CGAL::Surface_mesh<Point>                           Mesh;
+typedef CGAL::AABB_face_graph_triangle_primitive<Mesh>      Primitive;
+typedef CGAL::AABB_traits<K, Primitive>                     Traits;
+typedef CGAL::AABB_tree<Traits>                             Tree;
+typedef CGAL::Side_of_triangle_mesh<Mesh, K>                Side;
+
+struct _p_SolidMesh {
+  Mesh                  mesh;
+  std::unique_ptr<Tree> tree;
+  std::unique_ptr<Side> side;
+  double                lo[3], hi[3];
+};
+
+// Check that the mesh can tell inside from outside; build the tree.
+static PetscErrorCode SolidMeshFinish(SolidMesh m, const char *what)
+{
+  PetscFunctionBeginUser;
+  PetscCheck(m->mesh.number_of_faces() > 0, PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED, "The solid %s has no faces; drape needs a closed triangle mesh", what);
+  PetscCheck(CGAL::is_triangle_mesh(m->mesh), PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED, "The solid %s has faces that are not triangles; drape needs a closed triangle mesh (triangulate it first)", what);
+  PetscCheck(CGAL::is_closed(m->mesh), PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED, "The solid %s is not closed (it has border edges); drape needs a closed triangle mesh to tell inside from outside", what);
+  try {
+    m->tree.reset(new Tree(faces(m->mesh).first, faces(m->mesh).second, m->mesh));
+    m->tree->accelerate_distance_queries();
+    m->side.reset(new Side(*m->tree));
+    CGAL::Bbox_3 b = m->tree->bbox();
+    m->lo[0] = b.xmin(); m->lo[1] = b.ymin(); m->lo[2] = b.zmin();
+    m->hi[0] = b.xmax(); m->hi[1] = b.ymax(); m->hi[2] = b.zmax();
+  } catch (const std::exception &e) {
+    SETERRQ(PETSC_COMM_SELF, PETSC_ERR_LIB, "CGAL failed to build the AABB tree of the solid %s: %s", what, e.what());
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SolidMeshCreateFromFile(const char path[], const PetscReal A[9], const PetscReal b[3], SolidMesh *mesh)
+{
+  std::unique_ptr<_p_SolidMesh> m(new _p_SolidMesh);
+  bool                          ok = false;
+  FILE                         *fp = fopen(path, "r");
+
+  PetscFunctionBeginUser;
+  PetscCheck(fp, PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "Cannot open the solid mesh file %s", path);
+  fclose(fp);
+  try {
+    ok = CGAL::IO::read_polygon_mesh(std::string(path), m->mesh);
+  } catch (const std::exception &e) {
+    ok = false;
+  }
+  PetscCheck(ok, PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED, "Cannot read the solid mesh file %s: not a valid OFF, OBJ, STL or PLY polygon mesh", path);
+  for (auto v : m->mesh.vertices()) {
+    const Point &p = m->mesh.point(v);
+    double       q[3];
+    for (int i = 0; i < 3; i++) q[i] = A[3 * i] * p.x() + A[3 * i + 1] * p.y() + A[3 * i + 2] * p.z() + b[i];
+    m->mesh.point(v) = Point(q[0], q[1], q[2]);
+  }
+  PetscCall(SolidMeshFinish(m.get(), path));
+  *mesh = m.release();
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SolidMeshCreateFromArrays(PetscInt nv, const PetscReal v[], PetscInt nt, const PetscInt t[], const char name[], SolidMesh *mesh)
+{
+  std::unique_ptr<_p_SolidMesh> m(new _p_SolidMesh);
+  std::vector<Mesh::Vertex_index> vi(nv);
+
+  PetscFunctionBeginUser;
+  try {
+    for (PetscInt i = 0; i < nv; i++) vi[i] = m->mesh.add_vertex(Point(v[3 * i], v[3 * i + 1], v[3 * i + 2]));
+    for (PetscInt f = 0; f < nt; f++) {
+      Mesh::Face_index fi = m->mesh.add_face(vi[t[3 * f]], vi[t[3 * f + 1]], vi[t[3 * f + 2]]);
+      PetscCheck(fi != Mesh::null_face(), PETSC_COMM_SELF, PETSC_ERR_PLIB, "Triangle %" PetscInt_FMT " of the generated %s is not manifold", f, name);
+    }
+  } catch (const std::exception &e) {
+    SETERRQ(PETSC_COMM_SELF, PETSC_ERR_LIB, "CGAL failed to build the %s mesh: %s", name, e.what());
+  }
+  PetscCall(SolidMeshFinish(m.get(), name));
+  *mesh = m.release();
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SolidMeshGetBoundingBox(SolidMesh m, PetscReal lo[3], PetscReal hi[3])
+{
+  PetscFunctionBeginUser;
+  for (int i = 0; i < 3; i++) {
+    lo[i] = m->lo[i];
+    hi[i] = m->hi[i];
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SolidMeshGetSize(SolidMesh m, PetscInt *nv, PetscInt *nt)
+{
+  PetscFunctionBeginUser;
+  if (nv) *nv = (PetscInt)m->mesh.number_of_vertices();
+  if (nt) *nt = (PetscInt)m->mesh.number_of_faces();
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SolidMeshGetTriangles(SolidMesh m, PetscReal *xyz)
+{
+  PetscInt k = 0;
+
+  PetscFunctionBeginUser;
+  for (auto f : m->mesh.faces()) {
+    for (auto v : CGAL::vertices_around_face(m->mesh.halfedge(f), m->mesh)) {
+      const Point &p = m->mesh.point(v);
+      xyz[k++]       = p.x();
+      xyz[k++]       = p.y();
+      xyz[k++]       = p.z();
+    }
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SolidMeshQuery(SolidMesh m, const PetscReal p[3], PetscReal closest[3], PetscBool *inside)
+{
+  PetscFunctionBeginUser;
+  try {
+    Point q(p[0], p[1], p[2]);
+    Point c  = m->tree->closest_point(q);
+    closest[0] = c.x();
+    closest[1] = c.y();
+    closest[2] = c.z();
+    *inside    = (*m->side)(q) == CGAL::ON_BOUNDED_SIDE ? PETSC_TRUE : PETSC_FALSE;
+  } catch (const std::exception &e) {
+    SETERRQ(PETSC_COMM_SELF, PETSC_ERR_LIB, "CGAL query failed: %s", e.what());
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SolidMeshDestroy(SolidMesh *m)
+{
+  PetscFunctionBeginUser;
+  delete *m;
+  *m = nullptr;
+  PetscFunctionReturn(0);
+}

@@ -1,0 +1,135 @@
+/* Particle-solid contact: projection and velocity constraints (all schemes), and
+ * the per-particle constraints the implicit solve removes from its system. */
+#include <solid.h>
+#include <drape.h>
+#include <petscviewer.h>
+
+static const char *const mode_names[] = {"sticky", "friction", "frictionless", "ContactMode", "CONTACT_", NULL};
+
+struct _p_Contact {
+  MPI_Comm    comm;
+  Solid       solid;
+  ContactMode mode;
+  PetscReal   thickness, mu;
+};
+
+PetscErrorCode ContactCreate(MPI_Comm comm, Solid solid, Contact *contact)
+{
+  Contact c;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscNew(&c));
+  c->comm      = comm;
+  c->solid     = solid;
+  c->mode      = CONTACT_STICKY;
+  c->thickness = 2e-3;
+  c->mu        = 0.3;
+  *contact     = c;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ContactSetFromOptions(Contact c)
+{
+  PetscInt imode = (PetscInt)c->mode;
+
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(c->comm, NULL, "Contact with the solid", "Contact");
+  PetscCall(PetscOptionsEList("-contact_mode", "sticky (the paper: v = 0 on the surface), friction (Coulomb), frictionless", "ContactSetFromOptions", mode_names, 3, mode_names[imode], &imode, NULL));
+  PetscCall(PetscOptionsReal("-contact_thickness", "Distance from the solid at which particles are in contact (m)", "ContactSetFromOptions", c->thickness, &c->thickness, NULL));
+  PetscCall(PetscOptionsReal("-contact_friction", "Coulomb friction coefficient mu (static = kinetic)", "ContactSetFromOptions", c->mu, &c->mu, NULL));
+  PetscOptionsEnd();
+  c->mode = (ContactMode)imode;
+  PetscCheck(c->thickness >= 0, c->comm, PETSC_ERR_USER_INPUT, "-contact_thickness must be zero or positive (m); got %g", (double)c->thickness);
+  PetscCheck(c->mu >= 0, c->comm, PETSC_ERR_USER_INPUT, "-contact_friction must be zero or positive; got %g", (double)c->mu);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ContactView(Contact c, PetscViewer viewer)
+{
+  PetscFunctionBeginUser;
+  PetscCall(PetscViewerASCIIPrintf(viewer, "Contact: %s, thickness %g m", mode_names[c->mode], (double)c->thickness));
+  if (c->mode == CONTACT_FRICTION) PetscCall(PetscViewerASCIIPrintf(viewer, ", mu = %g", (double)c->mu));
+  PetscCall(PetscViewerASCIIPrintf(viewer, "\n"));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ContactDestroy(Contact *c)
+{
+  PetscFunctionBeginUser;
+  PetscCall(PetscFree(*c));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ContactGetMode(Contact c, ContactMode *mode, PetscReal *mu)
+{
+  PetscFunctionBeginUser;
+  if (mode) *mode = c->mode;
+  if (mu) *mu = c->mode == CONTACT_FRICTION ? c->mu : 0;
+  PetscFunctionReturn(0);
+}
+
+/* Velocity after contact: the normal component into the solid is removed; the
+ * tangential part follows the mode (Coulomb: the normal impulse dvn bounds the
+ * tangential one). */
+static void ContactVelocity(ContactMode mode, PetscReal mu, const PetscReal n[3], PetscReal v[3])
+{
+  PetscReal vn = v[0] * n[0] + v[1] * n[1] + v[2] * n[2], dvn = vn < 0 ? -vn : 0, vt[3], lt;
+
+  if (mode == CONTACT_STICKY) {
+    v[0] = v[1] = v[2] = 0;
+    return;
+  }
+  for (PetscInt d = 0; d < 3; d++) {
+    v[d] += dvn * n[d];
+    vt[d] = v[d] - (vn + dvn) * n[d];
+  }
+  if (mode == CONTACT_FRICTIONLESS) return;
+  lt = PetscSqrtReal(vt[0] * vt[0] + vt[1] * vt[1] + vt[2] * vt[2]);
+  for (PetscInt d = 0; d < 3; d++) v[d] -= (lt <= mu * dvn ? 1 : mu * dvn / lt) * vt[d];
+}
+
+PetscErrorCode ContactProject(Contact c, PetscInt n, PetscScalar *x, PetscScalar *v, const PetscBool *pinned, PetscReal reach, PetscReal *depth, PetscInt *ncontact)
+{
+  PetscReal lo[3] = {PETSC_MAX_REAL, PETSC_MAX_REAL, PETSC_MAX_REAL}, hi[3] = {-PETSC_MAX_REAL, -PETSC_MAX_REAL, -PETSC_MAX_REAL};
+  PetscReal deepest = 0, grow = c->thickness + reach;
+  PetscInt  count = 0;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscLogEventBegin(drape_log.contact, 0, 0, 0, 0));
+  for (PetscInt k = 0; k < n; k++)
+    for (PetscInt d = 0; d < 3; d++) {
+      lo[d] = PetscMin(lo[d], x[3 * k + d]);
+      hi[d] = PetscMax(hi[d], x[3 * k + d]);
+    }
+  if (n > 0 && SolidBoxNear(c->solid, lo, hi, grow)) {
+    for (PetscInt k = 0; k < n; k++) {
+      PetscReal *p = x + 3 * k, dist, nrm[3];
+      if (pinned && pinned[k]) continue;
+      if (!SolidBoxNear(c->solid, p, p, grow)) continue;
+      PetscCall(SolidQuery(c->solid, p, &dist, nrm));
+      if (dist > c->thickness * (1 + 1e-6) + PETSC_SMALL) continue;
+      count++;
+      if (dist >= c->thickness) continue;
+      deepest = PetscMax(deepest, c->thickness - dist);
+      for (PetscInt d = 0; d < 3; d++) p[d] += (c->thickness - dist) * nrm[d];
+      ContactVelocity(c->mode, c->mu, nrm, v + 3 * k);
+    }
+  }
+  PetscCall(MPIU_Allreduce(&deepest, depth, 1, MPIU_REAL, MPI_MAX, c->comm));
+  PetscCall(MPIU_Allreduce(&count, ncontact, 1, MPIU_INT, MPI_SUM, c->comm));
+  PetscCall(PetscLogEventEnd(drape_log.contact, 0, 0, 0, 0));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ContactConstraint(void *ctx, const PetscReal x[3], PetscInt *type, PetscReal n[3])
+{
+  Contact   c = (Contact)ctx;
+  PetscReal dist;
+
+  PetscFunctionBeginUser;
+  *type = 0;
+  if (!SolidBoxNear(c->solid, x, x, c->thickness * 1.01 + PETSC_SMALL)) PetscFunctionReturn(0);
+  PetscCall(SolidQuery(c->solid, x, &dist, n));
+  if (dist <= c->thickness * (1 + 1e-6) + PETSC_SMALL) *type = c->mode == CONTACT_STICKY ? 2 : 1;
+  PetscFunctionReturn(0);
+}

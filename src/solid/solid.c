@@ -1,0 +1,308 @@
+/* The rigid solid: bodies from mesh files or generated primitives, and a plane. */
+#include <solid.h>
+#include <petscviewer.h>
+
+typedef enum {
+  SOLID_NONE,
+  SOLID_MESH,
+  SOLID_BOX,
+  SOLID_SPHERE,
+  SOLID_CYLINDER
+} SolidType;
+static const char *const solid_type_names[] = {"none", "mesh", "box", "sphere", "cylinder", "SolidType", "SOLID_", NULL};
+
+struct _p_Solid {
+  MPI_Comm  comm;
+  SolidType type;
+  char      file[PETSC_MAX_PATH_LEN];
+  PetscReal scale, rotate[3], translate[3], size[3], radius, height;
+  PetscInt  resolution;
+  PetscBool has_plane;
+  PetscReal plane[4]; /* n.x = offset, outside where n.x > offset; n unit */
+  SolidMesh mesh;
+  PetscReal lo[3], hi[3];
+};
+
+PetscErrorCode SolidCreate(MPI_Comm comm, Solid *solid)
+{
+  Solid s;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscNew(&s));
+  s->comm       = comm;
+  s->scale      = 1.0;
+  s->size[0]    = 1.0;
+  s->size[1]    = 1.0;
+  s->size[2]    = 0.75;
+  s->radius     = 0.25;
+  s->height     = 0.5;
+  s->resolution = 32;
+  *solid        = s;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SolidSetFromOptions(Solid s)
+{
+  PetscInt  itype = (PetscInt)s->type, n;
+  PetscBool set, fileset, floorset;
+  PetscReal floor_z = 0;
+
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(s->comm, NULL, "Solid: the rigid body the cloth drapes over", "Solid");
+  PetscCall(PetscOptionsEList("-solid_type", "Body: none, mesh (-solid_file), box, sphere, cylinder", "SolidSetFromOptions", solid_type_names, 5, solid_type_names[itype], &itype, &set));
+  PetscCall(PetscOptionsString("-solid_file", "Closed triangle mesh file (OFF, OBJ, STL, PLY) for -solid_type mesh", "SolidSetFromOptions", s->file, s->file, sizeof s->file, &fileset));
+  PetscCall(PetscOptionsReal("-solid_scale", "Uniform scale of the body (before rotation and translation)", "SolidSetFromOptions", s->scale, &s->scale, NULL));
+  n = 3;
+  PetscCall(PetscOptionsRealArray("-solid_rotate", "Rotation of the body about x, then y, then z (degrees)", "SolidSetFromOptions", s->rotate, &n, &set));
+  PetscCheck(!set || n == 3, s->comm, PETSC_ERR_USER_INPUT, "-solid_rotate needs three angles ax,ay,az in degrees");
+  n = 3;
+  PetscCall(PetscOptionsRealArray("-solid_translate", "Translation of the body x,y,z (m)", "SolidSetFromOptions", s->translate, &n, &set));
+  PetscCheck(!set || n == 3, s->comm, PETSC_ERR_USER_INPUT, "-solid_translate needs three components x,y,z");
+  n = 3;
+  PetscCall(PetscOptionsRealArray("-solid_size", "Box edge lengths sx,sy,sz (m), centred at the origin", "SolidSetFromOptions", s->size, &n, &set));
+  PetscCheck(!set || n == 3, s->comm, PETSC_ERR_USER_INPUT, "-solid_size needs three lengths sx,sy,sz");
+  PetscCall(PetscOptionsReal("-solid_radius", "Sphere or cylinder radius (m)", "SolidSetFromOptions", s->radius, &s->radius, NULL));
+  PetscCall(PetscOptionsReal("-solid_height", "Cylinder height along z (m), centred at the origin", "SolidSetFromOptions", s->height, &s->height, NULL));
+  PetscCall(PetscOptionsInt("-solid_resolution", "Segments around a generated sphere or cylinder", "SolidSetFromOptions", s->resolution, &s->resolution, NULL));
+  n = 4;
+  PetscCall(PetscOptionsRealArray("-solid_plane", "Plane nx,ny,nz,d: the solid fills n.x < d", "SolidSetFromOptions", s->plane, &n, &s->has_plane));
+  PetscCheck(!s->has_plane || n == 4, s->comm, PETSC_ERR_USER_INPUT, "-solid_plane needs four numbers nx,ny,nz,d (the solid fills n.x < d)");
+  PetscCall(PetscOptionsReal("-solid_floor", "A horizontal floor at this height (m): same as -solid_plane 0,0,1,z", "SolidSetFromOptions", floor_z, &floor_z, &floorset));
+  PetscOptionsEnd();
+  s->type = (SolidType)itype;
+  if (fileset && s->type == SOLID_NONE) s->type = SOLID_MESH;
+  PetscCheck(s->type != SOLID_MESH || s->file[0], s->comm, PETSC_ERR_USER_INPUT, "-solid_type mesh needs -solid_file FILE (OFF, OBJ, STL or PLY)");
+  PetscCheck(!fileset || s->type == SOLID_MESH, s->comm, PETSC_ERR_USER_INPUT, "-solid_file is used only with -solid_type mesh");
+  PetscCheck(s->scale > 0, s->comm, PETSC_ERR_USER_INPUT, "-solid_scale must be positive; got %g", (double)s->scale);
+  PetscCheck(s->size[0] > 0 && s->size[1] > 0 && s->size[2] > 0, s->comm, PETSC_ERR_USER_INPUT, "-solid_size lengths must be positive");
+  PetscCheck(s->radius > 0 && s->height > 0, s->comm, PETSC_ERR_USER_INPUT, "-solid_radius and -solid_height must be positive");
+  PetscCheck(s->resolution >= 3 && s->resolution <= 4096, s->comm, PETSC_ERR_USER_INPUT, "-solid_resolution must be between 3 and 4096; got %" PetscInt_FMT, s->resolution);
+  PetscCheck(!(floorset && s->has_plane), s->comm, PETSC_ERR_USER_INPUT, "Give either -solid_plane or -solid_floor, not both");
+  if (floorset) {
+    s->has_plane = PETSC_TRUE;
+    s->plane[0]  = 0;
+    s->plane[1]  = 0;
+    s->plane[2]  = 1;
+    s->plane[3]  = floor_z;
+  }
+  if (s->has_plane) {
+    PetscReal nn = PetscSqrtReal(s->plane[0] * s->plane[0] + s->plane[1] * s->plane[1] + s->plane[2] * s->plane[2]);
+    PetscCheck(nn > 0, s->comm, PETSC_ERR_USER_INPUT, "-solid_plane normal must not be zero");
+    for (PetscInt i = 0; i < 4; i++) s->plane[i] /= nn;
+  }
+  PetscFunctionReturn(0);
+}
+
+/* A = Rz Ry Rx * scale */
+static void SolidTransform(const Solid s, PetscReal A[9])
+{
+  const PetscReal d = PETSC_PI / 180;
+  PetscReal       cx = PetscCosReal(s->rotate[0] * d), sx = PetscSinReal(s->rotate[0] * d);
+  PetscReal       cy = PetscCosReal(s->rotate[1] * d), sy = PetscSinReal(s->rotate[1] * d);
+  PetscReal       cz = PetscCosReal(s->rotate[2] * d), sz = PetscSinReal(s->rotate[2] * d);
+  PetscReal       Rx[9] = {1, 0, 0, 0, cx, -sx, 0, sx, cx}, Ry[9] = {cy, 0, sy, 0, 1, 0, -sy, 0, cy}, Rz[9] = {cz, -sz, 0, sz, cz, 0, 0, 0, 1}, T[9];
+
+  for (PetscInt i = 0; i < 3; i++)
+    for (PetscInt j = 0; j < 3; j++) T[3 * i + j] = Ry[3 * i] * Rx[j] + Ry[3 * i + 1] * Rx[3 + j] + Ry[3 * i + 2] * Rx[6 + j];
+  for (PetscInt i = 0; i < 3; i++)
+    for (PetscInt j = 0; j < 3; j++) A[3 * i + j] = s->scale * (Rz[3 * i] * T[j] + Rz[3 * i + 1] * T[3 + j] + Rz[3 * i + 2] * T[6 + j]);
+}
+
+/* Generated primitives, centred at the origin, outward-oriented triangles. */
+static PetscErrorCode SolidGenerate(Solid s, PetscInt *nv, PetscReal **v, PetscInt *nt, PetscInt **t)
+{
+  PetscInt m = s->resolution, k = 0, f = 0;
+
+  PetscFunctionBeginUser;
+  if (s->type == SOLID_BOX) {
+    const PetscInt tri[36] = {0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4, 1, 2, 6, 1, 6, 5, 2, 3, 7, 2, 7, 6, 3, 0, 4, 3, 4, 7};
+    *nv = 8;
+    *nt = 12;
+    PetscCall(PetscMalloc2(24, v, 36, t));
+    for (PetscInt i = 0; i < 8; i++) {
+      (*v)[3 * i]     = 0.5 * s->size[0] * ((i == 1 || i == 2 || i == 5 || i == 6) ? 1 : -1);
+      (*v)[3 * i + 1] = 0.5 * s->size[1] * ((i == 2 || i == 3 || i == 6 || i == 7) ? 1 : -1);
+      (*v)[3 * i + 2] = 0.5 * s->size[2] * (i >= 4 ? 1 : -1);
+    }
+    for (PetscInt i = 0; i < 36; i++) (*t)[i] = tri[i];
+  } else if (s->type == SOLID_SPHERE) {
+    PetscInt rings = m / 2 < 2 ? 2 : m / 2;
+    *nv            = 2 + (rings - 1) * m;
+    *nt            = 2 * m * (rings - 1);
+    PetscCall(PetscMalloc2(3 * *nv, v, 3 * *nt, t));
+    (*v)[k++] = 0;
+    (*v)[k++] = 0;
+    (*v)[k++] = s->radius;
+    for (PetscInt r = 1; r < rings; r++) {
+      PetscReal th = PETSC_PI * r / rings;
+      for (PetscInt j = 0; j < m; j++) {
+        PetscReal ph = 2 * PETSC_PI * j / m;
+        (*v)[k++]    = s->radius * PetscSinReal(th) * PetscCosReal(ph);
+        (*v)[k++]    = s->radius * PetscSinReal(th) * PetscSinReal(ph);
+        (*v)[k++]    = s->radius * PetscCosReal(th);
+      }
+    }
+    (*v)[k++] = 0;
+    (*v)[k++] = 0;
+    (*v)[k++] = -s->radius;
+#define RING(r, j) (1 + ((r) - 1) * m + ((j) % m))
+    for (PetscInt j = 0; j < m; j++) {
+      PetscInt *q = *t + 3 * f++;
+      q[0] = 0, q[1] = RING(1, j), q[2] = RING(1, j + 1);
+    }
+    for (PetscInt r = 1; r < rings - 1; r++) {
+      for (PetscInt j = 0; j < m; j++) {
+        PetscInt *q = *t + 3 * f++;
+        q[0] = RING(r, j), q[1] = RING(r + 1, j), q[2] = RING(r + 1, j + 1);
+        q    = *t + 3 * f++;
+        q[0] = RING(r, j), q[1] = RING(r + 1, j + 1), q[2] = RING(r, j + 1);
+      }
+    }
+    for (PetscInt j = 0; j < m; j++) {
+      PetscInt *q = *t + 3 * f++;
+      q[0] = *nv - 1, q[1] = RING(rings - 1, j + 1), q[2] = RING(rings - 1, j);
+    }
+#undef RING
+  } else { /* cylinder along z */
+    *nv = 2 + 2 * m;
+    *nt = 4 * m;
+    PetscCall(PetscMalloc2(3 * *nv, v, 3 * *nt, t));
+    for (PetscInt side = 0; side < 2; side++) {
+      PetscReal z = (side ? 0.5 : -0.5) * s->height;
+      (*v)[k++]   = 0;
+      (*v)[k++]   = 0;
+      (*v)[k++]   = z;
+      for (PetscInt j = 0; j < m; j++) {
+        (*v)[k++] = s->radius * PetscCosReal(2 * PETSC_PI * j / m);
+        (*v)[k++] = s->radius * PetscSinReal(2 * PETSC_PI * j / m);
+        (*v)[k++] = z;
+      }
+    }
+    for (PetscInt j = 0; j < m; j++) {
+      PetscInt  b0 = 1 + j, b1 = 1 + (j + 1) % m, t0 = m + 2 + j, t1 = m + 2 + (j + 1) % m;
+      PetscInt *q = *t + 3 * f++;
+      q[0] = 0, q[1] = b1, q[2] = b0;
+      q    = *t + 3 * f++;
+      q[0] = m + 1, q[1] = t0, q[2] = t1;
+      q    = *t + 3 * f++;
+      q[0] = b0, q[1] = b1, q[2] = t1;
+      q    = *t + 3 * f++;
+      q[0] = b0, q[1] = t1, q[2] = t0;
+    }
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SolidSetUp(Solid s)
+{
+  PetscReal A[9];
+
+  PetscFunctionBeginUser;
+  if (s->type == SOLID_NONE) PetscFunctionReturn(0);
+  SolidTransform(s, A);
+  if (s->type == SOLID_MESH) {
+    /* every rank reads the same file (the tree is replicated) and fails alike */
+    PetscCall(SolidMeshCreateFromFile(s->file, A, s->translate, &s->mesh));
+  } else {
+    PetscInt   nv, nt;
+    PetscReal *v;
+    PetscInt  *t;
+    PetscCall(SolidGenerate(s, &nv, &v, &nt, &t));
+    for (PetscInt i = 0; i < nv; i++) {
+      PetscReal p[3] = {v[3 * i], v[3 * i + 1], v[3 * i + 2]};
+      for (PetscInt d = 0; d < 3; d++) v[3 * i + d] = A[3 * d] * p[0] + A[3 * d + 1] * p[1] + A[3 * d + 2] * p[2] + s->translate[d];
+    }
+    PetscCall(SolidMeshCreateFromArrays(nv, v, nt, t, solid_type_names[s->type], &s->mesh));
+    PetscCall(PetscFree2(v, t));
+  }
+  PetscCall(SolidMeshGetBoundingBox(s->mesh, s->lo, s->hi));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SolidView(Solid s, PetscViewer viewer)
+{
+  PetscFunctionBeginUser;
+  if (s->mesh) {
+    PetscInt nv, nt;
+    PetscCall(SolidMeshGetSize(s->mesh, &nv, &nt));
+    PetscCall(PetscViewerASCIIPrintf(viewer, "Solid: %s%s%s, %" PetscInt_FMT " triangles in an AABB tree, box [%g,%g]x[%g,%g]x[%g,%g] m\n", solid_type_names[s->type], s->type == SOLID_MESH ? " " : "", s->type == SOLID_MESH ? s->file : "", nt, (double)s->lo[0], (double)s->hi[0], (double)s->lo[1], (double)s->hi[1], (double)s->lo[2], (double)s->hi[2]));
+  }
+  if (s->has_plane) PetscCall(PetscViewerASCIIPrintf(viewer, "Solid: plane %g x + %g y + %g z = %g (solid below)\n", (double)s->plane[0], (double)s->plane[1], (double)s->plane[2], (double)s->plane[3]));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SolidDestroy(Solid *solid)
+{
+  PetscFunctionBeginUser;
+  if (!*solid) PetscFunctionReturn(0);
+  if ((*solid)->mesh) PetscCall(SolidMeshDestroy(&(*solid)->mesh));
+  PetscCall(PetscFree(*solid));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SolidIsEmpty(Solid s, PetscBool *empty)
+{
+  PetscFunctionBeginUser;
+  *empty = (PetscBool)(!s->mesh && !s->has_plane);
+  PetscFunctionReturn(0);
+}
+
+PetscBool SolidBoxNear(Solid s, const PetscReal lo[3], const PetscReal hi[3], PetscReal grow)
+{
+  if (s->mesh) {
+    PetscBool apart = PETSC_FALSE;
+    for (PetscInt d = 0; d < 3; d++) apart = (PetscBool)(apart || lo[d] > s->hi[d] + grow || hi[d] < s->lo[d] - grow);
+    if (!apart) return PETSC_TRUE;
+  }
+  if (s->has_plane) {
+    /* lowest corner of the box along n */
+    PetscReal m = 0;
+    for (PetscInt d = 0; d < 3; d++) m += s->plane[d] * (s->plane[d] > 0 ? lo[d] : hi[d]);
+    if (m < s->plane[3] + grow) return PETSC_TRUE;
+  }
+  return PETSC_FALSE;
+}
+
+PetscErrorCode SolidQuery(Solid s, const PetscReal p[3], PetscReal *distance, PetscReal normal[3])
+{
+  PetscFunctionBeginUser;
+  *distance = PETSC_MAX_REAL;
+  if (s->has_plane) {
+    *distance = s->plane[0] * p[0] + s->plane[1] * p[1] + s->plane[2] * p[2] - s->plane[3];
+    for (PetscInt d = 0; d < 3; d++) normal[d] = s->plane[d];
+  }
+  if (s->mesh) {
+    PetscReal c[3], e[3], l;
+    PetscBool inside;
+    PetscCall(SolidMeshQuery(s->mesh, p, c, &inside));
+    for (PetscInt d = 0; d < 3; d++) e[d] = p[d] - c[d];
+    l = PetscSqrtReal(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+    if ((inside ? -l : l) < *distance) {
+      *distance = inside ? -l : l;
+      if (l > 0)
+        for (PetscInt d = 0; d < 3; d++) normal[d] = (inside ? -e[d] : e[d]) / l;
+      else {
+        /* on the surface: point away from the box centre */
+        PetscReal g[3], n = 0;
+        for (PetscInt d = 0; d < 3; d++) {
+          g[d] = p[d] - 0.5 * (s->lo[d] + s->hi[d]);
+          n += g[d] * g[d];
+        }
+        for (PetscInt d = 0; d < 3; d++) normal[d] = g[d] / PetscMax(PetscSqrtReal(n), PETSC_SMALL);
+      }
+    }
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SolidGetTriangles(Solid s, PetscInt *ntri, PetscReal **xyz)
+{
+  PetscFunctionBeginUser;
+  *ntri = 0;
+  *xyz  = NULL;
+  if (!s->mesh) PetscFunctionReturn(0);
+  PetscCall(SolidMeshGetSize(s->mesh, NULL, ntri));
+  PetscCall(PetscMalloc1(9 * *ntri, xyz));
+  PetscCall(SolidMeshGetTriangles(s->mesh, *xyz));
+  PetscFunctionReturn(0);
+}
