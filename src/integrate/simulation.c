@@ -30,6 +30,7 @@ struct _p_Simulation {
   StabilityLimits limits;
   PetscInt        stability_its;
   PetscReal       divergence_factor;
+  PetscReal       rest_tol, rest_time, rest_since; /* stop at rest */
   PetscBool       progress, summary, help;
   /* monitor state */
   PetscReal energy0, energy_scale, wall0, wall_last;
@@ -99,24 +100,43 @@ static PetscErrorCode PreStep(TS ts)
   PetscFunctionReturn(0);
 }
 
-/* Contact after every step, whatever the scheme: project particles that reached
- * the solid back onto its contact surface and constrain their velocity. */
+/* After every step, whatever the scheme: contact (project particles that reached
+ * the solid back onto its contact surface, constrain their velocity), and the
+ * at-rest test (kinetic energy per unit mass below -drape_rest_tol for
+ * -drape_rest_time) that ends a draping run by itself. */
 static PetscErrorCode PostStep(TS ts)
 {
   Simulation       s;
   PetscScalar     *u;
   const PetscBool *pinned;
-  PetscReal        depth;
-  PetscInt         ncontact;
+  const PetscReal *mass;
+  PetscReal        t;
 
   PetscFunctionBeginUser;
   PetscCall(TSGetApplicationContext(ts, &s));
-  PetscCall(ClothGetMasses(s->cloth, NULL, &pinned));
+  PetscCall(ClothGetMasses(s->cloth, &mass, &pinned));
   PetscCall(VecGetArray(s->U, &u));
-  PetscCall(ContactProject(s->contact, s->n / 3, u, u + s->n, pinned, 0, &depth, &ncontact));
+  if (s->contact) {
+    PetscReal depth;
+    PetscCall(ContactProject(s->contact, s->n / 3, u, u + s->n, pinned, 0, &depth, &s->ncontact));
+    s->depth = PetscMax(s->depth, depth);
+  }
+  if (s->rest_tol > 0) {
+    PetscReal loc[2] = {0, 0}, sum[2];
+    for (PetscInt i = 0; i < s->n; i++) {
+      loc[0] += 0.5 * mass[i / 3] * u[s->n + i] * u[s->n + i];
+      if (i % 3 == 0) loc[1] += mass[i / 3];
+    }
+    PetscCall(MPIU_Allreduce(loc, sum, 2, MPIU_REAL, MPI_SUM, s->comm));
+    PetscCall(TSGetTime(ts, &t));
+    if (sum[0] / sum[1] >= s->rest_tol) s->rest_since = -1;
+    else if (s->rest_since < 0) s->rest_since = t;
+    else if (t - s->rest_since >= s->rest_time) {
+      PetscCall(PetscPrintf(s->comm, "At rest at t = %g s: kinetic energy below -drape_rest_tol %g J/kg since t = %g s\n", (double)t, (double)s->rest_tol, (double)s->rest_since));
+      PetscCall(TSSetConvergedReason(ts, TS_CONVERGED_USER));
+    }
+  }
   PetscCall(VecRestoreArray(s->U, &u));
-  s->depth    = PetscMax(s->depth, depth);
-  s->ncontact = ncontact;
   PetscFunctionReturn(0);
 }
 
@@ -129,6 +149,8 @@ PetscErrorCode SimulationCreate(MPI_Comm comm, Simulation *sim)
   s->comm              = comm;
   s->stability_its     = 30;
   s->divergence_factor = 1.0;
+  s->rest_time         = 0.2;
+  s->rest_since        = -1;
   s->summary           = PETSC_TRUE;
   s->progress          = (PetscBool) (isatty(1) && !getenv("CI"));
   PetscCall(ClothCreate(comm, &s->cloth));
@@ -146,9 +168,12 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
   PetscCall(PetscOptionsInt("-drape_stability_its", "Power iterations for the Omega_max estimate printed at start-up (0: skip)", "StabilityEstimate", s->stability_its, &s->stability_its, NULL));
   PetscCall(PetscOptionsReal("-drape_divergence_factor", "Stop when the energy exceeds its initial value by this many times the run's energy scale (M g L + initial energy)", "SimulationRun", s->divergence_factor, &s->divergence_factor, NULL));
   PetscCall(PetscOptionsBool("-drape_progress", "One updating progress line (default: on for a terminal, off in CI)", "SimulationRun", s->progress, &s->progress, NULL));
+  PetscCall(PetscOptionsReal("-drape_rest_tol", "Stop when the kinetic energy per unit mass (J/kg) stays below this for -drape_rest_time (0: never)", "SimulationRun", s->rest_tol, &s->rest_tol, NULL));
+  PetscCall(PetscOptionsReal("-drape_rest_time", "Simulated time the cloth must stay below -drape_rest_tol to count as at rest (s)", "SimulationRun", s->rest_time, &s->rest_time, NULL));
   PetscCall(PetscOptionsBool("-drape_summary", "One-line summary at the end of the run", "SimulationRun", s->summary, &s->summary, NULL));
   PetscOptionsEnd();
   PetscCheck(s->stability_its >= 0, s->comm, PETSC_ERR_USER_INPUT, "-drape_stability_its must be zero or positive; got %" PetscInt_FMT, s->stability_its);
+  PetscCheck(s->rest_tol >= 0 && s->rest_time >= 0, s->comm, PETSC_ERR_USER_INPUT, "-drape_rest_tol and -drape_rest_time must be zero or positive");
   PetscCheck(s->divergence_factor > 0, s->comm, PETSC_ERR_USER_INPUT, "-drape_divergence_factor must be positive; got %g", (double) s->divergence_factor);
   PetscCall(ClothSetFromOptions(s->cloth));
   PetscCall(SolidSetFromOptions(s->solid));
@@ -215,7 +240,7 @@ PetscErrorCode SimulationSetUp(Simulation s)
   PetscCall(TSSetExactFinalTime(s->ts, TS_EXACTFINALTIME_MATCHSTEP));
   PetscCall(TSSetSolution(s->ts, s->U));
   PetscCall(TSSetPreStep(s->ts, PreStep));
-  if (s->contact) PetscCall(TSSetPostStep(s->ts, PostStep));
+  if (s->contact || s->rest_tol > 0) PetscCall(TSSetPostStep(s->ts, PostStep));
   PetscCall(TSSetFromOptions(s->ts));
   PetscCall(TSGetType(s->ts, &type));
   for (const char *const *t = supported_types; *t; t++) {
