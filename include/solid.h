@@ -59,8 +59,11 @@ PETSC_EXTERN PetscErrorCode ContactGetMode(Contact, ContactMode *, PetscReal *fr
  * surface and constrain their velocity by the mode; n particles, 3 entries each,
  * pinned particles skipped. Returns the deepest penetration below the contact
  * surface before the correction (max over all ranks), and the number of particles
- * in contact. Particles outside the solid's box (grown by `reach`) are not queried. */
-PETSC_EXTERN PetscErrorCode ContactProject(Contact, PetscInt n, PetscScalar *x, PetscScalar *v, const PetscBool *pinned, PetscReal reach, PetscReal *depth, PetscInt *ncontact);
+ * in contact. Particles outside the solid's box are not queried. h: for schemes
+ * whose position update used the new velocity (symplectic and backward Euler),
+ * the step, so that the position follows the corrected velocity (a particle held
+ * by static friction does not creep); 0 otherwise. */
+PETSC_EXTERN PetscErrorCode ContactProject(Contact, PetscInt n, PetscScalar *x, PetscScalar *v, const PetscBool *pinned, PetscReal h, PetscReal *depth, PetscInt *ncontact);
 /* Constraint of a particle at x for the implicit solve: 0 free, 1 normal (slides
  * along the surface), 2 fixed (sticky); n the outward normal. */
 PETSC_EXTERN PetscErrorCode ContactConstraint(void *contact, const PetscReal x[3], PetscInt *type, PetscReal n[3]);

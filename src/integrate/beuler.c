@@ -108,7 +108,8 @@ static PetscErrorCode BEJacobian(SNES snes, Vec DV, Mat J, Mat P, void *ctx)
 }
 
 /* Coulomb friction on sliding contacts: the impulse per unit mass the normal
- * constraint carried, j = -n.(dv - h a), bounds the tangential velocity change. */
+ * constraint carried, j = n.(dv - h a) (dv = h a + j n), bounds the tangential
+ * velocity change. */
 static PetscErrorCode BEFriction(TS_DrapeBE *be)
 {
   PetscFunctionBeginUser;
@@ -118,7 +119,7 @@ static PetscErrorCode BEFriction(TS_DrapeBE *be)
     PetscReal       *v = be->vt + 3 * k, j = 0, vn = 0, vt[3], lt = 0;
     if (be->ctype[k] != 1) continue;
     for (PetscInt d = 0; d < 3; d++) {
-      j -= nk[d] * (v[d] - be->v0[3 * k + d] - be->h * be->at[3 * k + d]);
+      j += nk[d] * (v[d] - be->v0[3 * k + d] - be->h * be->at[3 * k + d]);
       vn += nk[d] * v[d];
     }
     if (j <= 0) continue;

@@ -117,8 +117,15 @@ static PetscErrorCode PostStep(TS ts)
   PetscCall(ClothGetMasses(s->cloth, &mass, &pinned));
   PetscCall(VecGetArray(s->U, &u));
   if (s->contact) {
-    PetscReal depth;
-    PetscCall(ContactProject(s->contact, s->n / 3, u, u + s->n, pinned, 0, &depth, &s->ncontact));
+    PetscReal depth, h = 0, t0;
+    PetscBool velocity_first;
+    PetscCall(PetscObjectTypeCompareAny((PetscObject)ts, &velocity_first, TSBASICSYMPLECTIC, TSBEULER, ""));
+    if (velocity_first) {
+      PetscCall(TSGetPrevTime(ts, &t0));
+      PetscCall(TSGetTime(ts, &t));
+      h = t - t0;
+    }
+    PetscCall(ContactProject(s->contact, s->n / 3, u, u + s->n, pinned, h, &depth, &s->ncontact));
     s->depth = PetscMax(s->depth, depth);
   }
   if (s->rest_tol > 0) {

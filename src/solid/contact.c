@@ -88,10 +88,10 @@ static void ContactVelocity(ContactMode mode, PetscReal mu, const PetscReal n[3]
   for (PetscInt d = 0; d < 3; d++) v[d] -= (lt <= mu * dvn ? 1 : mu * dvn / lt) * vt[d];
 }
 
-PetscErrorCode ContactProject(Contact c, PetscInt n, PetscScalar *x, PetscScalar *v, const PetscBool *pinned, PetscReal reach, PetscReal *depth, PetscInt *ncontact)
+PetscErrorCode ContactProject(Contact c, PetscInt n, PetscScalar *x, PetscScalar *v, const PetscBool *pinned, PetscReal h, PetscReal *depth, PetscInt *ncontact)
 {
   PetscReal lo[3] = {PETSC_MAX_REAL, PETSC_MAX_REAL, PETSC_MAX_REAL}, hi[3] = {-PETSC_MAX_REAL, -PETSC_MAX_REAL, -PETSC_MAX_REAL};
-  PetscReal deepest = 0, grow = c->thickness + reach;
+  PetscReal deepest = 0, grow = c->thickness;
   PetscInt  count = 0;
 
   PetscFunctionBeginUser;
@@ -110,9 +110,15 @@ PetscErrorCode ContactProject(Contact c, PetscInt n, PetscScalar *x, PetscScalar
       if (dist > c->thickness * (1 + 1e-6) + PETSC_SMALL) continue;
       count++;
       if (dist >= c->thickness) continue;
+      PetscReal vold[3] = {v[3 * k], v[3 * k + 1], v[3 * k + 2]}, dx[3];
       deepest = PetscMax(deepest, c->thickness - dist);
-      for (PetscInt d = 0; d < 3; d++) p[d] += (c->thickness - dist) * nrm[d];
       ContactVelocity(c->mode, c->mu, nrm, v + 3 * k);
+      /* position: back onto the contact surface, and along the corrected velocity */
+      for (PetscInt d = 0; d < 3; d++) dx[d] = h * (v[3 * k + d] - vold[d]);
+      {
+        PetscReal dxn = dx[0] * nrm[0] + dx[1] * nrm[1] + dx[2] * nrm[2];
+        for (PetscInt d = 0; d < 3; d++) p[d] += dx[d] - dxn * nrm[d] + (c->thickness - dist) * nrm[d];
+      }
     }
   }
   PetscCall(MPIU_Allreduce(&deepest, depth, 1, MPIU_REAL, MPI_MAX, c->comm));

@@ -1,0 +1,130 @@
+"""Contact with the solid: known answers for planes, friction, sticky contact, a
+sphere drape, malformed meshes, and rank independence."""
+import math
+import subprocess
+
+import numpy as np
+import pytest
+
+from conftest import DRAPE, Frames, run
+
+THICK = 2e-3
+SCHEMES = {
+    "euler": "-ts_type euler -ts_dt 1e-4 -cloth_stretch 5 -cloth_shear 1 -cloth_bend 1e-5 -cloth_damping 5",
+    "symplectic": "-ts_type basicsymplectic -ts_dt 2e-4",
+    "beuler": "-ts_type beuler -ts_dt 1e-3 -ksp_rtol 1e-12",
+}
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_cloth_settles_on_a_plane(tmp, scheme):
+    """A cloth dropped on a floor ends flat at floor + thickness, at rest, and no
+    particle is ever below that at the end of a step."""
+    out = tmp / "plane.h5"
+    run(f"-da_grid_x 10 -da_grid_y 10 -cloth_center 0,0,0.1 -solid_floor 0.05 -contact_mode friction "
+        f"-ts_max_time 1.5 -output_interval 0.01 -output_file {out} {SCHEMES[scheme]}")
+    fr = Frames(out)
+    z = fr.x[..., 2]
+    assert z.min() >= 0.05 + THICK - 1e-12
+    assert np.abs(z[-1] - (0.05 + THICK)).max() < 1e-9
+    assert fr.energy["kinetic"][-1] < 1e-5 * 0.15 * 9.81 * 0.05  # of the energy the fall released
+    assert fr.x[-1, ..., :2].std() > 0.2  # still spread out, not collapsed
+
+
+def tilted_gravity(alpha):
+    g = 9.81
+    return f"-gravity {g * math.sin(alpha)},0,{-g * math.cos(alpha)}"
+
+
+@pytest.mark.parametrize("scheme", ["symplectic", "beuler"])
+@pytest.mark.parametrize("tan_alpha", [0.3, 0.6])
+def test_friction_on_an_inclined_plane(tmp, scheme, tan_alpha):
+    """Coulomb friction mu = 0.45 (the incline is modelled by tilting gravity): the
+    cloth sticks when tan(alpha) < mu and slides with acceleration
+    g (sin alpha - mu cos alpha) when above."""
+    mu, alpha, T = 0.45, math.atan(tan_alpha), 0.4
+    out = tmp / "incline.h5"
+    args = SCHEMES[scheme].replace("-ts_dt 1e-3", "-ts_dt 2e-4")
+    run(f"-da_grid_x 8 -da_grid_y 8 -cloth_size 0.3 -cloth_center 0,0,{THICK} -solid_floor 0 -contact_mode friction "
+        f"-contact_friction {mu} -cloth_damping 0 {tilted_gravity(alpha)} -ts_max_time {T} -output_interval 0.05 "
+        f"-output_file {out} {args}")
+    fr = Frames(out)
+    xc = fr.x[..., 0].mean(axis=(1, 2)) - fr.x[0, ..., 0].mean()
+    expect = 0.5 * 9.81 * max(math.sin(alpha) - mu * math.cos(alpha), 0) * fr.time ** 2
+    if tan_alpha < mu:
+        assert np.abs(xc).max() < 1e-9
+    else:
+        assert np.abs(xc[-1] - expect[-1]) < 0.02 * expect[-1], (xc[-1], expect[-1])
+    assert np.abs(fr.x[..., 2] - THICK).max() < 1e-9
+
+
+def test_sticky_contact_has_zero_velocity(tmp):
+    """The paper's condition: particles in contact do not move."""
+    out = tmp / "sticky.h5"
+    run(f"-da_grid_x 12 -da_grid_y 12 -cloth_center 0,0,0.3 -solid_type sphere -solid_radius 0.2 "
+        f"-solid_resolution 64 -solid_floor -0.1 -contact_mode sticky -ts_type basicsymplectic -ts_dt 2e-4 "
+        f"-ts_max_time 0.5 -output_interval 0.05 -output_file {out}")
+    fr = Frames(out)
+    r = np.linalg.norm(fr.x, axis=-1)
+    inscribed = 0.2 * math.cos(math.pi / 64) ** 2  # closer than this to the centre: surely on a face
+    touching = (r <= inscribed + THICK) | (fr.x[..., 2] <= -0.1 + THICK + 1e-12)
+    assert touching[-1].sum() >= 4
+    speed = np.linalg.norm(fr.v, axis=-1)
+    assert speed[touching].max() == 0.0
+
+
+@pytest.mark.parametrize("scheme,sym_tol", [("symplectic", 1e-5), ("beuler", 2e-3)])
+def test_sphere_drape_no_penetration_and_fourfold_symmetry(tmp, scheme, sym_tol):
+    """A square cloth centred over a sphere: no particle inside the (tessellated)
+    sphere beyond round-off at any frame, and the drape is four-fold symmetric."""
+    out = tmp / "sphere.h5"
+    run(f"-da_grid_x 21 -da_grid_y 21 -cloth_center 0,0,0.45 -solid_type sphere -solid_radius 0.2 "
+        f"-solid_resolution 48 -solid_translate 0,0,0.2 -contact_mode sticky -ts_max_time 0.6 "
+        f"-output_interval 0.05 -output_file {out} {SCHEMES[scheme]}")
+    fr = Frames(out)
+    r = np.linalg.norm(fr.x - np.array([0, 0, 0.2]), axis=-1)
+    inscribed = 0.2 * math.cos(math.pi / 48) ** 2  # no face of the mesh is closer to the centre
+    assert r.min() >= inscribed + THICK - 1e-9
+    assert fr.attrs and fr.x[-1, ..., 2].min() < 0.2  # it did drape below the equator
+    X = fr.x[-1]
+    n = X.shape[0]
+    rot = np.stack([-X[..., 1], X[..., 0], X[..., 2]], -1)  # 90 degrees about z
+    Y = np.empty_like(X)
+    for j in range(n):
+        for i in range(n):
+            Y[i, n - 1 - j] = rot[j, i]
+    assert np.abs(Y - X).max() < sym_tol
+
+
+MESHES = {
+    "open.off": ("OFF\n5 4 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 1 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 4\n", "is not closed"),
+    "quad.off": ("OFF\n8 6 0\n" + "".join(f"{x} {y} {z}\n" for z in (0, 1) for y in (0, 1) for x in (0, 1))
+                 + "4 0 2 3 1\n4 4 5 7 6\n4 0 1 5 4\n4 2 6 7 3\n4 0 4 6 2\n4 1 3 7 5\n", "not triangles"),
+    "empty.stl": ("", "has no faces"),
+    "garbage.obj": ("this is not a mesh\nv 1 2\nf 1 2 3 4 5\n", "Cannot read the solid mesh file"),
+}
+
+
+@pytest.mark.parametrize("name", list(MESHES) + ["missing.off"])
+def test_malformed_mesh_is_refused(tmp, name):
+    path = tmp / name
+    if name in MESHES:
+        path.write_text(MESHES[name][0])
+    message = MESHES[name][1] if name in MESHES else "Cannot open the solid mesh file"
+    res = subprocess.run([str(DRAPE), "-solid_file", str(path), "-ts_max_steps", "1"], capture_output=True, text=True)
+    lines = [l for l in res.stderr.splitlines() if l.strip()]
+    assert res.returncode != 0 and len(lines) == 1 and message in lines[0], res.stderr
+
+
+@pytest.mark.parametrize("args,tol", [("-ts_type basicsymplectic -ts_dt 2e-4", 0.0),
+                                      ("-ts_type beuler -ts_dt 1e-3 -ksp_rtol 1e-12", 1e-8)])
+def test_same_frames_with_contact_on_1_and_2_ranks(tmp, args, tol):
+    frames = []
+    for np_ in (1, 2):
+        out = tmp / f"c{np_}.h5"
+        run(f"-da_grid_x 14 -da_grid_y 12 -cloth_center 0,0,0.3 -solid_type sphere -solid_radius 0.2 "
+            f"-solid_floor -0.15 -contact_mode friction -ts_max_time 0.3 -output_interval 0.05 "
+            f"-output_file {out} {args}", np_=np_)
+        frames.append(Frames(out))
+    assert frames[0].energy["kinetic"][-1] > 0
+    assert np.abs(frames[0].x - frames[1].x).max() <= tol
