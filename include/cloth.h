@@ -45,6 +45,13 @@ PETSC_EXTERN PetscErrorCode ClothGetDM(Cloth, DM *);
 /* Lumped particle masses and pin flags, owned-particle order (1 entry each). */
 PETSC_EXTERN PetscErrorCode ClothGetMasses(Cloth, const PetscReal **, const PetscBool **);
 
+/* Is lattice particle (i, j) part of the cloth? (-cloth_shape circle cuts the
+ * lattice to a disc; the particles outside it stay where they are, take part in
+ * no interaction and count in no sum.) */
+PETSC_EXTERN PetscBool ClothIsActive(Cloth, PetscInt i, PetscInt j);
+/* Owned-order active flags. */
+PETSC_EXTERN PetscErrorCode ClothGetActive(Cloth, const PetscBool **);
+
 /* Initial state: the flat sheet at rest given by the options. */
 PETSC_EXTERN PetscErrorCode ClothSetInitialState(Cloth, PetscScalar *x, PetscScalar *v);
 /* Acceleration a = F(x, v)/m with internal, gravity and damping forces; 0 at pins. */
@@ -67,7 +74,7 @@ PETSC_EXTERN PetscErrorCode ClothAssembleMatrix(Cloth, const PetscScalar *x, Pet
  * particle at positions x (owned order); ClothAssembleMatrix then returns
  * S J S + (I - S) M with S the per-particle projector onto the free directions,
  * which stays SPD. */
-PETSC_EXTERN PetscErrorCode ClothSetConstraintFunction(Cloth, PetscErrorCode (*fn)(void *, const PetscReal *, PetscInt *, PetscReal *), void *ctx, PetscReal friction);
+PETSC_EXTERN PetscErrorCode ClothSetConstraintFunction(Cloth, PetscErrorCode (*fn)(void *, PetscInt, PetscInt, const PetscReal *, PetscInt *, PetscReal *), void *ctx, PetscReal friction);
 PETSC_EXTERN PetscErrorCode ClothUpdateConstraints(Cloth, const PetscScalar *x, PetscBool *any);
 /* Owned-order constraint type and normal arrays (NULL when there is no function),
  * and the Coulomb coefficient of sliding contacts (0: frictionless). */

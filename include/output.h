@@ -17,4 +17,6 @@ PETSC_EXTERN PetscErrorCode OutputFrameDue(Output, PetscInt step, PetscReal t, P
 /* Write one frame and flush it to disk: a run killed later keeps it readable. */
 PETSC_EXTERN PetscErrorCode OutputWriteFrame(Output, Cloth, PetscInt step, PetscReal t, const PetscScalar *x, const PetscScalar *v, const ClothEnergies *);
 PETSC_EXTERN PetscErrorCode OutputLastStep(Output, PetscInt *);
+/* A real attribute of the file's root (results such as the drape coefficient). */
+PETSC_EXTERN PetscErrorCode OutputWriteResult(Output, const char *name, PetscReal value);
 PETSC_EXTERN PetscErrorCode OutputDestroy(Output *);

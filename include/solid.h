@@ -10,15 +10,15 @@
 
 /* A closed triangle mesh in a CGAL AABB tree (src/solid/aabb.cxx). */
 typedef struct _p_SolidMesh *SolidMesh;
-PETSC_EXTERN PetscErrorCode SolidMeshCreateFromFile(const char path[], const PetscReal A[9], const PetscReal b[3], SolidMesh *);
-PETSC_EXTERN PetscErrorCode SolidMeshCreateFromArrays(PetscInt nv, const PetscReal v[], PetscInt nt, const PetscInt t[], const char name[], SolidMesh *);
-PETSC_EXTERN PetscErrorCode SolidMeshGetBoundingBox(SolidMesh, PetscReal lo[3], PetscReal hi[3]);
-PETSC_EXTERN PetscErrorCode SolidMeshGetSize(SolidMesh, PetscInt *nv, PetscInt *nt);
-PETSC_EXTERN PetscErrorCode SolidMeshGetTriangles(SolidMesh, PetscReal *xyz); /* 9 per triangle */
-PETSC_EXTERN PetscErrorCode SolidMeshQuery(SolidMesh, const PetscReal p[3], PetscReal closest[3], PetscBool *inside);
-PETSC_EXTERN PetscErrorCode SolidMeshDestroy(SolidMesh *);
+PETSC_EXTERN PetscErrorCode  SolidMeshCreateFromFile(const char path[], const PetscReal A[9], const PetscReal b[3], SolidMesh *);
+PETSC_EXTERN PetscErrorCode  SolidMeshCreateFromArrays(PetscInt nv, const PetscReal v[], PetscInt nt, const PetscInt t[], const char name[], SolidMesh *);
+PETSC_EXTERN PetscErrorCode  SolidMeshGetBoundingBox(SolidMesh, PetscReal lo[3], PetscReal hi[3]);
+PETSC_EXTERN PetscErrorCode  SolidMeshGetSize(SolidMesh, PetscInt *nv, PetscInt *nt);
+PETSC_EXTERN PetscErrorCode  SolidMeshGetTriangles(SolidMesh, PetscReal *xyz); /* 9 per triangle */
+PETSC_EXTERN PetscErrorCode  SolidMeshQuery(SolidMesh, const PetscReal p[3], PetscReal closest[3], PetscBool *inside);
+PETSC_EXTERN PetscErrorCode  SolidMeshDestroy(SolidMesh *);
 
-typedef struct _p_Solid *Solid;
+typedef struct _p_Solid    *Solid;
 PETSC_EXTERN PetscErrorCode SolidCreate(MPI_Comm, Solid *);
 /* -solid_type, -solid_file, -solid_scale, -solid_rotate, -solid_translate,
  * -solid_size, -solid_radius, -solid_height, -solid_resolution, -solid_plane,
@@ -48,7 +48,7 @@ typedef enum {
   CONTACT_FRICTIONLESS
 } ContactMode;
 
-typedef struct _p_Contact *Contact;
+typedef struct _p_Contact  *Contact;
 PETSC_EXTERN PetscErrorCode ContactCreate(MPI_Comm, Solid, Contact *);
 /* -contact_mode, -contact_thickness, -contact_friction */
 PETSC_EXTERN PetscErrorCode ContactSetFromOptions(Contact);
@@ -64,6 +64,6 @@ PETSC_EXTERN PetscErrorCode ContactGetMode(Contact, ContactMode *, PetscReal *fr
  * the step, so that the position follows the corrected velocity (a particle held
  * by static friction does not creep); 0 otherwise. */
 PETSC_EXTERN PetscErrorCode ContactProject(Contact, PetscInt n, PetscScalar *x, PetscScalar *v, const PetscBool *pinned, PetscReal h, PetscReal *depth, PetscInt *ncontact);
-/* Constraint of a particle at x for the implicit solve: 0 free, 1 normal (slides
- * along the surface), 2 fixed (sticky); n the outward normal. */
-PETSC_EXTERN PetscErrorCode ContactConstraint(void *contact, const PetscReal x[3], PetscInt *type, PetscReal n[3]);
+/* Constraint of local particle l (of nlocal) at x for the implicit solve: 0 free,
+ * 1 normal (slides along the surface), 2 fixed (sticky); n the outward normal. */
+PETSC_EXTERN PetscErrorCode ContactConstraint(void *contact, PetscInt l, PetscInt nlocal, const PetscReal x[3], PetscInt *type, PetscReal n[3]);

@@ -67,7 +67,7 @@ PetscErrorCode DrapeFinalize(void)
 
 PetscErrorCode DrapeCheckUnusedOptions(MPI_Comm comm)
 {
-  static const char *const prefixes[] = {"cloth_", "output_", "drape_", "gravity", "solid_", "contact_", NULL};
+  static const char *const prefixes[] = {"cloth_", "output_", "drape_", "gravity", "solid_", "contact_", "cusick_", NULL};
   PetscInt                 n;
   char                   **names, **values;
 

@@ -128,3 +128,17 @@ def test_same_frames_with_contact_on_1_and_2_ranks(tmp, args, tol):
         frames.append(Frames(out))
     assert frames[0].energy["kinetic"][-1] > 0
     assert np.abs(frames[0].x - frames[1].x).max() <= tol
+
+
+def test_cusick_scene_reports_drape_coefficient(tmp):
+    """A coarse Cusick run drapes, comes to rest by itself, and reports DC and folds
+    on the console and in the HDF5 file."""
+    out = tmp / "cusick.h5"
+    res = run(f"-options_file runs/cusick.opts -da_grid_x 31 -da_grid_y 31 -ts_dt 2e-3 -output_file {out}")
+    dc = res.value(r"drape coefficient DC = (\S+),")
+    folds = res.value(r", (\d+) folds", int)
+    assert "At rest at t =" in res.stdout
+    assert 0.0 < dc < 1.0 and folds >= 3
+    fr = Frames(out)
+    assert abs(float(fr.attrs["drape_coefficient"]) - dc) < 1e-4 and int(fr.attrs["drape_folds"]) == folds
+    assert fr.time[-1] < 4.0  # stopped at rest, before -ts_max_time

@@ -38,3 +38,19 @@ def test_cloth_rigid_motion_and_force_balance(np_):
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert re.search(r"^3 passed, 0 failed$", proc.stdout, re.MULTILINE), proc.stdout
     assert " bytes " not in proc.stdout + proc.stderr, "memory leak"
+
+
+@pytest.mark.parametrize("np_", [1, 2])
+def test_cusick_analysis_known_silhouettes(np_):
+    """Drape coefficient and folds on constructed silhouettes: a square and a 7-lobed
+    star (exact areas, 4 and 7 maxima), the flat specimen (DC = 1), one hanging
+    straight down the pedestal (DC = 0), a shrunk specimen (exact DC)."""
+    exe = BUILD / "tests" / "test_cusick"
+    cmd = [str(exe), "-cloth_shape", "circle", "-cloth_size", "0.3", "-da_grid_x", "41", "-da_grid_y", "41",
+           "-malloc_debug", "-malloc_dump"]
+    if np_ > 1:
+        cmd = ["mpiexec"] + (["--allow-run-as-root"] if os.geteuid() == 0 else []) + ["--oversubscribe", "-np", str(np_)] + cmd
+    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert re.search(r"^5 passed, 0 failed$", proc.stdout, re.MULTILINE), proc.stdout
+    assert " bytes " not in proc.stdout + proc.stderr, "memory leak"

@@ -3,6 +3,7 @@
 #include <petscdmda.h>
 
 static const char *const orientation_names[] = {"horizontal", "vertical", "ClothOrientation", "CLOTH_", NULL};
+static const char *const shape_names[]       = {"square", "circle", "ClothShape", "CLOTH_", NULL};
 static const char *const pin_names[]         = {"none", "corners", "edge_corners", "edge", "list", "ClothPinType", "CLOTH_PIN_", NULL};
 
 PetscErrorCode ClothCreate(MPI_Comm comm, Cloth *cloth)
@@ -71,6 +72,11 @@ PetscErrorCode ClothSetFromOptions(Cloth c)
   PetscCall(PetscOptionsRealArray("-cloth_center", "Centre of the initial flat sheet x,y,z (m)", "ClothSetFromOptions", c->origin, &n, &set));
   PetscCheck(!set || n == 3, c->comm, PETSC_ERR_USER_INPUT, "Option -cloth_center needs three components x,y,z; got %" PetscInt_FMT, n);
   PetscCall(PetscOptionsEList("-cloth_orientation", "Initial sheet: horizontal (warp x, weft y) or vertical (warp x, weft z)", "ClothSetFromOptions", orientation_names, 2, orientation_names[iorient], &iorient, NULL));
+  {
+    PetscInt ishape = (PetscInt) c->shape;
+    PetscCall(PetscOptionsEList("-cloth_shape", "Cloth outline: square (the whole lattice) or circle (the disc inscribed in -cloth_size, e.g. a Cusick specimen)", "ClothSetFromOptions", shape_names, 2, shape_names[ishape], &ishape, NULL));
+    c->shape = (ClothShape) ishape;
+  }
   PetscCall(PetscOptionsEList("-cloth_pin", "Pinned particles: none, corners (all 4), edge_corners (two corners of the last weft row), edge (the last weft row), list", "ClothSetFromOptions", pin_names, 5, pin_names[ipin], &ipin, NULL));
   npin = 2 * 1024;
   PetscCall(PetscMalloc1(npin, &c->pin_list));
@@ -95,6 +101,24 @@ PetscErrorCode ClothSetFromOptions(Cloth c)
     PetscCheck(i >= 0 && i < c->Mx && j >= 0 && j < c->My, c->comm, PETSC_ERR_USER_INPUT, "-cloth_pin_list entry (%" PetscInt_FMT ",%" PetscInt_FMT ") is outside the %" PetscInt_FMT " x %" PetscInt_FMT " lattice (indices start at 0)", i, j, c->Mx,
                c->My);
   }
+  PetscFunctionReturn(0);
+}
+
+PetscBool ClothIsActive(Cloth c, PetscInt i, PetscInt j)
+{
+  PetscReal a, b, r;
+
+  if (c->shape == CLOTH_SQUARE) return PETSC_TRUE;
+  a = (i - 0.5 * (c->Mx - 1)) / (0.5 * (c->Mx - 1));
+  b = (j - 0.5 * (c->My - 1)) / (0.5 * (c->My - 1));
+  r = a * a + b * b;
+  return (PetscBool) (r <= 1 + 1e-12);
+}
+
+PetscErrorCode ClothGetActive(Cloth c, const PetscBool **active)
+{
+  PetscFunctionBeginUser;
+  *active = c->active;
   PetscFunctionReturn(0);
 }
 
@@ -150,6 +174,7 @@ static PetscErrorCode ClothBuildElements(Cloth c)
 
 #define LOCAL(i, j) (((j) -gys) * c->gxm + ((i) -gxs))
 #define OWNED(i, j) ((i) >= c->xs && (i) < c->xs + c->xm && (j) >= c->ys && (j) < c->ys + c->ym)
+#define ACT(i, j)   ClothIsActive(c, i, j)
   PetscFunctionBeginUser;
   PetscCall(ElementsAllocate(st, 2 * nl, 2, PETSC_TRUE));
   PetscCall(ElementsAllocate(sh, 4 * nl, 3, PETSC_FALSE));
@@ -157,7 +182,7 @@ static PetscErrorCode ClothBuildElements(Cloth c)
   for (PetscInt j = gys; j < gye; j++) {
     for (PetscInt i = gxs; i < gxe; i++) {
       /* stretch along the warp (i) and the weft (j) */
-      if (c->stretch[0] > 0 && i + 1 < gxe && (OWNED(i, j) || OWNED(i + 1, j))) {
+      if (c->stretch[0] > 0 && i + 1 < gxe && (OWNED(i, j) || OWNED(i + 1, j)) && ACT(i, j) && ACT(i + 1, j)) {
         PetscInt e       = st->n++;
         st->p[2 * e]     = LOCAL(i, j);
         st->p[2 * e + 1] = LOCAL(i + 1, j);
@@ -165,7 +190,7 @@ static PetscErrorCode ClothBuildElements(Cloth c)
         st->rest[e]      = dx;
         st->own[e]       = (unsigned char) OWNED(i, j);
       }
-      if (c->stretch[1] > 0 && j + 1 < gye && (OWNED(i, j) || OWNED(i, j + 1))) {
+      if (c->stretch[1] > 0 && j + 1 < gye && (OWNED(i, j) || OWNED(i, j + 1)) && ACT(i, j) && ACT(i, j + 1)) {
         PetscInt e       = st->n++;
         st->p[2 * e]     = LOCAL(i, j);
         st->p[2 * e + 1] = LOCAL(i, j + 1);
@@ -174,7 +199,7 @@ static PetscErrorCode ClothBuildElements(Cloth c)
         st->own[e]       = (unsigned char) OWNED(i, j);
       }
       /* shear: the four corners of cell (i, j) as (a: warp end, b: weft end, c: vertex) */
-      if (c->shear > 0 && i + 1 < gxe && j + 1 < gye && (OWNED(i, j) || OWNED(i + 1, j) || OWNED(i, j + 1) || OWNED(i + 1, j + 1))) {
+      if (c->shear > 0 && i + 1 < gxe && j + 1 < gye && (OWNED(i, j) || OWNED(i + 1, j) || OWNED(i, j + 1) || OWNED(i + 1, j + 1)) && ACT(i, j) && ACT(i + 1, j) && ACT(i, j + 1) && ACT(i + 1, j + 1)) {
         const PetscInt corner[4][3] = {
           {LOCAL(i + 1, j), LOCAL(i, j + 1), LOCAL(i, j)}, {LOCAL(i, j), LOCAL(i + 1, j + 1), LOCAL(i + 1, j)}, {LOCAL(i + 1, j + 1), LOCAL(i, j), LOCAL(i, j + 1)}, {LOCAL(i, j + 1), LOCAL(i + 1, j), LOCAL(i + 1, j + 1)}};
         for (PetscInt k = 0; k < 4; k++) {
@@ -185,7 +210,7 @@ static PetscErrorCode ClothBuildElements(Cloth c)
         }
       }
       /* bending: triples along the warp and the weft centred on (i, j) */
-      if (c->bend[0] > 0 && i - 1 >= gxs && i + 1 < gxe && (OWNED(i - 1, j) || OWNED(i, j) || OWNED(i + 1, j))) {
+      if (c->bend[0] > 0 && i - 1 >= gxs && i + 1 < gxe && (OWNED(i - 1, j) || OWNED(i, j) || OWNED(i + 1, j)) && ACT(i - 1, j) && ACT(i, j) && ACT(i + 1, j)) {
         PetscInt e       = be->n++;
         be->p[3 * e]     = LOCAL(i - 1, j);
         be->p[3 * e + 1] = LOCAL(i + 1, j);
@@ -193,7 +218,7 @@ static PetscErrorCode ClothBuildElements(Cloth c)
         be->coef[e]      = c->bend[0] * dy * EdgeWeight(j, c->My) / dx;
         be->own[e]       = (unsigned char) OWNED(i, j);
       }
-      if (c->bend[1] > 0 && j - 1 >= gys && j + 1 < gye && (OWNED(i, j - 1) || OWNED(i, j) || OWNED(i, j + 1))) {
+      if (c->bend[1] > 0 && j - 1 >= gys && j + 1 < gye && (OWNED(i, j - 1) || OWNED(i, j) || OWNED(i, j + 1)) && ACT(i, j - 1) && ACT(i, j) && ACT(i, j + 1)) {
         PetscInt e       = be->n++;
         be->p[3 * e]     = LOCAL(i, j - 1);
         be->p[3 * e + 1] = LOCAL(i, j + 1);
@@ -205,6 +230,7 @@ static PetscErrorCode ClothBuildElements(Cloth c)
   }
 #undef LOCAL
 #undef OWNED
+#undef ACT
   PetscFunctionReturn(0);
 }
 
@@ -244,13 +270,13 @@ PetscErrorCode ClothSetUp(Cloth c)
 
   PetscCall(DMGetLocalToGlobalMapping(c->da, &ltog));
   PetscCall(ISLocalToGlobalMappingGetBlockIndices(ltog, &gidx));
-  PetscCall(PetscMalloc3(c->nowned, &c->owned_local, c->nowned, &c->mass, c->nowned, &c->pinned));
+  PetscCall(PetscMalloc4(c->nowned, &c->owned_local, c->nowned, &c->mass, c->nowned, &c->pinned, c->nowned, &c->active));
   PetscCall(PetscMalloc4(c->nlocal, &c->row_map, c->nlocal, &c->col_map, c->nlocal, &c->pinned_local, c->nlocal, &c->global));
   for (PetscInt j = c->gys; j < c->gys + c->gym; j++) {
     for (PetscInt i = c->gxs; i < c->gxs + c->gxm; i++) {
       PetscInt  l        = (j - c->gys) * c->gxm + (i - c->gxs);
       PetscBool owned    = (PetscBool) (i >= c->xs && i < c->xs + c->xm && j >= c->ys && j < c->ys + c->ym);
-      c->pinned_local[l] = IsPinned(c, i, j);
+      c->pinned_local[l] = (PetscBool) (IsPinned(c, i, j) || !ClothIsActive(c, i, j));
       c->global[l]       = gidx[l];
       c->col_map[l]      = c->pinned_local[l] ? -1 : gidx[l];
       c->row_map[l]      = owned ? c->col_map[l] : -1;
@@ -265,7 +291,8 @@ PetscErrorCode ClothSetUp(Cloth c)
       c->owned_local[k] = l;
       c->mass[k]        = c->density * c->spacing[0] * c->spacing[1] * EdgeWeight(i, c->Mx) * EdgeWeight(j, c->My);
       c->pinned[k]      = c->pinned_local[l];
-      mass += c->mass[k];
+      c->active[k]      = ClothIsActive(c, i, j);
+      if (c->active[k]) mass += c->mass[k];
     }
   }
   PetscCall(ClothBuildElements(c));
@@ -273,7 +300,7 @@ PetscErrorCode ClothSetUp(Cloth c)
   counts[1] = CountOwned(&c->shear_el, 4);
   counts[2] = CountOwned(&c->bend_el, 1);
   counts[3] = 0;
-  for (k = 0; k < c->nowned; k++) counts[3] += c->pinned[k];
+  for (k = 0; k < c->nowned; k++) counts[3] += c->pinned[k] && c->active[k];
   PetscCall(MPIU_Allreduce(counts, sums, 4, MPIU_INT, MPI_SUM, c->comm));
   PetscCall(MPIU_Allreduce(&mass, &c->total_mass, 1, MPIU_REAL, MPI_SUM, c->comm));
   c->nstretch = sums[0];
@@ -295,7 +322,7 @@ PetscErrorCode ClothDestroy(Cloth *cloth)
     PetscCall(ElementsDestroy(&c->stretch_el));
     PetscCall(ElementsDestroy(&c->shear_el));
     PetscCall(ElementsDestroy(&c->bend_el));
-    PetscCall(PetscFree3(c->owned_local, c->mass, c->pinned));
+    PetscCall(PetscFree4(c->owned_local, c->mass, c->pinned, c->active));
     PetscCall(PetscFree4(c->row_map, c->col_map, c->pinned_local, c->global));
     PetscCall(PetscFree4(c->ctype, c->ctype_owned, c->cnormal, c->cnormal_owned));
     PetscCall(PetscFree(c->map));

@@ -27,6 +27,11 @@ typedef enum {
   CLOTH_PIN_LIST
 } ClothPinType;
 
+typedef enum {
+  CLOTH_SQUARE,
+  CLOTH_CIRCLE
+} ClothShape;
+
 struct _p_Cloth {
   MPI_Comm comm;
   /* options */
@@ -34,6 +39,7 @@ struct _p_Cloth {
   PetscReal        stretch[2], shear, bend[2];
   ClothOrientation orientation;
   ClothPinType     pin;
+  ClothShape       shape;
   PetscInt        *pin_list, npin_list; /* (i, j) pairs */
   PetscBool        exact_hessian;       /* keep indefinite Hessians (tests only)  */
   PetscBool        setup;
@@ -50,11 +56,12 @@ struct _p_Cloth {
   PetscReal    *mass;              /* owned particles                          */
   PetscBool    *pinned;            /* owned particles                          */
   PetscBool    *pinned_local;      /* owned + ghost                            */
+  PetscBool    *active;            /* owned: inside the cloth outline          */
   ClothElements stretch_el, shear_el, bend_el;
   PetscInt      nstretch, nshear, nbend, npinned; /* global counts            */
   PetscReal     total_mass;
   /* contact constraints of the implicit solve: 0 free, 1 normal, 2 fixed */
-  PetscErrorCode (*constraint)(void *, const PetscReal *, PetscInt *, PetscReal *);
+  PetscErrorCode (*constraint)(void *, PetscInt, PetscInt, const PetscReal *, PetscInt *, PetscReal *);
   void      *constraint_ctx;
   PetscReal  friction;
   PetscInt  *ctype, *ctype_owned;     /* local, owned             */

@@ -107,6 +107,7 @@ PetscErrorCode ClothComputeEnergies(Cloth c, const PetscScalar *x, const PetscSc
   PetscFunctionBeginUser;
   PetscCall(PetscLogEventBegin(drape_log.energies, 0, 0, 0, 0));
   for (PetscInt k = 0; k < c->nowned; k++) {
+    if (!c->active[k]) continue;
     for (PetscInt d = 0; d < 3; d++) {
       local[0] += 0.5 * c->mass[k] * v[3 * k + d] * v[3 * k + d];
       local[1] -= c->mass[k] * c->gravity[d] * x[3 * k + d];
@@ -130,7 +131,7 @@ PetscErrorCode ClothComputeEnergies(Cloth c, const PetscScalar *x, const PetscSc
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode ClothSetConstraintFunction(Cloth c, PetscErrorCode (*fn)(void *, const PetscReal *, PetscInt *, PetscReal *), void *ctx, PetscReal friction)
+PetscErrorCode ClothSetConstraintFunction(Cloth c, PetscErrorCode (*fn)(void *, PetscInt, PetscInt, const PetscReal *, PetscInt *, PetscReal *), void *ctx, PetscReal friction)
 {
   PetscFunctionBeginUser;
   c->friction       = friction;
@@ -151,7 +152,7 @@ PetscErrorCode ClothUpdateConstraints(Cloth c, const PetscScalar *x, PetscBool *
   PetscCall(ClothScatterPositions(c, x, &xl));
   for (PetscInt l = 0; l < c->nlocal; l++) {
     c->ctype[l] = 0;
-    if (!c->pinned_local[l]) PetscCall(c->constraint(c->constraint_ctx, xl + 3 * l, &c->ctype[l], c->cnormal + 3 * l));
+    if (!c->pinned_local[l]) PetscCall(c->constraint(c->constraint_ctx, l, c->nlocal, xl + 3 * l, &c->ctype[l], c->cnormal + 3 * l));
     count += c->ctype[l] != 0;
   }
   PetscCall(ClothEndScatter(c, &xl));
@@ -160,7 +161,7 @@ PetscErrorCode ClothUpdateConstraints(Cloth c, const PetscScalar *x, PetscBool *
     c->ctype_owned[k] = c->ctype[l];
     for (PetscInt d = 0; d < 3; d++) c->cnormal_owned[3 * k + d] = c->cnormal[3 * l + d];
   }
-  c->constrained = (PetscBool)(count > 0);
+  c->constrained = (PetscBool) (count > 0);
   PetscCall(MPIU_Allreduce(&c->constrained, any, 1, MPIU_BOOL, MPI_LOR, c->comm));
   PetscFunctionReturn(0);
 }
@@ -169,8 +170,8 @@ PetscErrorCode ClothGetConstraints(Cloth c, const PetscInt **type, const PetscRe
 {
   PetscFunctionBeginUser;
   *friction = c->friction;
-  *type   = c->constraint ? c->ctype_owned : NULL;
-  *normal = c->constraint ? c->cnormal_owned : NULL;
+  *type     = c->constraint ? c->ctype_owned : NULL;
+  *normal   = c->constraint ? c->cnormal_owned : NULL;
   PetscFunctionReturn(0);
 }
 

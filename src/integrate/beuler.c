@@ -31,7 +31,7 @@ typedef struct {
   const PetscScalar *x0, *v0;
   const PetscReal   *mass;
   const PetscBool   *pinned;
-  const PetscInt    *ctype;   /* contact constraints, owned order (NULL: none) */
+  const PetscInt    *ctype; /* contact constraints, owned order (NULL: none) */
   const PetscReal   *cnormal;
   PetscScalar       *z;
   PetscBool          constrained;
@@ -54,8 +54,10 @@ static PetscErrorCode TrialState(TS_DrapeBE *be, Vec DV)
       const PetscReal *nk = be->cnormal + 3 * k, *w = dv + 3 * k;
       PetscReal        wn = nk[0] * w[0] + nk[1] * w[1] + nk[2] * w[2];
       for (PetscInt d = 0; d < 3; d++) {
-        if (be->ctype[k] == 1) be->vt[3 * k + d] -= wn * nk[d];
-        else if (be->ctype[k] == 2) be->vt[3 * k + d] = be->v0[3 * k + d];
+        if (be->ctype[k] == 1)
+          be->vt[3 * k + d] -= wn * nk[d];
+        else if (be->ctype[k] == 2)
+          be->vt[3 * k + d] = be->v0[3 * k + d];
         be->vt[3 * k + d] += be->z[3 * k + d];
       }
     }
@@ -143,9 +145,9 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
   PetscFunctionBeginUser;
   {
     PetscContainer container;
-    PetscCall(PetscObjectQuery((PetscObject)ts, "drape_cloth", (PetscObject *)&container));
-    PetscCheck(container, PetscObjectComm((PetscObject)ts), PETSC_ERR_ARG_WRONGSTATE, "TS type beuler (drape) needs the Cloth composed on the TS as \"drape_cloth\"");
-    PetscCall(PetscContainerGetPointer(container, (void **)&be->cloth));
+    PetscCall(PetscObjectQuery((PetscObject) ts, "drape_cloth", (PetscObject *) &container));
+    PetscCheck(container, PetscObjectComm((PetscObject) ts), PETSC_ERR_ARG_WRONGSTATE, "TS type beuler (drape) needs the Cloth composed on the TS as \"drape_cloth\"");
+    PetscCall(PetscContainerGetPointer(container, (void **) &be->cloth));
   }
   PetscCall(ClothGetInfo(be->cloth, &info));
   PetscCall(ClothGetDM(be->cloth, &da));

@@ -12,6 +12,7 @@
 #include <simulation.h>
 #include <output.h>
 #include <solid.h>
+#include <analysis.h>
 #include <drape.h>
 #include <unistd.h>
 
@@ -31,6 +32,8 @@ struct _p_Simulation {
   PetscInt        stability_its;
   PetscReal       divergence_factor;
   PetscReal       rest_tol, rest_time, rest_since; /* stop at rest */
+  PetscReal       cusick_radius, cusick_center[2]; /* Cusick analysis      */
+  PetscScalar    *x0;                              /* flat initial state   */
   PetscBool       progress, summary, help;
   /* monitor state */
   PetscReal energy0, energy_scale, wall0, wall_last;
@@ -119,7 +122,7 @@ static PetscErrorCode PostStep(TS ts)
   if (s->contact) {
     PetscReal depth, h = 0, t0;
     PetscBool velocity_first;
-    PetscCall(PetscObjectTypeCompareAny((PetscObject)ts, &velocity_first, TSBASICSYMPLECTIC, TSBEULER, ""));
+    PetscCall(PetscObjectTypeCompareAny((PetscObject) ts, &velocity_first, TSBASICSYMPLECTIC, TSBEULER, ""));
     if (velocity_first) {
       PetscCall(TSGetPrevTime(ts, &t0));
       PetscCall(TSGetTime(ts, &t));
@@ -136,10 +139,12 @@ static PetscErrorCode PostStep(TS ts)
     }
     PetscCall(MPIU_Allreduce(loc, sum, 2, MPIU_REAL, MPI_SUM, s->comm));
     PetscCall(TSGetTime(ts, &t));
-    if (sum[0] / sum[1] >= s->rest_tol) s->rest_since = -1;
-    else if (s->rest_since < 0) s->rest_since = t;
+    if (sum[0] / sum[1] >= s->rest_tol)
+      s->rest_since = -1;
+    else if (s->rest_since < 0)
+      s->rest_since = t;
     else if (t - s->rest_since >= s->rest_time) {
-      PetscCall(PetscPrintf(s->comm, "At rest at t = %g s: kinetic energy below -drape_rest_tol %g J/kg since t = %g s\n", (double)t, (double)s->rest_tol, (double)s->rest_since));
+      PetscCall(PetscPrintf(s->comm, "At rest at t = %g s: kinetic energy below -drape_rest_tol %g J/kg since t = %g s\n", (double) t, (double) s->rest_tol, (double) s->rest_since));
       PetscCall(TSSetConvergedReason(ts, TS_CONVERGED_USER));
     }
   }
@@ -177,9 +182,15 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
   PetscCall(PetscOptionsBool("-drape_progress", "One updating progress line (default: on for a terminal, off in CI)", "SimulationRun", s->progress, &s->progress, NULL));
   PetscCall(PetscOptionsReal("-drape_rest_tol", "Stop when the kinetic energy per unit mass (J/kg) stays below this for -drape_rest_time (0: never)", "SimulationRun", s->rest_tol, &s->rest_tol, NULL));
   PetscCall(PetscOptionsReal("-drape_rest_time", "Simulated time the cloth must stay below -drape_rest_tol to count as at rest (s)", "SimulationRun", s->rest_time, &s->rest_time, NULL));
+  PetscCall(PetscOptionsReal("-cusick_pedestal_radius", "Cusick drape test: pedestal radius (m); > 0 reports the drape coefficient and folds at the end", "CusickAnalyse", s->cusick_radius, &s->cusick_radius, NULL));
+  {
+    PetscInt n = 2;
+    PetscCall(PetscOptionsRealArray("-cusick_center", "Cusick drape test: pedestal centre x,y (m)", "CusickAnalyse", s->cusick_center, &n, NULL));
+  }
   PetscCall(PetscOptionsBool("-drape_summary", "One-line summary at the end of the run", "SimulationRun", s->summary, &s->summary, NULL));
   PetscOptionsEnd();
   PetscCheck(s->stability_its >= 0, s->comm, PETSC_ERR_USER_INPUT, "-drape_stability_its must be zero or positive; got %" PetscInt_FMT, s->stability_its);
+  PetscCheck(s->cusick_radius >= 0, s->comm, PETSC_ERR_USER_INPUT, "-cusick_pedestal_radius must be zero or positive (m); got %g", (double) s->cusick_radius);
   PetscCheck(s->rest_tol >= 0 && s->rest_time >= 0, s->comm, PETSC_ERR_USER_INPUT, "-drape_rest_tol and -drape_rest_time must be zero or positive");
   PetscCheck(s->divergence_factor > 0, s->comm, PETSC_ERR_USER_INPUT, "-drape_divergence_factor must be positive; got %g", (double) s->divergence_factor);
   PetscCall(ClothSetFromOptions(s->cloth));
@@ -203,11 +214,12 @@ PetscErrorCode SimulationSetUp(Simulation s)
   PetscCall(ClothGetInfo(s->cloth, &info));
   PetscCall(SolidSetUp(s->solid));
   {
-    PetscBool  empty;
+    PetscBool   empty;
     ContactMode mode;
-    PetscReal  mu;
+    PetscReal   mu;
     PetscCall(SolidIsEmpty(s->solid, &empty));
-    if (empty) PetscCall(ContactDestroy(&s->contact)); /* no solid, no contact code */
+    if (empty)
+      PetscCall(ContactDestroy(&s->contact)); /* no solid, no contact code */
     else {
       PetscCall(ContactGetMode(s->contact, &mode, &mu));
       PetscCall(ClothSetConstraintFunction(s->cloth, ContactConstraint, s->contact, mu));
@@ -221,6 +233,10 @@ PetscErrorCode SimulationSetUp(Simulation s)
   PetscCall(ISCreateStride(s->comm, s->n, rstart + s->n, 1, &s->is_v));
   PetscCall(VecGetArray(s->U, &u));
   PetscCall(ClothSetInitialState(s->cloth, u, u + s->n));
+  if (s->cusick_radius > 0) {
+    PetscCall(PetscMalloc1(s->n, &s->x0));
+    PetscCall(PetscArraycpy(s->x0, u, s->n));
+  }
   PetscCall(VecRestoreArray(s->U, &u));
 
   PetscCall(DrapeTSRegisterBEuler());
@@ -230,7 +246,7 @@ PetscErrorCode SimulationSetUp(Simulation s)
     PetscContainer container; /* the Cloth, for drape's beuler TS type */
     PetscCall(PetscContainerCreate(s->comm, &container));
     PetscCall(PetscContainerSetPointer(container, s->cloth));
-    PetscCall(PetscObjectCompose((PetscObject)s->ts, "drape_cloth", (PetscObject)container));
+    PetscCall(PetscObjectCompose((PetscObject) s->ts, "drape_cloth", (PetscObject) container));
     PetscCall(PetscContainerDestroy(&container));
   }
   PetscCall(TSSetProblemType(s->ts, TS_NONLINEAR));
@@ -277,6 +293,7 @@ PetscErrorCode SimulationDestroy(Simulation *sim)
   PetscCall(OutputDestroy(&s->output));
   PetscCall(ContactDestroy(&s->contact));
   PetscCall(SolidDestroy(&s->solid));
+  PetscCall(PetscFree(s->x0));
   PetscCall(ClothDestroy(&s->cloth));
   PetscCall(PetscFree(*sim));
   PetscFunctionReturn(0);
@@ -460,6 +477,16 @@ PetscErrorCode SimulationRun(Simulation s)
     PetscCall(VecRestoreArrayRead(s->U, &u));
   }
   if (s->progress) PetscCall(PetscPrintf(s->comm, "\n"));
+  if (s->cusick_radius > 0) {
+    PetscReal dc;
+    PetscInt  folds;
+    PetscCall(VecGetArrayRead(s->U, &u));
+    PetscCall(CusickAnalyse(s->cloth, u, s->x0, s->cusick_radius, s->cusick_center, &dc, &folds));
+    PetscCall(VecRestoreArrayRead(s->U, &u));
+    PetscCall(PetscPrintf(s->comm, "Cusick drape test: drape coefficient DC = %.4f, %" PetscInt_FMT " folds (pedestal radius %g m)\n", (double) dc, folds, (double) s->cusick_radius));
+    PetscCall(OutputWriteResult(s->output, "drape_coefficient", dc));
+    PetscCall(OutputWriteResult(s->output, "drape_folds", (PetscReal) folds));
+  }
   if (s->summary) {
     PetscReal wall = (PetscReal) (t1 - s->wall0);
     PetscCall(TSGetKSPIterations(s->ts, &its));

@@ -147,7 +147,7 @@ PetscErrorCode OutputOpen(Output o, Cloth cloth, Solid solid, const char *descri
       Vec          T;
       PetscScalar *a;
       PetscCall(VecCreateMPI(o->comm, rank ? 0 : 9 * ntri, 9 * ntri, &T));
-      PetscCall(PetscObjectSetName((PetscObject)T, "solid_triangles"));
+      PetscCall(PetscObjectSetName((PetscObject) T, "solid_triangles"));
       PetscCall(VecGetArray(T, &a));
       if (!rank) PetscCall(PetscArraycpy(a, xyz, 9 * ntri));
       PetscCall(VecRestoreArray(T, &a));
@@ -224,7 +224,7 @@ PetscErrorCode OutputWriteFrame(Output o, Cloth cloth, PetscInt step, PetscReal 
   values[4] = en->shear;
   values[5] = en->bend;
   values[6] = en->contact_depth;
-  values[7] = (PetscReal)en->contact_count;
+  values[7] = (PetscReal) en->contact_count;
   values[8] = t;
   PetscCall(VecGetLocalSize(o->X, &n));
   PetscCall(VecGetArray(o->X, &a));
@@ -261,6 +261,18 @@ PetscErrorCode OutputWriteFrame(Output o, Cloth cloth, PetscInt step, PetscReal 
   if (o->interval > 0)
     while (o->next_time <= t + 1e-9 * o->interval) o->next_time += o->interval;
   PetscCall(OutputWriteXDMF(o));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode OutputWriteResult(Output o, const char *name, PetscReal value)
+{
+  hid_t fid;
+
+  PetscFunctionBeginUser;
+  if (!o->enabled) PetscFunctionReturn(0);
+  PetscCall(PetscViewerHDF5WriteAttribute(o->viewer, "/", name, PETSC_REAL, &value));
+  PetscCall(PetscViewerHDF5GetFileId(o->viewer, &fid));
+  PetscCheck(H5Fflush(fid, H5F_SCOPE_GLOBAL) >= 0, o->comm, PETSC_ERR_FILE_WRITE, "Cannot flush %s", o->file);
   PetscFunctionReturn(0);
 }
 

@@ -42,8 +42,12 @@ static PetscErrorCode SolidMeshFinish(SolidMesh m, const char *what)
     m->tree->accelerate_distance_queries();
     m->side.reset(new Side(*m->tree));
     CGAL::Bbox_3 b = m->tree->bbox();
-    m->lo[0] = b.xmin(); m->lo[1] = b.ymin(); m->lo[2] = b.zmin();
-    m->hi[0] = b.xmax(); m->hi[1] = b.ymax(); m->hi[2] = b.zmax();
+    m->lo[0]       = b.xmin();
+    m->lo[1]       = b.ymin();
+    m->lo[2]       = b.zmin();
+    m->hi[0]       = b.xmax();
+    m->hi[1]       = b.ymax();
+    m->hi[2]       = b.zmax();
   } catch (const std::exception &e) {
     SETERRQ(PETSC_COMM_SELF, PETSC_ERR_LIB, "CGAL failed to build the AABB tree of the solid %s: %s", what, e.what());
   }
@@ -78,7 +82,7 @@ PetscErrorCode SolidMeshCreateFromFile(const char path[], const PetscReal A[9], 
 
 PetscErrorCode SolidMeshCreateFromArrays(PetscInt nv, const PetscReal v[], PetscInt nt, const PetscInt t[], const char name[], SolidMesh *mesh)
 {
-  std::unique_ptr<_p_SolidMesh> m(new _p_SolidMesh);
+  std::unique_ptr<_p_SolidMesh>   m(new _p_SolidMesh);
   std::vector<Mesh::Vertex_index> vi(nv);
 
   PetscFunctionBeginUser;
@@ -109,8 +113,8 @@ PetscErrorCode SolidMeshGetBoundingBox(SolidMesh m, PetscReal lo[3], PetscReal h
 PetscErrorCode SolidMeshGetSize(SolidMesh m, PetscInt *nv, PetscInt *nt)
 {
   PetscFunctionBeginUser;
-  if (nv) *nv = (PetscInt)m->mesh.number_of_vertices();
-  if (nt) *nt = (PetscInt)m->mesh.number_of_faces();
+  if (nv) *nv = (PetscInt) m->mesh.number_of_vertices();
+  if (nt) *nt = (PetscInt) m->mesh.number_of_faces();
   PetscFunctionReturn(0);
 }
 
@@ -135,7 +139,7 @@ PetscErrorCode SolidMeshQuery(SolidMesh m, const PetscReal p[3], PetscReal close
   PetscFunctionBeginUser;
   try {
     Point q(p[0], p[1], p[2]);
-    Point c  = m->tree->closest_point(q);
+    Point c    = m->tree->closest_point(q);
     closest[0] = c.x();
     closest[1] = c.y();
     closest[2] = c.z();

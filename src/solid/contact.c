@@ -6,12 +6,53 @@
 
 static const char *const mode_names[] = {"sticky", "friction", "frictionless", "ContactMode", "CONTACT_", NULL};
 
+/* Per-particle memory of the last query: the distance to the solid is
+ * 1-Lipschitz in the position, so a particle that has moved less than its last
+ * clearance minus the thickness cannot be in contact: no query. A particle that
+ * has not moved at all (held by sticky contact) reuses its last answer. */
+typedef struct {
+  PetscInt   n;
+  PetscReal *x, *d, *nrm;
+} ContactCache;
+
 struct _p_Contact {
-  MPI_Comm    comm;
-  Solid       solid;
-  ContactMode mode;
-  PetscReal   thickness, mu;
+  MPI_Comm     comm;
+  Solid        solid;
+  ContactMode  mode;
+  PetscReal    thickness, mu;
+  ContactCache owned, local; /* post-step (owned particles), constraints (local) */
 };
+
+static PetscErrorCode CacheQuery(Contact c, ContactCache *cache, PetscInt idx, PetscInt n, const PetscReal p[3], PetscReal *dist, PetscReal nrm[3])
+{
+  PetscFunctionBeginUser;
+  if (cache->n != n) {
+    PetscCall(PetscFree3(cache->x, cache->d, cache->nrm));
+    PetscCall(PetscMalloc3(3 * n, &cache->x, n, &cache->d, 3 * n, &cache->nrm));
+    for (PetscInt i = 0; i < n; i++) cache->d[i] = -1; /* unknown */
+    cache->n = n;
+  }
+  if (cache->d[idx] >= 0) {
+    const PetscReal *q     = cache->x + 3 * idx;
+    PetscReal        moved = PetscSqrtReal(PetscSqr(p[0] - q[0]) + PetscSqr(p[1] - q[1]) + PetscSqr(p[2] - q[2]));
+    if (moved == 0) {
+      *dist = cache->d[idx];
+      for (PetscInt d = 0; d < 3; d++) nrm[d] = cache->nrm[3 * idx + d];
+      PetscFunctionReturn(0);
+    }
+    if (cache->d[idx] - moved > 2 * c->thickness) {
+      *dist = cache->d[idx] - moved; /* a lower bound: far enough, no normal needed */
+      PetscFunctionReturn(0);
+    }
+  }
+  PetscCall(SolidQuery(c->solid, p, dist, nrm));
+  for (PetscInt d = 0; d < 3; d++) {
+    cache->x[3 * idx + d]   = p[d];
+    cache->nrm[3 * idx + d] = nrm[d];
+  }
+  cache->d[idx] = PetscMax(*dist, 0);
+  PetscFunctionReturn(0);
+}
 
 PetscErrorCode ContactCreate(MPI_Comm comm, Solid solid, Contact *contact)
 {
@@ -30,7 +71,7 @@ PetscErrorCode ContactCreate(MPI_Comm comm, Solid solid, Contact *contact)
 
 PetscErrorCode ContactSetFromOptions(Contact c)
 {
-  PetscInt imode = (PetscInt)c->mode;
+  PetscInt imode = (PetscInt) c->mode;
 
   PetscFunctionBeginUser;
   PetscOptionsBegin(c->comm, NULL, "Contact with the solid", "Contact");
@@ -38,17 +79,17 @@ PetscErrorCode ContactSetFromOptions(Contact c)
   PetscCall(PetscOptionsReal("-contact_thickness", "Distance from the solid at which particles are in contact (m)", "ContactSetFromOptions", c->thickness, &c->thickness, NULL));
   PetscCall(PetscOptionsReal("-contact_friction", "Coulomb friction coefficient mu (static = kinetic)", "ContactSetFromOptions", c->mu, &c->mu, NULL));
   PetscOptionsEnd();
-  c->mode = (ContactMode)imode;
-  PetscCheck(c->thickness >= 0, c->comm, PETSC_ERR_USER_INPUT, "-contact_thickness must be zero or positive (m); got %g", (double)c->thickness);
-  PetscCheck(c->mu >= 0, c->comm, PETSC_ERR_USER_INPUT, "-contact_friction must be zero or positive; got %g", (double)c->mu);
+  c->mode = (ContactMode) imode;
+  PetscCheck(c->thickness >= 0, c->comm, PETSC_ERR_USER_INPUT, "-contact_thickness must be zero or positive (m); got %g", (double) c->thickness);
+  PetscCheck(c->mu >= 0, c->comm, PETSC_ERR_USER_INPUT, "-contact_friction must be zero or positive; got %g", (double) c->mu);
   PetscFunctionReturn(0);
 }
 
 PetscErrorCode ContactView(Contact c, PetscViewer viewer)
 {
   PetscFunctionBeginUser;
-  PetscCall(PetscViewerASCIIPrintf(viewer, "Contact: %s, thickness %g m", mode_names[c->mode], (double)c->thickness));
-  if (c->mode == CONTACT_FRICTION) PetscCall(PetscViewerASCIIPrintf(viewer, ", mu = %g", (double)c->mu));
+  PetscCall(PetscViewerASCIIPrintf(viewer, "Contact: %s, thickness %g m", mode_names[c->mode], (double) c->thickness));
+  if (c->mode == CONTACT_FRICTION) PetscCall(PetscViewerASCIIPrintf(viewer, ", mu = %g", (double) c->mu));
   PetscCall(PetscViewerASCIIPrintf(viewer, "\n"));
   PetscFunctionReturn(0);
 }
@@ -56,6 +97,9 @@ PetscErrorCode ContactView(Contact c, PetscViewer viewer)
 PetscErrorCode ContactDestroy(Contact *c)
 {
   PetscFunctionBeginUser;
+  if (!*c) PetscFunctionReturn(0);
+  PetscCall(PetscFree3((*c)->owned.x, (*c)->owned.d, (*c)->owned.nrm));
+  PetscCall(PetscFree3((*c)->local.x, (*c)->local.d, (*c)->local.nrm));
   PetscCall(PetscFree(*c));
   PetscFunctionReturn(0);
 }
@@ -106,12 +150,12 @@ PetscErrorCode ContactProject(Contact c, PetscInt n, PetscScalar *x, PetscScalar
       PetscReal *p = x + 3 * k, dist, nrm[3];
       if (pinned && pinned[k]) continue;
       if (!SolidBoxNear(c->solid, p, p, grow)) continue;
-      PetscCall(SolidQuery(c->solid, p, &dist, nrm));
+      PetscCall(CacheQuery(c, &c->owned, k, n, p, &dist, nrm));
       if (dist > c->thickness * (1 + 1e-6) + PETSC_SMALL) continue;
       count++;
       if (dist >= c->thickness) continue;
       PetscReal vold[3] = {v[3 * k], v[3 * k + 1], v[3 * k + 2]}, dx[3];
-      deepest = PetscMax(deepest, c->thickness - dist);
+      deepest           = PetscMax(deepest, c->thickness - dist);
       ContactVelocity(c->mode, c->mu, nrm, v + 3 * k);
       /* position: back onto the contact surface, and along the corrected velocity */
       for (PetscInt d = 0; d < 3; d++) dx[d] = h * (v[3 * k + d] - vold[d]);
@@ -127,15 +171,15 @@ PetscErrorCode ContactProject(Contact c, PetscInt n, PetscScalar *x, PetscScalar
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode ContactConstraint(void *ctx, const PetscReal x[3], PetscInt *type, PetscReal n[3])
+PetscErrorCode ContactConstraint(void *ctx, PetscInt l, PetscInt nlocal, const PetscReal x[3], PetscInt *type, PetscReal n[3])
 {
-  Contact   c = (Contact)ctx;
+  Contact   c = (Contact) ctx;
   PetscReal dist;
 
   PetscFunctionBeginUser;
   *type = 0;
   if (!SolidBoxNear(c->solid, x, x, c->thickness * 1.01 + PETSC_SMALL)) PetscFunctionReturn(0);
-  PetscCall(SolidQuery(c->solid, x, &dist, n));
+  PetscCall(CacheQuery(c, &c->local, l, nlocal, x, &dist, n));
   if (dist <= c->thickness * (1 + 1e-6) + PETSC_SMALL) *type = c->mode == CONTACT_STICKY ? 2 : 1;
   PetscFunctionReturn(0);
 }

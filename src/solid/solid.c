@@ -43,7 +43,7 @@ PetscErrorCode SolidCreate(MPI_Comm comm, Solid *solid)
 
 PetscErrorCode SolidSetFromOptions(Solid s)
 {
-  PetscInt  itype = (PetscInt)s->type, n;
+  PetscInt  itype = (PetscInt) s->type, n;
   PetscBool set, fileset, floorset;
   PetscReal floor_z = 0;
 
@@ -69,11 +69,11 @@ PetscErrorCode SolidSetFromOptions(Solid s)
   PetscCheck(!s->has_plane || n == 4, s->comm, PETSC_ERR_USER_INPUT, "-solid_plane needs four numbers nx,ny,nz,d (the solid fills n.x < d)");
   PetscCall(PetscOptionsReal("-solid_floor", "A horizontal floor at this height (m): same as -solid_plane 0,0,1,z", "SolidSetFromOptions", floor_z, &floor_z, &floorset));
   PetscOptionsEnd();
-  s->type = (SolidType)itype;
+  s->type = (SolidType) itype;
   if (fileset && s->type == SOLID_NONE) s->type = SOLID_MESH;
   PetscCheck(s->type != SOLID_MESH || s->file[0], s->comm, PETSC_ERR_USER_INPUT, "-solid_type mesh needs -solid_file FILE (OFF, OBJ, STL or PLY)");
   PetscCheck(!fileset || s->type == SOLID_MESH, s->comm, PETSC_ERR_USER_INPUT, "-solid_file is used only with -solid_type mesh");
-  PetscCheck(s->scale > 0, s->comm, PETSC_ERR_USER_INPUT, "-solid_scale must be positive; got %g", (double)s->scale);
+  PetscCheck(s->scale > 0, s->comm, PETSC_ERR_USER_INPUT, "-solid_scale must be positive; got %g", (double) s->scale);
   PetscCheck(s->size[0] > 0 && s->size[1] > 0 && s->size[2] > 0, s->comm, PETSC_ERR_USER_INPUT, "-solid_size lengths must be positive");
   PetscCheck(s->radius > 0 && s->height > 0, s->comm, PETSC_ERR_USER_INPUT, "-solid_radius and -solid_height must be positive");
   PetscCheck(s->resolution >= 3 && s->resolution <= 4096, s->comm, PETSC_ERR_USER_INPUT, "-solid_resolution must be between 3 and 4096; got %" PetscInt_FMT, s->resolution);
@@ -96,7 +96,7 @@ PetscErrorCode SolidSetFromOptions(Solid s)
 /* A = Rz Ry Rx * scale */
 static void SolidTransform(const Solid s, PetscReal A[9])
 {
-  const PetscReal d = PETSC_PI / 180;
+  const PetscReal d  = PETSC_PI / 180;
   PetscReal       cx = PetscCosReal(s->rotate[0] * d), sx = PetscSinReal(s->rotate[0] * d);
   PetscReal       cy = PetscCosReal(s->rotate[1] * d), sy = PetscSinReal(s->rotate[1] * d);
   PetscReal       cz = PetscCosReal(s->rotate[2] * d), sz = PetscSinReal(s->rotate[2] * d);
@@ -116,8 +116,8 @@ static PetscErrorCode SolidGenerate(Solid s, PetscInt *nv, PetscReal **v, PetscI
   PetscFunctionBeginUser;
   if (s->type == SOLID_BOX) {
     const PetscInt tri[36] = {0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4, 1, 2, 6, 1, 6, 5, 2, 3, 7, 2, 7, 6, 3, 0, 4, 3, 4, 7};
-    *nv = 8;
-    *nt = 12;
+    *nv                    = 8;
+    *nt                    = 12;
     PetscCall(PetscMalloc2(24, v, 36, t));
     for (PetscInt i = 0; i < 8; i++) {
       (*v)[3 * i]     = 0.5 * s->size[0] * ((i == 1 || i == 2 || i == 5 || i == 6) ? 1 : -1);
@@ -145,7 +145,7 @@ static PetscErrorCode SolidGenerate(Solid s, PetscInt *nv, PetscReal **v, PetscI
     (*v)[k++] = 0;
     (*v)[k++] = 0;
     (*v)[k++] = -s->radius;
-#define RING(r, j) (1 + ((r) - 1) * m + ((j) % m))
+#define RING(r, j) (1 + ((r) -1) * m + ((j) % m))
     for (PetscInt j = 0; j < m; j++) {
       PetscInt *q = *t + 3 * f++;
       q[0] = 0, q[1] = RING(1, j), q[2] = RING(1, j + 1);
@@ -225,9 +225,10 @@ PetscErrorCode SolidView(Solid s, PetscViewer viewer)
   if (s->mesh) {
     PetscInt nv, nt;
     PetscCall(SolidMeshGetSize(s->mesh, &nv, &nt));
-    PetscCall(PetscViewerASCIIPrintf(viewer, "Solid: %s%s%s, %" PetscInt_FMT " triangles in an AABB tree, box [%g,%g]x[%g,%g]x[%g,%g] m\n", solid_type_names[s->type], s->type == SOLID_MESH ? " " : "", s->type == SOLID_MESH ? s->file : "", nt, (double)s->lo[0], (double)s->hi[0], (double)s->lo[1], (double)s->hi[1], (double)s->lo[2], (double)s->hi[2]));
+    PetscCall(PetscViewerASCIIPrintf(viewer, "Solid: %s%s%s, %" PetscInt_FMT " triangles in an AABB tree, box [%g,%g]x[%g,%g]x[%g,%g] m\n", solid_type_names[s->type], s->type == SOLID_MESH ? " " : "", s->type == SOLID_MESH ? s->file : "", nt,
+                                     (double) s->lo[0], (double) s->hi[0], (double) s->lo[1], (double) s->hi[1], (double) s->lo[2], (double) s->hi[2]));
   }
-  if (s->has_plane) PetscCall(PetscViewerASCIIPrintf(viewer, "Solid: plane %g x + %g y + %g z = %g (solid below)\n", (double)s->plane[0], (double)s->plane[1], (double)s->plane[2], (double)s->plane[3]));
+  if (s->has_plane) PetscCall(PetscViewerASCIIPrintf(viewer, "Solid: plane %g x + %g y + %g z = %g (solid below)\n", (double) s->plane[0], (double) s->plane[1], (double) s->plane[2], (double) s->plane[3]));
   PetscFunctionReturn(0);
 }
 
@@ -243,7 +244,7 @@ PetscErrorCode SolidDestroy(Solid *solid)
 PetscErrorCode SolidIsEmpty(Solid s, PetscBool *empty)
 {
   PetscFunctionBeginUser;
-  *empty = (PetscBool)(!s->mesh && !s->has_plane);
+  *empty = (PetscBool) (!s->mesh && !s->has_plane);
   PetscFunctionReturn(0);
 }
 
@@ -251,7 +252,7 @@ PetscBool SolidBoxNear(Solid s, const PetscReal lo[3], const PetscReal hi[3], Pe
 {
   if (s->mesh) {
     PetscBool apart = PETSC_FALSE;
-    for (PetscInt d = 0; d < 3; d++) apart = (PetscBool)(apart || lo[d] > s->hi[d] + grow || hi[d] < s->lo[d] - grow);
+    for (PetscInt d = 0; d < 3; d++) apart = (PetscBool) (apart || lo[d] > s->hi[d] + grow || hi[d] < s->lo[d] - grow);
     if (!apart) return PETSC_TRUE;
   }
   if (s->has_plane) {

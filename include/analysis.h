@@ -1,0 +1,22 @@
+/* Analysis of drape results: the Cusick drape test (BS 5058 / ISO 9073-9 style).
+ *
+ * The draped specimen is projected on the horizontal plane (its silhouette, the
+ * union of the projected lattice cells, rasterised), then
+ *   DC = (A_shadow - A_disc) / (A_specimen - A_disc)
+ * with A_disc the pedestal's area and A_specimen the flat specimen's silhouette
+ * (so a flat specimen gives exactly 1, one hanging straight down the pedestal's
+ * edge 0). Folds (nodes) are the prominent maxima of the silhouette's radius
+ * against angle. */
+#pragma once
+
+#include <cloth.h>
+
+/* Rasterise ntri triangles (xy: 6 reals each) on a square grid of half-width
+ * `extent` around (cx, cy) with `npixels` per side; return the covered area and,
+ * for nbins equal angle bins around (cx, cy), the largest radius covered (0 if none). */
+PETSC_EXTERN PetscErrorCode CusickSilhouette(PetscInt ntri, const PetscReal *xy, const PetscReal c[2], PetscReal extent, PetscInt npixels, PetscReal *area, PetscInt nbins, PetscReal *radius);
+/* Number of folds: prominent maxima of the radius profile (circular). */
+PETSC_EXTERN PetscErrorCode CusickCountFolds(PetscInt nbins, const PetscReal *radius, PetscReal prominence, PetscInt *folds);
+/* Drape coefficient and folds of the cloth at x (owned order), against the flat
+ * reference x0, for a pedestal of radius r centred at c. Collective. */
+PETSC_EXTERN PetscErrorCode CusickAnalyse(Cloth, const PetscScalar *x, const PetscScalar *x0, PetscReal pedestal_radius, const PetscReal c[2], PetscReal *dc, PetscInt *folds);
