@@ -6,6 +6,10 @@ Usage::
     run = drape_h5.load("out/hang.h5")
     run.positions[-1]          # last frame, shape [My, Mx, 3], index [j][i][xyz]
     run.energies["kinetic"]    # shape [nframes]
+    run.active                 # [My, Mx] bool: particles that are part of the cloth
+    run.solid_triangles        # [ntri, 3, 3] or None: the solid's mesh (vertex xyz)
+    run.floor                  # height of the -solid_floor plane, or None
+    run.option("cloth_shape")  # value of an option of the run, or None
 
 Only complete frames are returned: drape writes ``/time`` last in each frame,
 so a run killed mid-frame may leave the other datasets one frame longer.
@@ -18,6 +22,7 @@ import h5py
 import numpy as np
 
 ENERGIES = ("kinetic", "gravity", "stretch", "shear", "bend")
+CONTACT = ("depth", "count")
 _REQUIRED = ("position", "velocity", "time", "step")
 
 
@@ -32,6 +37,13 @@ class DrapeRun:
     step: np.ndarray  # [nframes] time-step number of each frame
     energies: dict = field(default_factory=dict)  # name -> [nframes] (J)
     attrs: dict = field(default_factory=dict)  # root attributes, str decoded
+    contact: dict = field(default_factory=dict)  # "depth" (m), "count" -> [nframes], when written
+    solid_triangles: np.ndarray = None  # [ntri, 3, 3] (m), or None without a mesh solid
+    active: np.ndarray = None  # [My, Mx] bool, True for the particles of the cloth
+
+    def __post_init__(self):
+        if self.active is None:
+            self.active = active_mask(self.positions.shape[2], self.positions.shape[1], self.option("cloth_shape"))
 
     @property
     def nframes(self):
@@ -41,6 +53,30 @@ class DrapeRun:
     def __getitem__(self, key):
         """Dict-style access: run["positions"] is run.positions."""
         return getattr(self, key)
+
+    @property
+    def shape(self):
+        """Lattice size (My, Mx)."""
+        return self.positions.shape[1:3]
+
+    def option(self, name, default=None):
+        """Value (str) of option -name as recorded in the file, "" for a flag, else `default`."""
+        return parse_options(self.attrs.get("options", "")).get(name.lstrip("-"), default)
+
+    @property
+    def floor(self):
+        """Height z of the floor plane (-solid_floor), or None."""
+        value = self.option("solid_floor")
+        try:
+            return float(value) if value else None
+        except ValueError:
+            return None
+
+    @property
+    def active_cells(self):
+        """[My-1, Mx-1] bool: lattice cells whose four corners are all active."""
+        a = self.active
+        return a[:-1, :-1] & a[1:, :-1] & a[:-1, 1:] & a[1:, 1:]
 
     def total_energy(self):
         """Sum of the energies present, per frame."""
@@ -58,6 +94,37 @@ def _decode(value):
     if isinstance(value, np.generic):
         return value.item()
     return value
+
+
+def parse_options(text):
+    """'-a 1 -b -c x' -> {"a": "1", "b": "", "c": "x"} (the last value of an option wins)."""
+    opts, key = {}, None
+    for tok in str(text).split():
+        if tok.startswith("-") and len(tok) > 1 and not _is_number(tok):
+            key = tok.lstrip("-")
+            opts[key] = ""
+        elif key is not None:
+            opts[key] = (opts[key] + " " + tok).strip()
+    return opts
+
+
+def _is_number(tok):
+    try:
+        float(tok.split(",")[0])
+        return True
+    except ValueError:
+        return False
+
+
+def active_mask(mx, my, shape=None):
+    """[My, Mx] bool: the particles of the cloth. A circle specimen (-cloth_shape circle)
+    is the disc inscribed in the lattice, as in drape's ClothIsActive: with (i, j)
+    scaled to [-1, 1], a^2 + b^2 <= 1 + 1e-12; the particles outside never move."""
+    if shape != "circle":
+        return np.ones((my, mx), dtype=bool)
+    a = (np.arange(mx) - 0.5 * (mx - 1)) / (0.5 * (mx - 1)) if mx > 1 else np.zeros(1)
+    b = (np.arange(my) - 0.5 * (my - 1)) / (0.5 * (my - 1)) if my > 1 else np.zeros(1)
+    return a[None, :] ** 2 + b[:, None] ** 2 <= 1 + 1e-12
 
 
 def load(path):
@@ -88,4 +155,16 @@ def load(path):
             step=f["step"][:n].reshape(n).astype(np.int64),
             energies={e: f[f"energy_{e}"][:n].reshape(n) for e in ENERGIES if f"energy_{e}" in f},
             attrs={k: _decode(v) for k, v in f.attrs.items()},
+            contact={c: f[f"contact_{c}"][:n].reshape(n) for c in CONTACT if f"contact_{c}" in f},
+            solid_triangles=_triangles(f),
         )
+
+
+def _triangles(f):
+    """/solid_triangles (flat, 9 reals per triangle) as [ntri, 3, 3], or None."""
+    if "solid_triangles" not in f:
+        return None
+    t = np.asarray(f["solid_triangles"][...], dtype=float).ravel()
+    if t.size == 0 or t.size % 9:
+        return None
+    return t.reshape(-1, 3, 3)

@@ -1,12 +1,18 @@
 #!/usr/bin/env python3
-"""Render one frame of a drape HDF5 file as a shaded 3D surface (PNG).
+"""Render one frame of a drape HDF5 file as a shaded 3D picture (PNG).
 
     render.py out/hang.h5                    # last frame -> out/hang.png
     render.py out/hang.h5 --frame 0 -o first.png
+    render.py out/cusick.h5 --elev 40 --azim -50
 
-The cloth lattice is drawn with mplot3d's plot_surface, coloured by height and
-lit from above, on equally scaled axes. Bad input (missing or non-drape file,
-frame out of range) gives a one-line error and exit status 2.
+The cloth (only the particles that belong to it: a circle specimen hides the
+lattice corners) is drawn as lit facets coloured by height, the solid of the
+scene (/solid_triangles) in translucent light grey and the -solid_floor plane as
+a light grey square, on equally scaled axes. Bad input (missing or non-drape
+file, frame out of range) gives a one-line error and exit status 2.
+
+The drawing is shared with animate.py: `Scene(run)` fixes the axes box,
+`Scene.figure()` makes the figure, `Scene.draw(fig, ax, frame)` draws a frame.
 """
 
 import argparse
@@ -18,53 +24,296 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib.colors import LightSource, Normalize  # noqa: E402
+from matplotlib.colors import Normalize  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import drape_h5  # noqa: E402
 
 MAX_FACETS = 128  # facets per lattice direction (larger lattices are subsampled)
+ELEV, AZIM = 25.0, -60.0  # default view (degrees)
+CLOTH_CMAP = "viridis"
+SOLID_RGB = (0.80, 0.80, 0.82)
+SOLID_ALPHA = 0.55
+FLOOR_RGB = (0.90, 0.90, 0.90)
+MAX_SOLID_FACETS = 40000  # cap on the subdivided solid (depth sorting needs small facets)
 
 
-def equal_aspect(ax, pts):
-    """Same scale on x, y and z: limits hug the data, box aspect = data extents."""
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
-    pad = 0.03 * max(hi - lo) + 1e-9
-    span = np.maximum(hi - lo, 0.08 * max(hi - lo)) + 2 * pad  # a flat sheet keeps some depth
-    mid = 0.5 * (lo + hi)
-    ax.set_xlim(mid[0] - span[0] / 2, mid[0] + span[0] / 2)
-    ax.set_ylim(mid[1] - span[1] / 2, mid[1] + span[1] / 2)
-    ax.set_zlim(mid[2] - span[2] / 2, mid[2] + span[2] / 2)
-    ax.set_box_aspect(span)
+# ---------------------------------------------------------------------------- geometry
 
 
-def render(run, frame, out, dpi=150):
+def _unit(v):
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)
+
+
+def view_vectors(elev, azim):
+    """Unit vectors from the scene towards the eye and towards the light (upper left of the eye)."""
+    e, a = np.radians(elev), np.radians(azim)
+    eye = np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
+    right = _unit(np.cross([0.0, 0.0, 1.0], eye)) if abs(eye[2]) < 0.999 else np.array([1.0, 0.0, 0.0])
+    up = np.cross(eye, right)
+    light = _unit(0.55 * eye + 0.75 * up - 0.35 * right)
+    return eye, light
+
+
+def lattice_normals(p):
+    """Smooth normals [My, Mx, 3] of a lattice p [My, Mx, 3] (central differences)."""
+    du = np.gradient(p, axis=1)
+    dv = np.gradient(p, axis=0)
+    return _unit(np.cross(du, dv))
+
+
+def cloth_facets(p, active, stride=1):
+    """Quads of the active lattice cells of positions p [My, Mx, 3], every `stride` particles.
+
+    Returns quads [n, 4, 3] and their normals [n, 3] (mean of the smooth corner normals)."""
+    my, mx = active.shape
+    js = np.unique(np.r_[np.arange(0, my, stride), my - 1])
+    is_ = np.unique(np.r_[np.arange(0, mx, stride), mx - 1])
+    q = p[np.ix_(js, is_)]
+    a = active[np.ix_(js, is_)]
+    nrm = lattice_normals(q)
+    cell = a[:-1, :-1] & a[:-1, 1:] & a[1:, 1:] & a[1:, :-1]
+    jj, ii = np.nonzero(cell)
+    corners = [(jj, ii), (jj, ii + 1), (jj + 1, ii + 1), (jj + 1, ii)]
+    quads = np.stack([q[c] for c in corners], axis=1)
+    normals = sum(nrm[c] for c in corners)
+    flat = np.cross(quads[:, 2] - quads[:, 0], quads[:, 3] - quads[:, 1])
+    bad = ~np.isfinite(normals).all(axis=1) | (np.linalg.norm(normals, axis=1) < 1e-9)
+    normals[bad] = flat[bad]  # corners at the edge of a circle specimen
+    return quads, normals
+
+
+def near(points, cloud, radius, chunk=2048):
+    """[len(points)] bool: is each point within `radius` of some point of `cloud`?"""
+    out = np.zeros(len(points), bool)
+    lo, hi = cloud.min(axis=0) - radius, cloud.max(axis=0) + radius
+    cand = np.nonzero(np.all((points >= lo) & (points <= hi), axis=1))[0]
+    r2 = radius * radius
+    for k in range(0, len(cand), chunk):
+        idx = cand[k:k + chunk]
+        d2 = ((points[idx, None, :] - cloud[None, :, :]) ** 2).sum(axis=2)
+        out[idx] = d2.min(axis=1) <= r2
+    return out
+
+
+def closed_and_oriented(tri):
+    """(closed, sign): is the triangle soup a closed surface, and the sign that makes
+    its normals point outwards (signed volume)."""
+    flat = tri.reshape(-1, 3)
+    _, ids = np.unique(flat, axis=0, return_inverse=True)
+    ids = ids.reshape(-1, 3)
+    edges = np.sort(np.concatenate([ids[:, [0, 1]], ids[:, [1, 2]], ids[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    closed = bool(np.all(counts == 2))
+    vol = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum()
+    return closed, (1.0 if vol >= 0 else -1.0)
+
+
+def subdivide(tri, hmax, cap=MAX_SOLID_FACETS):
+    """Split triangles along their longest edge until every edge is <= hmax (or the
+    count would pass `cap`), so that mplot3d's per-facet depth sort mixes them well
+    with the cloth's facets."""
+    tri = np.asarray(tri, float)
+    while len(tri):
+        e = np.stack([np.linalg.norm(tri[:, (k + 1) % 3] - tri[:, k], axis=1) for k in range(3)], axis=1)
+        k = e.argmax(axis=1)
+        big = e[np.arange(len(tri)), k] > hmax
+        if not big.any() or len(tri) + big.sum() > cap:
+            break
+        t = tri[big]
+        k = k[big]
+        r = np.arange(len(t))
+        a, b, c = t[r, k], t[r, (k + 1) % 3], t[r, (k + 2) % 3]  # longest edge a-b
+        m = 0.5 * (a + b)
+        tri = np.concatenate([tri[~big], np.stack([a, m, c], 1), np.stack([m, b, c], 1)])
+    return tri
+
+
+# ---------------------------------------------------------------------------- the scene
+
+
+class Scene:
+    """How a run is drawn: fixed bounds (so that an animation does not jump) and view."""
+
+    def __init__(self, run, frames=None, elev=ELEV, azim=AZIM):
+        self.run = run
+        self.elev, self.azim = elev, azim
+        frames = range(run.nframes) if frames is None else frames
+        act = run.active
+        pts = run.positions[list(frames)][:, act].reshape(-1, 3)
+        self.zrange = (pts[:, 2].min(), pts[:, 2].max())  # colour scale of the cloth
+        tri = run.solid_triangles
+        allpts = pts if tri is None else np.concatenate([pts, tri.reshape(-1, 3)])
+        lo, hi = allpts.min(axis=0), allpts.max(axis=0)
+        floor = run.floor
+        if floor is not None:
+            lo[2], hi[2] = min(lo[2], floor), max(hi[2], floor)
+        self.lo, self.hi = lo, hi
+        my, mx = run.shape
+        self.stride = max(1, -(-(max(mx, my) - 1) // MAX_FACETS))
+
+        extent = max(hi - lo) + 1e-12
+        self.floor_rect = None
+        if floor is not None:
+            pad = 0.08 * extent
+            self.floor_rect = np.array([[lo[0] - pad, lo[1] - pad], [hi[0] + pad, lo[1] - pad],
+                                        [hi[0] + pad, hi[1] + pad], [lo[0] - pad, hi[1] + pad]])
+        self.solid = None
+        if tri is not None:
+            eye, _ = view_vectors(elev, azim)
+            closed, sign = closed_and_oriented(tri)
+            if closed:  # the back faces of a closed solid are hidden: leave them out
+                n = sign * np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+                tri = tri[n @ eye > 0]
+                if floor is not None:  # and so is what lies under the floor
+                    tri = tri[tri[:, :, 2].max(axis=1) > floor + 1e-9]
+            spacing = max(hi - lo) / 40.0
+            self.solid = subdivide(tri, max(spacing, 1e-9))
+
+    # -- figure and axes
+
+    def figure(self, figsize=(7.0, 6.2)):
+        fig = plt.figure(figsize=figsize)
+        ax = fig.add_subplot(projection="3d", computed_zorder=False)
+        fig.subplots_adjust(left=0, right=1, bottom=0.02, top=0.93)
+        return fig, ax
+
+    def _setup_axes(self, ax):
+        lo, hi = self.lo, self.hi
+        pad = 0.03 * max(hi - lo) + 1e-9
+        if self.floor_rect is not None:
+            lo = np.r_[self.floor_rect.min(axis=0), lo[2]]
+            hi = np.r_[self.floor_rect.max(axis=0), hi[2]]
+        span = np.maximum(hi - lo, 0.08 * max(hi - lo)) + 2 * pad  # a flat sheet keeps some depth
+        mid = 0.5 * (lo + hi)
+        ax.set_xlim(mid[0] - span[0] / 2, mid[0] + span[0] / 2)
+        ax.set_ylim(mid[1] - span[1] / 2, mid[1] + span[1] / 2)
+        ax.set_zlim(mid[2] - span[2] / 2, mid[2] + span[2] / 2)
+        ax.set_box_aspect(span, zoom=1.12)
+        ax.view_init(elev=self.elev, azim=self.azim)
+        # ticks: about one per 0.25 of the largest extent on each axis, never crowded
+        for axis, s in zip((ax.xaxis, ax.yaxis, ax.zaxis), span):
+            axis.set_major_locator(MaxNLocator(nbins=max(1, int(round(4 * s / span.max()))), steps=[1, 2, 2.5, 5, 10]))
+            axis.set_pane_color((0.97, 0.97, 0.97, 1.0))
+            axis._axinfo["grid"].update(color=(0.85, 0.85, 0.85, 1.0), linewidth=0.5)
+        ax.tick_params(labelsize=7, pad=0)
+        ax.set_xlabel("x (m)", fontsize=8, labelpad=1)
+        ax.set_ylabel("y (m)", fontsize=8, labelpad=1)
+        ax.set_zlabel("z (m)", fontsize=8, labelpad=1)
+
+    def spacing(self, p):
+        """Mean distance of neighbouring active particles in positions p."""
+        a = self.run.active
+        d = []
+        for axis in (0, 1):
+            e = np.linalg.norm(np.diff(p, axis=axis), axis=2)
+            both = a[1:, :] & a[:-1, :] if axis == 0 else a[:, 1:] & a[:, :-1]
+            d.append(e[both])
+        d = np.concatenate(d)
+        return float(d.mean()) if d.size else 0.0
+
+    # -- drawing
+
+    def _shade(self, normals, rgb, eye, light, ambient=0.38):
+        """Two-sided Lambert shading: facets are lit on the side that faces the eye."""
+        n = _unit(normals)
+        n = n * np.where(n @ eye < 0, -1.0, 1.0)[:, None]
+        lam = np.clip(n @ light, 0, 1)
+        return np.clip(rgb * (ambient + (1 - ambient) * lam)[:, None], 0, 1)
+
+    def draw(self, fig, ax, frame, title=True):
+        """Draw frame `frame` (a valid non-negative index) on `ax` (cleared first)."""
+        run = self.run
+        ax.cla()
+        for t in list(fig.texts):
+            t.remove()
+        self._setup_axes(ax)
+        eye, light = view_vectors(self.elev, self.azim)
+
+        polys, colours, widths = [], [], []
+        p = run.positions[frame]
+        quads, normals = cloth_facets(p, run.active, self.stride)
+        if len(quads):
+            zc = quads[:, :, 2].mean(axis=1)
+            lo, hi = self.zrange
+            base = plt.get_cmap(CLOTH_CMAP)(Normalize(lo, hi + 1e-12 if hi > lo else lo + 1)(zc) * 0.85 + 0.1)[:, :3]
+            rgb = self._shade(normals, base, eye, light)
+            polys += list(quads)
+            colours.append(np.c_[rgb, np.ones(len(rgb))])
+            widths += [0.3] * len(quads)
+        if self.solid is not None and len(self.solid):
+            t = self.solid
+            # the solid where the cloth lies on it is hidden by the cloth: leave it out
+            # (a facet of the solid and a facet of the cloth lying on it have about the
+            # same depth, and mplot3d's facet sort would often draw the solid on top)
+            cloud = p[run.active][:: max(1, self.stride)]
+            if len(cloud) > 1:
+                h = self.spacing(p) * self.stride
+                covered = near(t.reshape(-1, 3), cloud, 0.75 * h + 0.004).reshape(-1, 3).all(axis=1)
+                t = t[~covered]
+            normals = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+            rgb = self._shade(normals, np.tile(SOLID_RGB, (len(t), 1)), eye, light, ambient=0.55)
+            polys += list(t)
+            colours.append(np.c_[rgb, np.full(len(rgb), SOLID_ALPHA)])
+            widths += [0.0] * len(t)
+        if self.floor_rect is not None:
+            z = run.floor
+            f = np.c_[self.floor_rect, np.full(4, z)]
+            floor = Poly3DCollection([f], facecolors=[(*FLOOR_RGB, 1.0)], edgecolors=[(0.7, 0.7, 0.7, 1.0)],
+                                     linewidths=0.6, zorder=1)
+            ax.add_collection3d(floor)
+        if polys:
+            rgba = np.concatenate(colours)
+            # cloth and solid in one collection: mplot3d sorts its facets by depth together
+            coll = Poly3DCollection(polys, facecolors=rgba, edgecolors=rgba, linewidths=widths, zorder=2)
+            ax.add_collection3d(coll)
+
+        if title:
+            my, mx = run.shape
+            nact = int(run.active.sum())
+            parts = f"{mx} x {my} particles" if nact == mx * my else f"{nact} particles ({mx} x {my} lattice)"
+            ax.set_title(f"drape: t = {run.time[frame]:.3f} s (frame {frame} of 0..{run.nframes - 1}, "
+                         f"step {run.step[frame]})\n{parts}", fontsize=9)
+            notes = []
+            if "kinetic" in run.energies:
+                notes.append(f"kinetic energy {run.energies['kinetic'][frame]:.3g} J")
+            if "drape_coefficient" in run.attrs and frame == run.nframes - 1:
+                dc = run.attrs["drape_coefficient"]
+                notes.append(f"drape coefficient {dc:.3f}, {int(run.attrs.get('drape_folds', 0))} folds")
+            fig.text(0.02, 0.015, "\n".join(notes), fontsize=8, va="bottom")
+            fig.text(0.98, 0.015, os.path.basename(run.path), fontsize=7, ha="right", va="bottom", color="0.4")
+
+
+def render(run, frame, out, dpi=150, elev=ELEV, azim=AZIM):
     """Draw frame `frame` (a valid non-negative index) of `run` to the file `out`."""
-    p = run.positions[frame]  # [My, Mx, 3]
-    x, y, z = p[..., 0], p[..., 1], p[..., 2]
-    colours = plt.get_cmap("viridis")(Normalize(z.min(), z.max() + 1e-12)(z))
-
-    fig = plt.figure(figsize=(7, 6.5))
-    ax = fig.add_subplot(projection="3d")
-    ax.plot_surface(x, y, z, facecolors=colours, shade=True, lightsource=LightSource(azdeg=315, altdeg=50),
-                    rcount=min(z.shape[0], MAX_FACETS), ccount=min(z.shape[1], MAX_FACETS),
-                    linewidth=0, antialiased=False)
-    equal_aspect(ax, p.reshape(-1, 3))
-    ax.view_init(elev=20, azim=-60)
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    ax.set_zlabel("z (m)")
-
-    my, mx = z.shape
-    ax.set_title(f"drape: t = {run.time[frame]:.4g} s (frame {frame} of 0..{run.nframes - 1}, step {run.step[frame]})\n"
-                 f"{mx} x {my} particles")
-    if "kinetic" in run.energies:
-        fig.text(0.02, 0.02, f"kinetic energy {run.energies['kinetic'][frame]:.4g} J", fontsize=9)
-    fig.text(0.98, 0.02, os.path.basename(run.path), fontsize=8, ha="right", color="0.4")
-
+    scene = Scene(run, [frame], elev=elev, azim=azim)
+    fig, ax = scene.figure()
+    scene.draw(fig, ax, frame)
     os.makedirs(os.path.dirname(os.path.abspath(out)), exist_ok=True)
-    fig.savefig(out, dpi=dpi, bbox_inches="tight")
+    fig.savefig(out, dpi=dpi)
     plt.close(fig)
+
+
+def load_or_exit(ap, path):
+    """drape_h5.load, or argparse's one-line error (exit status 2)."""
+    try:
+        run = drape_h5.load(path)
+    except ValueError as e:
+        ap.error(str(e))
+    except OSError as e:  # e.g. a truncated file h5py opens but cannot read
+        ap.error(f"{path}: cannot read ({e})")
+    if run.nframes == 0:
+        ap.error(f"{path}: no complete frame")
+    return run
+
+
+def check_frame(ap, run, frame, path):
+    n = run.nframes
+    if not -n <= frame < n:
+        ap.error(f"--frame {frame} out of range: {path} has {n} frame(s) (valid {-n}..{n - 1})")
+    return frame % n
 
 
 def main(argv=None):
@@ -73,20 +322,20 @@ def main(argv=None):
     ap.add_argument("-o", "--output", help="PNG to write (default: FILE with .png)")
     ap.add_argument("--frame", type=int, default=-1, help="frame index, negative counts from the end (default -1: last)")
     ap.add_argument("--dpi", type=int, default=150, help="resolution of the PNG (default 150)")
+    ap.add_argument("--elev", type=float, default=ELEV, help=f"view elevation, degrees (default {ELEV:g})")
+    ap.add_argument("--azim", type=float, default=AZIM, help=f"view azimuth, degrees (default {AZIM:g})")
     args = ap.parse_args(argv)
+    if args.dpi <= 0:
+        ap.error(f"--dpi must be positive; got {args.dpi}")
 
-    try:
-        run = drape_h5.load(args.file)
-    except ValueError as e:
-        ap.error(str(e))  # exit status 2
-    n = run.nframes
-    if n == 0:
-        ap.error(f"{args.file}: no complete frame")
-    if not -n <= args.frame < n:
-        ap.error(f"--frame {args.frame} out of range: {args.file} has {n} frame(s) (valid {-n}..{n - 1})")
+    run = load_or_exit(ap, args.file)
+    frame = check_frame(ap, run, args.frame, args.file)
     out = args.output or os.path.splitext(args.file)[0] + ".png"
-    render(run, args.frame % n, out, dpi=args.dpi)
-    print(f"render: wrote {out} (frame {args.frame % n}, t = {run.time[args.frame]:.4g} s)")
+    try:
+        render(run, frame, out, dpi=args.dpi, elev=args.elev, azim=args.azim)
+    except OSError as e:
+        ap.error(f"cannot write {out}: {e.strerror or e}")
+    print(f"render: wrote {out} (frame {frame}, t = {run.time[frame]:.4g} s)")
     return 0
 
 

@@ -182,7 +182,9 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
   PetscCall(VecGetArray(ts->vec_sol, &u));
   be->x0 = u;
   be->v0 = u + be->n;
+  PetscCall(PetscLogEventBegin(drape_log.contact, 0, 0, 0, 0));
   PetscCall(ClothUpdateConstraints(be->cloth, be->x0, &be->constrained));
+  PetscCall(PetscLogEventEnd(drape_log.contact, 0, 0, 0, 0));
   if (be->constrained) {
     /* z: the velocity change that zeroes the constrained components of v0 */
     PetscCall(ClothGetConstraints(be->cloth, &be->ctype, &be->cnormal, &be->friction));

@@ -1,0 +1,112 @@
+#!/usr/bin/env python3
+"""Benchmark the three paper schemes: particle-steps per second (not a test).
+
+For each lattice N x N and each scheme, drape runs the hanging cloth (two pinned
+corners) for a fixed number of steps:
+  symplectic Euler   -ts_type basicsymplectic at 0.9 x its stability limit
+  explicit Euler     -ts_type euler at 0.9 x its own (damping-set) stability limit
+  backward Euler     -ts_type beuler at 10 x the symplectic limit
+The limit is the one drape prints at start-up. Each timed run is repeated and the
+median of drape's own "particle-steps/s" (wall time of the time loop) is reported,
+with CG iterations per step for backward Euler.
+
+    python3 scripts/bench_core.py [--sizes 64,128,256] [--repeat 3] [--np 1] [--out out/bench_core.csv]
+    python3 scripts/bench_core.py --quick      # smoke run, tiny sizes
+"""
+import argparse
+import csv
+import os
+import platform
+import re
+import statistics
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+# (name, options, step as a multiple of the limit, which printed limit)
+SCHEMES = [("symplectic", "-ts_type basicsymplectic", 0.9, "symplectic"), ("explicit", "-ts_type euler", 0.9, "explicit"),
+           ("beuler", "-ts_type beuler", 10.0, "symplectic")]
+
+
+def launcher(np_):
+    if np_ <= 1:
+        return []
+    cmd = ["mpiexec"] + (["--allow-run-as-root"] if os.geteuid() == 0 else [])
+    return cmd + ["--oversubscribe", "-np", str(np_)]
+
+
+def drape(exe, np_, args):
+    cmd = launcher(np_) + [str(exe)] + args + ["-drape_progress", "0"]
+    return subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+
+
+def machine():
+    model = "unknown CPU"
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return f"{model}, {os.cpu_count()} cores, {platform.system()} {platform.release()}"
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--sizes", default="64,128,256")
+    p.add_argument("--repeat", type=int, default=3)
+    p.add_argument("--np", type=int, default=1)
+    p.add_argument("--steps", type=int, default=0, help="steps per run (0: about 2e7 particle-steps explicit, 1/20 of that implicit)")
+    p.add_argument("--out", default=str(ROOT / "out" / "bench_core.csv"))
+    p.add_argument("--build", default=os.environ.get("DRAPE_BUILD", "build"))
+    p.add_argument("--quick", action="store_true", help="smoke run: sizes 16,24, 20 steps, 1 repeat")
+    a = p.parse_args()
+    if a.quick:
+        a.sizes, a.repeat, a.steps = "16,24", 1, 20
+    exe = ROOT / a.build / "drape"
+    if not exe.exists():
+        sys.exit(f"bench_core: {exe} not found; run 'make all' first")
+    sizes = [int(s) for s in a.sizes.split(",")]
+    rows = []
+    print(f"# drape core benchmark on {machine()}, {a.np} rank(s), median of {a.repeat}")
+    for n in sizes:
+        base = ["-da_grid_x", str(n), "-da_grid_y", str(n), "-cloth_pin", "edge_corners", "-ts_max_time", "1e9"]
+        res = drape(exe, a.np, base + ["-ts_max_steps", "0"])
+        limits = {k: re.search(rf"{k} Euler: stable for h < (\S+) s", res.stdout) for k in ("symplectic", "explicit")}
+        if res.returncode or not all(limits.values()):
+            sys.exit(f"bench_core: cannot read the stability limits for N = {n}:\n{res.stdout}{res.stderr}")
+        for name, args, factor, which in SCHEMES:
+            dt = factor * float(limits[which].group(1))
+            steps = a.steps or max(20, int(2e7 // (n * n)) // (20 if name == "beuler" else 1))
+            rates, its, status = [], [], "ok"
+            for _ in range(a.repeat):
+                res = drape(exe, a.np, base + args.split() + ["-ts_dt", f"{dt:.6e}", "-ts_max_steps", str(steps)])
+                if res.returncode:
+                    status = "diverged" if "diverged" in res.stderr else "failed"
+                    break
+                rates.append(float(re.search(r"([0-9.e+-]+) particle-steps/s", res.stdout).group(1)))
+                m = re.search(r"([0-9.]+) CG iterations per step", res.stdout)
+                its.append(float(m.group(1)) if m else 0.0)
+            row = {"scheme": name, "N": n, "particles": n * n, "dt": f"{dt:.3e}", "steps": steps,
+                   "median_particle_steps_per_s": f"{statistics.median(rates):.4g}" if rates else "",
+                   "cg_its_per_step": f"{statistics.median(its):.2f}" if its and name == "beuler" else "",
+                   "runs": len(rates), "status": status}
+            rows.append(row)
+            print(f"  {name:10s} N={n:4d} dt={row['dt']} steps={steps:6d} {row['median_particle_steps_per_s'] or status:>10s} particle-steps/s"
+                  + (f", {row['cg_its_per_step']} CG its/step" if row["cg_its_per_step"] else ""), flush=True)
+    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
+    with open(a.out, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    print("\n| scheme | N | particles | dt (s) | steps | particle-steps/s (median) | CG its/step | status |")
+    print("|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        print(f"| {r['scheme']} | {r['N']} | {r['particles']} | {r['dt']} | {r['steps']} | {r['median_particle_steps_per_s']} | {r['cg_its_per_step']} | {r['status']} |")
+    print(f"\nwrote {a.out}")
+
+
+if __name__ == "__main__":
+    main()
