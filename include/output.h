@@ -20,3 +20,13 @@ PETSC_EXTERN PetscErrorCode OutputLastStep(Output, PetscInt *);
 /* A real attribute of the file's root (results such as the drape coefficient). */
 PETSC_EXTERN PetscErrorCode OutputWriteResult(Output, const char *name, PetscReal value);
 PETSC_EXTERN PetscErrorCode OutputDestroy(Output *);
+
+/* Restart (src/io/restart.c). RestartInsertOptions puts the options stored in a
+ * drape file into the options database under the command line's own (the command
+ * line wins); a missing, truncated or foreign file ends with one sentence.
+ * RestartLoad reads the last complete frame into x, v (owned order), with its time
+ * and step, and the times of all complete frames (caller frees). */
+PETSC_EXTERN PetscErrorCode RestartInsertOptions(MPI_Comm, const char file[]);
+PETSC_EXTERN PetscErrorCode RestartLoad(MPI_Comm, const char file[], Cloth, PetscScalar *x, PetscScalar *v, PetscReal *t, PetscInt *step, PetscInt *nframes, PetscReal **times);
+/* Continue writing into an existing file after its first nframes frames (times). */
+PETSC_EXTERN PetscErrorCode OutputSetAppend(Output, const char file[], PetscInt nframes, const PetscReal times[]);

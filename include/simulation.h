@@ -15,6 +15,8 @@ PETSC_EXTERN PetscErrorCode SimulationSetFromOptions(Simulation);
 PETSC_EXTERN PetscErrorCode SimulationSetUp(Simulation);
 PETSC_EXTERN PetscErrorCode SimulationRun(Simulation);
 PETSC_EXTERN PetscErrorCode SimulationDestroy(Simulation *);
+/* Was the run stopped by SIGTERM/SIGINT (after writing its last frame)? */
+PETSC_EXTERN PetscErrorCode SimulationInterrupted(Simulation, PetscBool *);
 
 /* beuler.c: drape's backward Euler in the paper's form (A dv = b, SNES + KSP CG on
  * an assembled MATAIJ), registered as TS type "beuler". The Cloth must be composed

@@ -85,16 +85,86 @@ def cloth_facets(p, active, stride=1):
     return quads, normals
 
 
-def near(points, cloud, radius, chunk=2048):
+def view_frame(elev, azim):
+    """Orthonormal (right, up, eye) of the view: screen axes and the direction to the eye."""
+    eye, _ = view_vectors(elev, azim)
+    right = _unit(np.cross([0.0, 0.0, 1.0], eye)) if abs(eye[2]) < 0.999 else np.array([1.0, 0.0, 0.0])
+    return right, np.cross(eye, right), eye
+
+
+def occluded(points, tris, frame, eps):
+    """[len(points)] bool: is each point hidden from the eye (orthographic view along
+    frame[2]) by one of the triangles `tris` [n, 3, 3], by more than `eps` in depth?"""
+    right, up, eye = frame
+    basis = np.stack([right, up, eye], axis=1)
+    q = points @ basis  # (u, v, depth towards the eye)
+    t = tris @ basis  # [n, 3, 3]
+    a, b, c = t[:, 0, :2], t[:, 1, :2], t[:, 2, :2]
+    det = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
+    ok = np.abs(det) > 1e-300
+    a, b, c, t, det = a[ok], b[ok], c[ok], t[ok], det[ok]
+    out = np.zeros(len(points), bool)
+    if not len(t) or not len(q):
+        return out
+    # bin the triangles on a uniform screen grid of cells as large as the largest triangle
+    tlo, thi = t[:, :, :2].min(axis=1), t[:, :, :2].max(axis=1)
+    g = max(float((thi - tlo).max()), 1e-12)
+    origin = tlo.min(axis=0)
+    c0 = np.floor((tlo - origin) / g).astype(np.int64)
+    c1 = np.floor((thi - origin) / g).astype(np.int64)  # c1 - c0 <= 1
+    ncol = int(c1[:, 0].max()) + 2
+    tri_ids, cell_ids = [], []
+    for dx in (0, 1):
+        for dy in (0, 1):
+            m = (c0[:, 0] + dx <= c1[:, 0]) & (c0[:, 1] + dy <= c1[:, 1])
+            tri_ids.append(np.nonzero(m)[0])
+            cell_ids.append((c0[m, 1] + dy) * ncol + c0[m, 0] + dx)
+    tri_ids, cell_ids = np.concatenate(tri_ids), np.concatenate(cell_ids)
+    order = np.argsort(cell_ids, kind="stable")
+    tri_ids, cell_ids = tri_ids[order], cell_ids[order]
+    pc = np.floor((q[:, :2] - origin) / g).astype(np.int64)
+    inside_grid = (pc >= 0).all(axis=1) & (pc[:, 0] < ncol)
+    pcell = pc[:, 1] * ncol + pc[:, 0]
+    start = np.searchsorted(cell_ids, pcell, side="left")
+    stop = np.searchsorted(cell_ids, pcell, side="right")
+    count = np.where(inside_grid, stop - start, 0)
+    rows = np.repeat(np.arange(len(q)), count)
+    offs = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    cols = tri_ids[np.repeat(start, count) + offs]
+    du, dv = q[rows, 0] - a[cols, 0], q[rows, 1] - a[cols, 1]
+    l1 = (du * (c[cols, 1] - a[cols, 1]) - dv * (c[cols, 0] - a[cols, 0])) / det[cols]
+    l2 = ((b[cols, 0] - a[cols, 0]) * dv - (b[cols, 1] - a[cols, 1]) * du) / det[cols]
+    inside = (l1 >= 0) & (l2 >= 0) & (l1 + l2 <= 1)
+    depth = (1 - l1 - l2) * t[cols, 0, 2] + l1 * t[cols, 1, 2] + l2 * t[cols, 2, 2]
+    out[rows[inside & (depth > q[rows, 2] + eps)]] = True
+    return out
+
+
+def interior(active):
+    """[My, Mx] bool: active particles whose four lattice neighbours are active."""
+    a = np.pad(active, 1, constant_values=False)
+    return active & a[:-2, 1:-1] & a[2:, 1:-1] & a[1:-1, :-2] & a[1:-1, 2:]
+
+
+def cell_size(p, active):
+    """Mean length of the lattice edges between active particles of positions p."""
+    d = [np.linalg.norm(np.diff(p, axis=0), axis=2)[active[1:] & active[:-1]],
+         np.linalg.norm(np.diff(p, axis=1), axis=2)[active[:, 1:] & active[:, :-1]]]
+    d = np.concatenate(d)
+    return float(d.mean()) if d.size else 0.0
+
+
+def near(points, cloud, radius, chunk=1024):
     """[len(points)] bool: is each point within `radius` of some point of `cloud`?"""
     out = np.zeros(len(points), bool)
+    if not len(cloud) or not len(points):
+        return out
     lo, hi = cloud.min(axis=0) - radius, cloud.max(axis=0) + radius
     cand = np.nonzero(np.all((points >= lo) & (points <= hi), axis=1))[0]
-    r2 = radius * radius
     for k in range(0, len(cand), chunk):
         idx = cand[k:k + chunk]
         d2 = ((points[idx, None, :] - cloud[None, :, :]) ** 2).sum(axis=2)
-        out[idx] = d2.min(axis=1) <= r2
+        out[idx] = d2.min(axis=1) <= radius * radius
     return out
 
 
@@ -193,6 +263,7 @@ class Scene:
         ax.set_zlim(mid[2] - span[2] / 2, mid[2] + span[2] / 2)
         ax.set_box_aspect(span, zoom=1.12)
         ax.view_init(elev=self.elev, azim=self.azim)
+        ax.set_proj_type("ortho")  # parallel projection: what occluded() assumes
         # ticks: about one per 0.25 of the largest extent on each axis, never crowded
         for axis, s in zip((ax.xaxis, ax.yaxis, ax.zaxis), span):
             axis.set_major_locator(MaxNLocator(nbins=max(1, int(round(4 * s / span.max()))), steps=[1, 2, 2.5, 5, 10]))
@@ -202,17 +273,6 @@ class Scene:
         ax.set_xlabel("x (m)", fontsize=8, labelpad=1)
         ax.set_ylabel("y (m)", fontsize=8, labelpad=1)
         ax.set_zlabel("z (m)", fontsize=8, labelpad=1)
-
-    def spacing(self, p):
-        """Mean distance of neighbouring active particles in positions p."""
-        a = self.run.active
-        d = []
-        for axis in (0, 1):
-            e = np.linalg.norm(np.diff(p, axis=axis), axis=2)
-            both = a[1:, :] & a[:-1, :] if axis == 0 else a[:, 1:] & a[:, :-1]
-            d.append(e[both])
-        d = np.concatenate(d)
-        return float(d.mean()) if d.size else 0.0
 
     # -- drawing
 
@@ -232,7 +292,7 @@ class Scene:
         self._setup_axes(ax)
         eye, light = view_vectors(self.elev, self.azim)
 
-        polys, colours, widths = [], [], []
+        polys, colours, cloth = [], [], []
         p = run.positions[frame]
         quads, normals = cloth_facets(p, run.active, self.stride)
         if len(quads):
@@ -242,22 +302,31 @@ class Scene:
             rgb = self._shade(normals, base, eye, light)
             polys += list(quads)
             colours.append(np.c_[rgb, np.ones(len(rgb))])
-            widths += [0.3] * len(quads)
+            cloth += [True] * len(quads)
         if self.solid is not None and len(self.solid):
             t = self.solid
-            # the solid where the cloth lies on it is hidden by the cloth: leave it out
-            # (a facet of the solid and a facet of the cloth lying on it have about the
-            # same depth, and mplot3d's facet sort would often draw the solid on top)
-            cloud = p[run.active][:: max(1, self.stride)]
-            if len(cloud) > 1:
-                h = self.spacing(p) * self.stride
-                covered = near(t.reshape(-1, 3), cloud, 0.75 * h + 0.004).reshape(-1, 3).all(axis=1)
-                t = t[~covered]
+            # the solid hidden by the cloth is left out: a facet of the solid and a facet
+            # of the cloth lying on it have about the same depth, and mplot3d's facet
+            # sort would often draw the solid on top
+            # (and where the cloth wraps an edge of the solid, its flat facets cut the
+            # corner: the solid within about half a cell of the cloth, away from the
+            # cloth's free edge, is taken as covered too)
+            if len(quads):
+                tris = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+                c = t.mean(axis=1)
+                pts = np.concatenate([c, t.reshape(-1, 3)])  # a facet is hidden if all its corners are
+                hid = occluded(pts, tris, view_frame(self.elev, self.azim), eps=1e-6 * max(self.hi - self.lo))
+                hidden = hid[: len(t)] & (hid[len(t):].reshape(-1, 3).sum(axis=1) >= 2)
+                inner = interior(run.active)
+                if inner.any():
+                    h = self.stride * cell_size(p, run.active)
+                    hidden |= near(c, p[inner][:: max(1, self.stride)], 0.75 * h)
+                t = t[~hidden]
             normals = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
             rgb = self._shade(normals, np.tile(SOLID_RGB, (len(t), 1)), eye, light, ambient=0.55)
             polys += list(t)
             colours.append(np.c_[rgb, np.full(len(rgb), SOLID_ALPHA)])
-            widths += [0.0] * len(t)
+            cloth += [False] * len(t)
         if self.floor_rect is not None:
             z = run.floor
             f = np.c_[self.floor_rect, np.full(4, z)]
@@ -266,8 +335,12 @@ class Scene:
             ax.add_collection3d(floor)
         if polys:
             rgba = np.concatenate(colours)
+            edges = rgba.copy()
+            edges[~np.asarray(cloth), 3] = 0  # no outline on the (translucent) solid
+            # (one line width for all: mplot3d reorders the colours, not the widths)
             # cloth and solid in one collection: mplot3d sorts its facets by depth together
-            coll = Poly3DCollection(polys, facecolors=rgba, edgecolors=rgba, linewidths=widths, zorder=2)
+            coll = Poly3DCollection(polys, facecolors=rgba, edgecolors=edges, linewidths=0.5,
+                                    antialiaseds=True, zorder=2)
             ax.add_collection3d(coll)
 
         if title:

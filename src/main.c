@@ -5,7 +5,9 @@ static const char help[] = "drape: how a fabric falls, hangs and drapes, by the 
 #include <drape.h>
 #include <simulation.h>
 
-static PetscErrorCode Run(void)
+/* Exit status: 0 done, 1 error, 75 (EX_TEMPFAIL) stopped by SIGTERM/SIGINT with a
+ * checkpoint written: a batch script may requeue with -restart. */
+static PetscErrorCode Run(PetscBool *interrupted)
 {
   Simulation sim;
 
@@ -16,6 +18,7 @@ static PetscErrorCode Run(void)
   PetscCall(SimulationSetUp(sim));
   PetscCall(PetscLogStagePop());
   PetscCall(SimulationRun(sim));
+  PetscCall(SimulationInterrupted(sim, interrupted));
   PetscCall(SimulationDestroy(&sim));
   PetscFunctionReturn(0);
 }
@@ -23,11 +26,12 @@ static PetscErrorCode Run(void)
 int main(int argc, char **argv)
 {
   PetscErrorCode ierr;
+  PetscBool      interrupted = PETSC_FALSE;
 
   PetscCall(PetscInitialize(&argc, &argv, NULL, help));
   PetscCall(DrapeInitialize());
-  ierr = Run();
+  ierr = Run(&interrupted);
   PetscCall(DrapeFinalize());
   PetscCall(PetscFinalize());
-  return ierr ? 1 : 0;
+  return ierr ? 1 : (interrupted ? 75 : 0);
 }

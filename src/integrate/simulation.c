@@ -15,6 +15,12 @@
 #include <analysis.h>
 #include <drape.h>
 #include <unistd.h>
+#include <signal.h>
+
+/* SIGTERM/SIGINT (a batch system's wall-time limit): finish the step, write a
+ * checkpoint frame, stop cleanly. */
+static volatile sig_atomic_t caught_signal = 0;
+static void                  SignalHandler(int sig) { caught_signal = sig; }
 
 struct _p_Simulation {
   MPI_Comm        comm;
@@ -35,6 +41,12 @@ struct _p_Simulation {
   PetscReal       cusick_radius, cusick_center[2]; /* Cusick analysis      */
   PetscScalar    *x0;                              /* flat initial state   */
   PetscBool       progress, summary, help;
+  char            restart[PETSC_MAX_PATH_LEN];     /* -restart file         */
+  PetscBool       have_restart;
+  PetscReal       restart_time;
+  PetscInt        restart_step;
+  PetscInt        interrupted; /* signal that stopped the run */
+  PetscBool       baseline;    /* energy0 set              */
   /* monitor state */
   PetscReal energy0, energy_scale, wall0, wall_last;
 };
@@ -86,7 +98,9 @@ static PetscErrorCode RHSMomentum(TS ts, PetscReal t, Vec X, Vec A, void *ctx)
 
 /* Land exactly on -ts_max_time (TS_EXACTFINALTIME_MATCHSTEP) for every TS type:
  * basicsymplectic and beuler take fixed steps without a TSAdapt to clip the last
- * one, and accumulated round-off must not add a spurious extra step. */
+ * one. A step that ends within round-off of the end keeps its size (so a run
+ * stopped at t and one that went on take the same steps) and PostStep snaps the
+ * time; accumulated round-off never adds a spurious extra step. */
 static PetscErrorCode PreStep(TS ts)
 {
   PetscReal              t, dt, tmax, rest;
@@ -99,7 +113,7 @@ static PetscErrorCode PreStep(TS ts)
   PetscCall(TSGetTimeStep(ts, &dt));
   PetscCall(TSGetMaxTime(ts, &tmax));
   rest = tmax - t;
-  if (rest > 0 && (dt > rest || rest - dt < 1e-8 * dt)) PetscCall(TSSetTimeStep(ts, rest));
+  if (rest > 0 && dt > rest * (1 + 1e-8)) PetscCall(TSSetTimeStep(ts, rest));
   PetscFunctionReturn(0);
 }
 
@@ -118,6 +132,25 @@ static PetscErrorCode PostStep(TS ts)
   PetscFunctionBeginUser;
   PetscCall(TSGetApplicationContext(ts, &s));
   PetscCall(ClothGetMasses(s->cloth, &mass, &pinned));
+  {
+    PetscReal tmax, dt, t0;
+    PetscCall(TSGetTime(ts, &t));
+    PetscCall(TSGetPrevTime(ts, &t0));
+    PetscCall(TSGetMaxTime(ts, &tmax));
+    dt = t - t0;
+    if (PetscAbsReal(t - tmax) <= 1e-8 * dt) {
+      PetscCall(TSSetTime(ts, tmax));
+      PetscCall(TSSetConvergedReason(ts, TS_CONVERGED_TIME));
+    }
+  }
+  {
+    PetscMPIInt sig = (PetscMPIInt)caught_signal, any;
+    PetscCallMPI(MPI_Allreduce(&sig, &any, 1, MPI_INT, MPI_MAX, s->comm));
+    if (any) {
+      s->interrupted = any;
+      PetscCall(TSSetConvergedReason(ts, TS_CONVERGED_USER));
+    }
+  }
   PetscCall(VecGetArray(s->U, &u));
   if (s->contact) {
     PetscReal depth, h = 0, t0;
@@ -176,6 +209,10 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
 {
   PetscFunctionBeginUser;
   PetscCall(PetscOptionsHasHelp(NULL, &s->help));
+  PetscOptionsBegin(s->comm, NULL, "Restart", "Simulation");
+  PetscCall(PetscOptionsString("-restart", "Continue the run stored in this drape HDF5 file from its last complete frame (its options apply; the command line overrides them)", "RestartLoad", s->restart, s->restart, sizeof s->restart, &s->have_restart));
+  PetscOptionsEnd();
+  if (s->have_restart) PetscCall(RestartInsertOptions(s->comm, s->restart));
   PetscOptionsBegin(s->comm, NULL, "drape run control", "Simulation");
   PetscCall(PetscOptionsInt("-drape_stability_its", "Power iterations for the Omega_max estimate printed at start-up (0: skip)", "StabilityEstimate", s->stability_its, &s->stability_its, NULL));
   PetscCall(PetscOptionsReal("-drape_divergence_factor", "Stop when the energy exceeds its initial value by this many times the run's energy scale (M g L + initial energy)", "SimulationRun", s->divergence_factor, &s->divergence_factor, NULL));
@@ -208,6 +245,8 @@ PetscErrorCode SimulationSetUp(Simulation s)
   PetscScalar *u;
   TSType       type;
   PetscBool    ok = PETSC_FALSE;
+  PetscInt     nframes;
+  PetscReal   *times;
 
   PetscFunctionBeginUser;
   PetscCall(ClothSetUp(s->cloth));
@@ -237,6 +276,11 @@ PetscErrorCode SimulationSetUp(Simulation s)
     PetscCall(PetscMalloc1(s->n, &s->x0));
     PetscCall(PetscArraycpy(s->x0, u, s->n));
   }
+  if (s->have_restart) {
+    PetscCall(RestartLoad(s->comm, s->restart, s->cloth, u, u + s->n, &s->restart_time, &s->restart_step, &nframes, &times));
+    PetscCall(OutputSetAppend(s->output, s->restart, nframes, times));
+    PetscCall(PetscFree(times));
+  }
   PetscCall(VecRestoreArray(s->U, &u));
 
   PetscCall(DrapeTSRegisterBEuler());
@@ -263,8 +307,12 @@ PetscErrorCode SimulationSetUp(Simulation s)
   PetscCall(TSSetExactFinalTime(s->ts, TS_EXACTFINALTIME_MATCHSTEP));
   PetscCall(TSSetSolution(s->ts, s->U));
   PetscCall(TSSetPreStep(s->ts, PreStep));
-  if (s->contact || s->rest_tol > 0) PetscCall(TSSetPostStep(s->ts, PostStep));
+  PetscCall(TSSetPostStep(s->ts, PostStep));
   PetscCall(TSSetFromOptions(s->ts));
+  if (s->have_restart) {
+    PetscCall(TSSetTime(s->ts, s->restart_time));
+    PetscCall(TSSetStepNumber(s->ts, s->restart_step));
+  }
   PetscCall(TSGetType(s->ts, &type));
   for (const char *const *t = supported_types; *t; t++) {
     PetscBool match;
@@ -277,6 +325,13 @@ PetscErrorCode SimulationSetUp(Simulation s)
     PetscCall(TSGetTimeStep(s->ts, &dt));
     PetscCheck(dt > 0, s->comm, PETSC_ERR_USER_INPUT, "-ts_dt must be positive (seconds); got %g", (double) dt);
   }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SimulationInterrupted(Simulation s, PetscBool *interrupted)
+{
+  PetscFunctionBeginUser;
+  *interrupted = (PetscBool)(s->interrupted != 0);
   PetscFunctionReturn(0);
 }
 
@@ -338,8 +393,9 @@ static PetscErrorCode CheckDivergence(Simulation s, TS ts, PetscInt step, PetscR
   }
   PetscCall(MPIU_Allreduce(loc, sum, 3, MPIU_REAL, MPI_SUM, s->comm));
   e = sum[0] + sum[1];
-  if (step == 0) {
+  if (!s->baseline) {
     ClothEnergies en;
+    s->baseline = PETSC_TRUE;
     PetscReal     g = PetscSqrtReal(PetscSqr(info.gravity[0]) + PetscSqr(info.gravity[1]) + PetscSqr(info.gravity[2]));
     PetscCall(ClothComputeEnergies(s->cloth, u, u + s->n, &en));
     s->energy0      = e + en.stretch + en.shear + en.bend;
@@ -462,6 +518,8 @@ PetscErrorCode SimulationRun(Simulation s)
     PetscCall(OutputOpen(s->output, s->cloth, s->solid, description));
   }
   PetscCall(TSMonitorSet(s->ts, Monitor, s, NULL));
+  signal(SIGTERM, SignalHandler);
+  signal(SIGINT, SignalHandler);
   PetscCall(PetscTime(&s->wall0));
   s->wall_last = s->wall0;
   PetscCall(PetscLogStagePush(drape_log.timeloop));
@@ -477,6 +535,14 @@ PetscErrorCode SimulationRun(Simulation s)
     PetscCall(VecRestoreArrayRead(s->U, &u));
   }
   if (s->progress) PetscCall(PetscPrintf(s->comm, "\n"));
+  signal(SIGTERM, SIG_DFL);
+  signal(SIGINT, SIG_DFL);
+  if (s->interrupted) {
+    char file[PETSC_MAX_PATH_LEN] = "";
+    PetscCall(PetscOptionsGetString(NULL, NULL, "-output_file", file, sizeof file, NULL));
+    if (enabled) PetscCall(PetscPrintf(s->comm, "Stopped by %s after step %" PetscInt_FMT " at t = %g s; the state is the last frame of %s: continue with -restart %s\n", s->interrupted == SIGTERM ? "SIGTERM" : "SIGINT", steps, (double)t, file, file));
+    else PetscCall(PetscPrintf(s->comm, "Stopped by %s after step %" PetscInt_FMT " at t = %g s; without -output_file there is nothing to restart from\n", s->interrupted == SIGTERM ? "SIGTERM" : "SIGINT", steps, (double)t));
+  }
   if (s->cusick_radius > 0) {
     PetscReal dc;
     PetscInt  folds;
@@ -490,8 +556,9 @@ PetscErrorCode SimulationRun(Simulation s)
   if (s->summary) {
     PetscReal wall = (PetscReal) (t1 - s->wall0);
     PetscCall(TSGetKSPIterations(s->ts, &its));
-    PetscCall(PetscPrintf(s->comm, "Summary: %" PetscInt_FMT " steps to t = %g s in %.3f s wall, %.4e particle-steps/s", steps, (double) t, (double) wall, wall > 0 ? (double) (steps * info.nparticles / wall) : 0.0));
-    if (its > 0) PetscCall(PetscPrintf(s->comm, ", %.2f CG iterations per step", (double) its / PetscMax(steps, 1)));
+    PetscInt run = steps - s->restart_step; /* steps taken by this run */
+    PetscCall(PetscPrintf(s->comm, "Summary: %" PetscInt_FMT " steps to t = %g s in %.3f s wall, %.4e particle-steps/s", run, (double)t, (double)wall, wall > 0 ? (double)(run * info.nparticles / wall) : 0.0));
+    if (its > 0) PetscCall(PetscPrintf(s->comm, ", %.2f CG iterations per step", (double) its / PetscMax(run, 1)));
     PetscCall(PetscPrintf(s->comm, "\n"));
   }
   PetscFunctionReturn(0);

@@ -24,6 +24,7 @@ struct _p_Output {
   PetscReal   interval, next_time;
   PetscInt    every, nframes, last_step, Mx, My, nalloc;
   PetscReal  *times;
+  PetscBool   append; /* continue an existing file (restart) */
   PetscViewer viewer;
   Vec         X, V, scalars[NSCALARS];
 };
@@ -78,6 +79,25 @@ PetscErrorCode OutputSetFromOptions(Output o)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode OutputSetAppend(Output o, const char file[], PetscInt nframes, const PetscReal times[])
+{
+  PetscBool same;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscStrcmp(file, o->file, &same));
+  if (!o->enabled || !same) PetscFunctionReturn(0);
+  o->append  = PETSC_TRUE;
+  o->nalloc  = nframes + 64;
+  o->nframes = nframes;
+  PetscCall(PetscFree(o->times));
+  PetscCall(PetscMalloc1(o->nalloc, &o->times));
+  PetscCall(PetscArraycpy(o->times, times, nframes));
+  o->next_time = 0;
+  if (o->interval > 0)
+    while (o->next_time <= times[nframes - 1] + 1e-9 * o->interval) o->next_time += o->interval;
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode OutputEnabled(Output o, PetscBool *enabled)
 {
   PetscFunctionBeginUser;
@@ -115,6 +135,12 @@ PetscErrorCode OutputOpen(Output o, Cloth cloth, Solid solid, const char *descri
   for (PetscInt k = 0; k < NSCALARS; k++) {
     PetscCall(VecCreateMPI(o->comm, rank ? 0 : 1, 1, &o->scalars[k]));
     PetscCall(PetscObjectSetName((PetscObject) o->scalars[k], scalar_names[k]));
+  }
+  if (o->append) {
+    /* a restart continues its own file: frames and attributes are already there */
+    PetscCall(PetscViewerHDF5Open(o->comm, o->file, FILE_MODE_APPEND, &o->viewer));
+    PetscCall(PetscViewerHDF5PushTimestepping(o->viewer));
+    PetscFunctionReturn(0);
   }
   PetscCall(PetscViewerHDF5Open(o->comm, o->file, FILE_MODE_WRITE, &o->viewer));
   PetscCall(PetscOptionsGetAll(NULL, &given));
