@@ -3,7 +3,9 @@
 
 For each lattice N x N and each scheme, drape runs the hanging cloth (two pinned
 corners) for a fixed number of steps:
-  symplectic Euler   -ts_type basicsymplectic at 0.9 x its stability limit
+  symplectic Euler   -ts_type basicsymplectic at 0.5 x its stability limit (the
+                     printed limit is for the unloaded sheet; tension raises
+                     Omega as the cloth hangs, and 0.9 x diverges in long runs)
   explicit Euler     -ts_type euler at 0.9 x its own (damping-set) stability limit
   backward Euler     -ts_type beuler at 10 x the symplectic limit
 The limit is the one drape prints at start-up. Each timed run is repeated and the
@@ -25,7 +27,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 # (name, options, step as a multiple of the limit, which printed limit)
-SCHEMES = [("symplectic", "-ts_type basicsymplectic", 0.9, "symplectic"), ("explicit", "-ts_type euler", 0.9, "explicit"),
+SCHEMES = [("symplectic", "-ts_type basicsymplectic", 0.5, "symplectic"), ("explicit", "-ts_type euler", 0.9, "explicit"),
            ("beuler", "-ts_type beuler", 10.0, "symplectic")]
 
 
@@ -38,7 +40,10 @@ def launcher(np_):
 
 def drape(exe, np_, args):
     cmd = launcher(np_) + [str(exe)] + args + ["-drape_progress", "0"]
-    return subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+    try:
+        return subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+    except OSError as e:
+        sys.exit(f"bench_core: cannot run {exe}: {e}")
 
 
 def machine():
