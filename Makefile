@@ -17,7 +17,7 @@ PKGS := petsc hdf5-openmpi
 DRAPE_CPPFLAGS := -Iinclude $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
 DRAPE_CFLAGS   := -std=c11 -Wall -Wextra -Wno-unused-parameter -MMD -MP
 DRAPE_CXXFLAGS := -std=c++17 -frounding-math -Wall -Wextra -Wno-unused-parameter -MMD -MP
-LDLIBS := $(shell pkg-config --libs $(PKGS) 2>/dev/null) -lgmp -lmpfr -lm
+LDLIBS := $(shell pkg-config --libs $(PKGS) 2>/dev/null) -lmetis -lgmp -lmpfr -lm
 
 LIB_C   := $(filter-out src/main.c,$(wildcard src/*.c src/*/*.c))
 LIB_CXX := $(wildcard src/*/*.cxx)

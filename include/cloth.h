@@ -39,9 +39,17 @@ PETSC_EXTERN PetscErrorCode ClothSetUp(Cloth);
 PETSC_EXTERN PetscErrorCode ClothDestroy(Cloth *);
 PETSC_EXTERN PetscErrorCode ClothView(Cloth, PetscViewer);
 PETSC_EXTERN PetscErrorCode ClothGetInfo(Cloth, ClothInfo *);
-/* The lattice DMDA (dof 3): its global vectors are in owned-particle order and
- * VecView on them writes natural lattice order. */
+/* The lattice DMDA (dof 3), for I/O: VecView/VecLoad of its global vectors are in
+ * natural lattice order; fill them with ClothToDMDA. */
 PETSC_EXTERN PetscErrorCode ClothGetDM(Cloth, DM *);
+/* Natural lattice index (j Mx + i) of each owned particle. */
+PETSC_EXTERN PetscErrorCode ClothGetNatural(Cloth, const PetscInt **);
+/* A vector in owned-particle order (3 entries per particle, block size 3). */
+PETSC_EXTERN PetscErrorCode ClothCreateVector(Cloth, Vec *);
+/* Owned-order array <-> DMDA global vector (whose VecView/VecLoad are in natural
+ * order): a copy for -cloth_partition dmda, a scatter for metis. Collective. */
+PETSC_EXTERN PetscErrorCode ClothToDMDA(Cloth, const PetscScalar *x, Vec Xda);
+PETSC_EXTERN PetscErrorCode ClothFromDMDA(Cloth, Vec Xda, PetscScalar *x);
 /* Lumped particle masses and pin flags, owned-particle order (1 entry each). */
 PETSC_EXTERN PetscErrorCode ClothGetMasses(Cloth, const PetscReal **, const PetscBool **);
 

@@ -25,7 +25,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.colors import Normalize  # noqa: E402
-from matplotlib.ticker import MaxNLocator  # noqa: E402
+from matplotlib.ticker import FixedLocator, FuncFormatter, MaxNLocator  # noqa: E402
+from mpl_toolkits.mplot3d import proj3d  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -37,6 +38,7 @@ CLOTH_CMAP = "viridis"
 SOLID_RGB = (0.80, 0.80, 0.82)
 SOLID_ALPHA = 0.55
 FLOOR_RGB = (0.90, 0.90, 0.90)
+SOLID_MARGIN = 0.3  # the solid is drawn within this fraction of the cloth's extent around it
 MAX_SOLID_FACETS = 40000  # cap on the subdivided solid (depth sorting needs small facets)
 
 
@@ -65,24 +67,73 @@ def lattice_normals(p):
 
 
 def cloth_facets(p, active, stride=1):
-    """Quads of the active lattice cells of positions p [My, Mx, 3], every `stride` particles.
+    """Facets of the cloth at positions p [My, Mx, 3], every `stride` particles: a quad
+    per cell with four active corners and, along the edge of a circle specimen, a
+    triangle per cell with three.
 
-    Returns quads [n, 4, 3] and their normals [n, 3] (mean of the smooth corner normals)."""
+    Returns (quads [n, 4, 3], triangles [m, 3, 3], quad normals [n, 3], triangle
+    normals [m, 3]); normals are the mean of the smooth lattice normals at the corners."""
     my, mx = active.shape
     js = np.unique(np.r_[np.arange(0, my, stride), my - 1])
     is_ = np.unique(np.r_[np.arange(0, mx, stride), mx - 1])
     q = p[np.ix_(js, is_)]
     a = active[np.ix_(js, is_)]
     nrm = lattice_normals(q)
-    cell = a[:-1, :-1] & a[:-1, 1:] & a[1:, 1:] & a[1:, :-1]
-    jj, ii = np.nonzero(cell)
-    corners = [(jj, ii), (jj, ii + 1), (jj + 1, ii + 1), (jj + 1, ii)]
-    quads = np.stack([q[c] for c in corners], axis=1)
-    normals = sum(nrm[c] for c in corners)
-    flat = np.cross(quads[:, 2] - quads[:, 0], quads[:, 3] - quads[:, 1])
-    bad = ~np.isfinite(normals).all(axis=1) | (np.linalg.norm(normals, axis=1) < 1e-9)
-    normals[bad] = flat[bad]  # corners at the edge of a circle specimen
-    return quads, normals
+    jj, ii = np.meshgrid(np.arange(len(js) - 1), np.arange(len(is_) - 1), indexing="ij")
+    corners = [(jj, ii), (jj, ii + 1), (jj + 1, ii + 1), (jj + 1, ii)]  # counter-clockwise
+    on = np.stack([a[c] for c in corners], axis=-1)  # [cells..., 4]
+    full = on.all(axis=-1)
+    quads = np.stack([q[c][full] for c in corners], axis=1)
+    qn = sum(nrm[c][full] for c in corners)
+    three = on.sum(axis=-1) == 3
+    off = np.argmin(on[three], axis=-1)  # the inactive corner
+    cs = [(c[0][three], c[1][three]) for c in corners]
+    k = np.arange(three.sum())
+    pick = [(off + d) % 4 for d in (1, 2, 3)]
+    tri = np.stack([np.stack([q[cs[0]], q[cs[1]], q[cs[2]], q[cs[3]]], axis=1)[k, m] for m in pick], axis=1)
+    tn = sum(np.stack([nrm[cs[0]], nrm[cs[1]], nrm[cs[2]], nrm[cs[3]]], axis=1)[k, m] for m in pick)
+    flat_q = np.cross(quads[:, 2] - quads[:, 0], quads[:, 3] - quads[:, 1])
+    flat_t = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    for n, f in ((qn, flat_q), (tn, flat_t)):
+        bad = ~np.isfinite(n).all(axis=1) | (np.linalg.norm(n, axis=1) < 1e-9)
+        n[bad] = f[bad]
+    return quads.reshape(-1, 4, 3), tri.reshape(-1, 3, 3), qn.reshape(-1, 3), tn.reshape(-1, 3)
+
+
+def clip_box(tri, lo, hi):
+    """The parts of triangles tri [n, 3, 3] inside the box [lo, hi] (cut exactly)."""
+    for axis in range(3):
+        for value, sign in ((lo[axis], 1.0), (hi[axis], -1.0)):
+            tri = _clip_plane(tri, axis, value, sign)
+    return tri
+
+
+def _clip_plane(tri, axis, value, sign):
+    """Keep the part of each triangle where sign * (x[axis] - value) >= 0."""
+    d = sign * (tri[:, :, axis] - value)
+    inside = d >= 0
+    n_in = inside.sum(axis=1)
+    keep = [tri[n_in == 3]]
+    for count in (1, 2):
+        sel = n_in == count
+        if not sel.any():
+            continue
+        t, dd, ins = tri[sel], d[sel], inside[sel]
+        # rotate each triangle so that its odd vertex (the one inside, or the one outside) comes first
+        odd = np.argmax(ins if count == 1 else ~ins, axis=1)
+        r = np.arange(len(t))[:, None]
+        order = (odd[:, None] + np.arange(3)) % 3
+        t, dd = t[r, order], dd[r, order]
+        A, B, C = t[:, 0], t[:, 1], t[:, 2]
+        dA, dB, dC = dd[:, 0:1], dd[:, 1:2], dd[:, 2:3]
+        AB = A + (B - A) * (dA / (dA - dB))
+        AC = A + (C - A) * (dA / (dA - dC))
+        if count == 1:  # A inside
+            keep.append(np.stack([A, AB, AC], axis=1))
+        else:  # A outside: quad AB, B, C, AC
+            keep.append(np.stack([AB, B, C], axis=1))
+            keep.append(np.stack([AB, C, AC], axis=1))
+    return np.concatenate(keep) if keep else tri[:0]
 
 
 def view_frame(elev, azim):
@@ -94,7 +145,8 @@ def view_frame(elev, azim):
 
 def occluded(points, tris, frame, eps):
     """[len(points)] bool: is each point hidden from the eye (orthographic view along
-    frame[2]) by one of the triangles `tris` [n, 3, 3], by more than `eps` in depth?"""
+    frame[2]) by one of the triangles `tris` [n, 3, 3]: is a triangle in front of it by
+    more than `eps` in depth (a negative eps also counts triangles just behind it)?"""
     right, up, eye = frame
     basis = np.stack([right, up, eye], axis=1)
     q = points @ basis  # (u, v, depth towards the eye)
@@ -140,32 +192,12 @@ def occluded(points, tris, frame, eps):
     return out
 
 
-def interior(active):
-    """[My, Mx] bool: active particles whose four lattice neighbours are active."""
-    a = np.pad(active, 1, constant_values=False)
-    return active & a[:-2, 1:-1] & a[2:, 1:-1] & a[1:-1, :-2] & a[1:-1, 2:]
-
-
 def cell_size(p, active):
     """Mean length of the lattice edges between active particles of positions p."""
     d = [np.linalg.norm(np.diff(p, axis=0), axis=2)[active[1:] & active[:-1]],
          np.linalg.norm(np.diff(p, axis=1), axis=2)[active[:, 1:] & active[:, :-1]]]
     d = np.concatenate(d)
     return float(d.mean()) if d.size else 0.0
-
-
-def near(points, cloud, radius, chunk=1024):
-    """[len(points)] bool: is each point within `radius` of some point of `cloud`?"""
-    out = np.zeros(len(points), bool)
-    if not len(cloud) or not len(points):
-        return out
-    lo, hi = cloud.min(axis=0) - radius, cloud.max(axis=0) + radius
-    cand = np.nonzero(np.all((points >= lo) & (points <= hi), axis=1))[0]
-    for k in range(0, len(cand), chunk):
-        idx = cand[k:k + chunk]
-        d2 = ((points[idx, None, :] - cloud[None, :, :]) ** 2).sum(axis=2)
-        out[idx] = d2.min(axis=1) <= radius * radius
-    return out
 
 
 def closed_and_oriented(tri):
@@ -201,6 +233,33 @@ def subdivide(tri, hmax, cap=MAX_SOLID_FACETS):
     return tri
 
 
+def axis_ticks(lo, hi, rel):
+    """Tick locator for an axis from lo to hi whose length is `rel` times the longest:
+    about one tick per quarter of the longest axis, a single one on a short axis."""
+    if rel >= 0.3:
+        return MaxNLocator(nbins=max(2, int(round(4 * rel))), steps=[1, 2, 2.5, 5, 10])
+    values = [v for v in MaxNLocator(nbins=2, steps=[1, 2, 2.5, 5, 10]).tick_values(lo, hi) if lo <= v <= hi]
+    if not values:
+        return FixedLocator([])
+    return FixedLocator([min(values, key=lambda v: abs(v - 0.5 * (lo + hi)))])
+
+
+def trim(path, margin=12):
+    """Crop the white border of a raster picture (PNG, JPEG) in place."""
+    if os.path.splitext(path)[1].lower() not in (".png", ".jpg", ".jpeg"):
+        return
+    from PIL import Image, ImageChops
+
+    with Image.open(path) as im:
+        im.load()
+    rgb = im.convert("RGB")
+    box = ImageChops.difference(rgb, Image.new("RGB", rgb.size, (255, 255, 255))).getbbox()
+    if box:
+        box = (max(box[0] - margin, 0), max(box[1] - margin, 0),
+               min(box[2] + margin, im.width), min(box[3] + margin, im.height))
+        im.crop(box).save(path)
+
+
 # ---------------------------------------------------------------------------- the scene
 
 
@@ -210,44 +269,59 @@ class Scene:
     def __init__(self, run, frames=None, elev=ELEV, azim=AZIM):
         self.run = run
         self.elev, self.azim = elev, azim
-        frames = range(run.nframes) if frames is None else frames
-        act = run.active
-        pts = run.positions[list(frames)][:, act].reshape(-1, 3)
+        frames = list(range(run.nframes) if frames is None else frames)
+        pts = run.positions[frames][:, run.active].reshape(-1, 3)
         self.zrange = (pts[:, 2].min(), pts[:, 2].max())  # colour scale of the cloth
-        tri = run.solid_triangles
-        allpts = pts if tri is None else np.concatenate([pts, tri.reshape(-1, 3)])
-        lo, hi = allpts.min(axis=0), allpts.max(axis=0)
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
         floor = run.floor
-        if floor is not None:
-            lo[2], hi[2] = min(lo[2], floor), max(hi[2], floor)
-        self.lo, self.hi = lo, hi
         my, mx = run.shape
         self.stride = max(1, -(-(max(mx, my) - 1) // MAX_FACETS))
 
-        extent = max(hi - lo) + 1e-12
-        self.floor_rect = None
-        if floor is not None:
-            pad = 0.08 * extent
-            self.floor_rect = np.array([[lo[0] - pad, lo[1] - pad], [hi[0] + pad, lo[1] - pad],
-                                        [hi[0] + pad, hi[1] + pad], [lo[0] - pad, hi[1] + pad]])
+        # the solid is shown near the cloth only (down to the floor): a tall pedestal
+        # would leave the specimen small
         self.solid = None
+        tri = run.solid_triangles
         if tri is not None:
+            margin = SOLID_MARGIN * max(hi - lo) + 1e-9
+            clo, chi = lo - margin, hi + margin
+            if floor is not None:
+                clo[2] = min(clo[2], floor)
             eye, _ = view_vectors(elev, azim)
             closed, sign = closed_and_oriented(tri)
             if closed:  # the back faces of a closed solid are hidden: leave them out
                 n = sign * np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
                 tri = tri[n @ eye > 0]
-                if floor is not None:  # and so is what lies under the floor
-                    tri = tri[tri[:, :, 2].max(axis=1) > floor + 1e-9]
-            spacing = max(hi - lo) / 40.0
-            self.solid = subdivide(tri, max(spacing, 1e-9))
+            if floor is not None:  # and so is what lies under the floor
+                tri = tri[tri[:, :, 2].max(axis=1) > floor + 1e-9]
+            tri = clip_box(tri, clo, chi)
+            if len(tri):
+                lo = np.minimum(lo, tri.reshape(-1, 3).min(axis=0))
+                hi = np.maximum(hi, tri.reshape(-1, 3).max(axis=0))
+            self.solid = subdivide(tri, max(hi - lo) / 40.0 + 1e-12)
+        if floor is not None:
+            lo[2], hi[2] = min(lo[2], floor), max(hi[2], floor)
+        self.lo, self.hi = lo, hi
+        self.floor_rect = None
+        if floor is not None:
+            pad = 0.08 * max(hi - lo)
+            self.floor_rect = np.array([[lo[0] - pad, lo[1] - pad], [hi[0] + pad, lo[1] - pad],
+                                        [hi[0] + pad, hi[1] + pad], [lo[0] - pad, hi[1] + pad]])
 
     # -- figure and axes
 
-    def figure(self, figsize=(7.0, 6.2)):
-        fig = plt.figure(figsize=figsize)
+    def figure(self, width=6.5, margins=(0.45, 0.6, 0.5, 0.55)):
+        """A figure `width` inches wide that fits the axes box of this scene, with
+        margins (left, right, bottom, top; inches) for the tick labels and the title."""
+        fig = plt.figure(figsize=(6.0, 6.0))
         ax = fig.add_subplot(projection="3d", computed_zorder=False)
-        fig.subplots_adjust(left=0, right=1, bottom=0.02, top=0.93)
+        ax.set_position([0, 0, 1, 1])  # the 3D box is drawn in a square: here, the whole figure
+        self._setup_axes(ax)
+        x0, x1, y0, y1 = self._box_on_figure(ax)
+        ml, mr, mb, mt = margins
+        side = (width - ml - mr) / max(x1 - x0, 1e-6)  # inches of the square
+        height = side * (y1 - y0) + mb + mt
+        fig.set_size_inches(width, height)
+        ax.set_position([(ml - side * x0) / width, (mb - side * y0) / height, side / width, side / height])
         return fig, ax
 
     def _setup_axes(self, ax):
@@ -261,18 +335,31 @@ class Scene:
         ax.set_xlim(mid[0] - span[0] / 2, mid[0] + span[0] / 2)
         ax.set_ylim(mid[1] - span[1] / 2, mid[1] + span[1] / 2)
         ax.set_zlim(mid[2] - span[2] / 2, mid[2] + span[2] / 2)
-        ax.set_box_aspect(span, zoom=1.12)
+        ax.set_box_aspect(span)
         ax.view_init(elev=self.elev, azim=self.azim)
         ax.set_proj_type("ortho")  # parallel projection: what occluded() assumes
-        # ticks: about one per 0.25 of the largest extent on each axis, never crowded
-        for axis, s in zip((ax.xaxis, ax.yaxis, ax.zaxis), span):
-            axis.set_major_locator(MaxNLocator(nbins=max(1, int(round(4 * s / span.max()))), steps=[1, 2, 2.5, 5, 10]))
+        # ticks: about one per 0.25 of the largest extent on each axis, never crowded;
+        # a short axis gets a single tick that names it ("z = 0 m") instead of a label
+        ax.tick_params(labelsize=7, pad=0)
+        for name, axis, s, m in zip("xyz", (ax.xaxis, ax.yaxis, ax.zaxis), span, mid):
+            rel = s / span.max()
+            axis.set_major_locator(axis_ticks(m - s / 2, m + s / 2, rel))
+            if rel < 0.3:
+                axis.set_major_formatter(FuncFormatter(lambda v, _, name=name: f"{name} = {v + 0.0:.3g} m"))
+            else:
+                axis.set_label_text(f"{name} (m)", fontsize=8)
+                axis.labelpad = 1
             axis.set_pane_color((0.97, 0.97, 0.97, 1.0))
             axis._axinfo["grid"].update(color=(0.85, 0.85, 0.85, 1.0), linewidth=0.5)
-        ax.tick_params(labelsize=7, pad=0)
-        ax.set_xlabel("x (m)", fontsize=8, labelpad=1)
-        ax.set_ylabel("y (m)", fontsize=8, labelpad=1)
-        ax.set_zlabel("z (m)", fontsize=8, labelpad=1)
+
+    def _box_on_figure(self, ax):
+        """Left, right, bottom and top of the projected axes box, in figure coordinates."""
+        lims = np.array([ax.get_xlim(), ax.get_ylim(), ax.get_zlim()])
+        corners = np.array([[lims[0, i], lims[1, j], lims[2, k]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+        xs, ys, _ = proj3d.proj_transform(corners[:, 0], corners[:, 1], corners[:, 2], ax.get_proj())
+        ax.apply_aspect()
+        pts = ax.figure.transFigure.inverted().transform(ax.transData.transform(np.c_[xs, ys]))
+        return pts[:, 0].min(), pts[:, 0].max(), pts[:, 1].min(), pts[:, 1].max()
 
     # -- drawing
 
@@ -282,6 +369,31 @@ class Scene:
         n = n * np.where(n @ eye < 0, -1.0, 1.0)[:, None]
         lam = np.clip(n @ light, 0, 1)
         return np.clip(rgb * (ambient + (1 - ambient) * lam)[:, None], 0, 1)
+
+    def _visible_solid(self, t, p, tris, refine=2):
+        """The facets t of the solid that the cloth (triangles tris, particles p) does not hide.
+
+        A facet of the solid and a facet of the cloth lying on it have about the same
+        depth, and mplot3d's facet sort would often draw the solid on top: so the
+        facets behind the cloth (centre and corners) are left out, and those partly
+        behind it are split and tested again, `refine` times. Where the cloth wraps an
+        edge of the solid its flat facets cut the corner: so "behind" allows the solid
+        up to half a cell in front of the cloth."""
+        view = view_frame(self.elev, self.azim)
+        tol = -0.5 * self.stride * cell_size(p, self.run.active)
+        hmax = max(self.hi - self.lo) / 40.0
+        keep = []
+        for level in range(refine + 1):
+            hid = occluded(np.concatenate([t.mean(axis=1), t.reshape(-1, 3)]), tris, view, tol)
+            centre, corners = hid[: len(t)], hid[len(t):].reshape(-1, 3).sum(axis=1)
+            hidden = centre & (corners == 3)
+            if level == refine:
+                keep.append(t[~hidden])
+                break
+            partly = ~hidden & (centre | (corners > 0))
+            keep.append(t[~hidden & ~partly])
+            t = subdivide(t[partly], hmax / 2 ** (level + 1))
+        return np.concatenate(keep)
 
     def draw(self, fig, ax, frame, title=True):
         """Draw frame `frame` (a valid non-negative index) on `ax` (cleared first)."""
@@ -294,34 +406,21 @@ class Scene:
 
         polys, colours, cloth = [], [], []
         p = run.positions[frame]
-        quads, normals = cloth_facets(p, run.active, self.stride)
-        if len(quads):
-            zc = quads[:, :, 2].mean(axis=1)
+        quads, ctri, qn, tn = cloth_facets(p, run.active, self.stride)
+        facets = list(quads) + list(ctri)
+        if facets:
+            normals = np.concatenate([qn, tn])
+            zc = np.concatenate([quads[:, :, 2].mean(axis=1), ctri[:, :, 2].mean(axis=1)])
             lo, hi = self.zrange
             base = plt.get_cmap(CLOTH_CMAP)(Normalize(lo, hi + 1e-12 if hi > lo else lo + 1)(zc) * 0.85 + 0.1)[:, :3]
             rgb = self._shade(normals, base, eye, light)
-            polys += list(quads)
+            polys += facets
             colours.append(np.c_[rgb, np.ones(len(rgb))])
-            cloth += [True] * len(quads)
+            cloth += [True] * len(facets)
         if self.solid is not None and len(self.solid):
             t = self.solid
-            # the solid hidden by the cloth is left out: a facet of the solid and a facet
-            # of the cloth lying on it have about the same depth, and mplot3d's facet
-            # sort would often draw the solid on top
-            # (and where the cloth wraps an edge of the solid, its flat facets cut the
-            # corner: the solid within about half a cell of the cloth, away from the
-            # cloth's free edge, is taken as covered too)
-            if len(quads):
-                tris = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
-                c = t.mean(axis=1)
-                pts = np.concatenate([c, t.reshape(-1, 3)])  # a facet is hidden if all its corners are
-                hid = occluded(pts, tris, view_frame(self.elev, self.azim), eps=1e-6 * max(self.hi - self.lo))
-                hidden = hid[: len(t)] & (hid[len(t):].reshape(-1, 3).sum(axis=1) >= 2)
-                inner = interior(run.active)
-                if inner.any():
-                    h = self.stride * cell_size(p, run.active)
-                    hidden |= near(c, p[inner][:: max(1, self.stride)], 0.75 * h)
-                t = t[~hidden]
+            if facets:
+                t = self._visible_solid(t, p, np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]], ctri]))
             normals = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
             rgb = self._shade(normals, np.tile(SOLID_RGB, (len(t), 1)), eye, light, ambient=0.55)
             polys += list(t)
@@ -336,7 +435,7 @@ class Scene:
         if polys:
             rgba = np.concatenate(colours)
             edges = rgba.copy()
-            edges[~np.asarray(cloth), 3] = 0  # no outline on the (translucent) solid
+            edges[~np.asarray(cloth), 3] = 0  # no outline on the (translucent) solid: it would darken the seams
             # (one line width for all: mplot3d reorders the colours, not the widths)
             # cloth and solid in one collection: mplot3d sorts its facets by depth together
             coll = Poly3DCollection(polys, facecolors=rgba, edgecolors=edges, linewidths=0.5,
@@ -346,17 +445,18 @@ class Scene:
         if title:
             my, mx = run.shape
             nact = int(run.active.sum())
-            parts = f"{mx} x {my} particles" if nact == mx * my else f"{nact} particles ({mx} x {my} lattice)"
-            ax.set_title(f"drape: t = {run.time[frame]:.3f} s (frame {frame} of 0..{run.nframes - 1}, "
-                         f"step {run.step[frame]})\n{parts}", fontsize=9)
-            notes = []
+            line2 = [f"{mx} x {my} particles" if nact == mx * my else f"{nact} particles ({mx} x {my} lattice)"]
             if "kinetic" in run.energies:
-                notes.append(f"kinetic energy {run.energies['kinetic'][frame]:.3g} J")
+                line2.append(f"kinetic energy {run.energies['kinetic'][frame]:.3g} J")
             if "drape_coefficient" in run.attrs and frame == run.nframes - 1:
-                dc = run.attrs["drape_coefficient"]
-                notes.append(f"drape coefficient {dc:.3f}, {int(run.attrs.get('drape_folds', 0))} folds")
-            fig.text(0.02, 0.015, "\n".join(notes), fontsize=8, va="bottom")
-            fig.text(0.98, 0.015, os.path.basename(run.path), fontsize=7, ha="right", va="bottom", color="0.4")
+                line2.append(f"drape coefficient {run.attrs['drape_coefficient']:.3f}, "
+                             f"{int(run.attrs.get('drape_folds', 0))} folds")
+            text = (f"{os.path.basename(run.path)}: t = {run.time[frame]:.3f} s "
+                    f"(frame {frame} of 0..{run.nframes - 1}, step {run.step[frame]})\n" + ", ".join(line2))
+            # just above the drawing (the 3D box leaves a wide margin inside the axes)
+            x0, x1, _, top = self._box_on_figure(ax)
+            top += 0.1 / fig.get_figheight()
+            fig.text(0.5 * (x0 + x1), min(top, 0.99), text, ha="center", va="bottom", fontsize=9)
 
 
 def render(run, frame, out, dpi=150, elev=ELEV, azim=AZIM):
@@ -367,6 +467,7 @@ def render(run, frame, out, dpi=150, elev=ELEV, azim=AZIM):
     os.makedirs(os.path.dirname(os.path.abspath(out)), exist_ok=True)
     fig.savefig(out, dpi=dpi)
     plt.close(fig)
+    trim(out)
 
 
 def load_or_exit(ap, path):

@@ -135,12 +135,7 @@ PetscErrorCode CusickAnalyse(Cloth cloth, const PetscScalar *x, const PetscScala
   PetscCall(DMDACreateNaturalVector(da, &N));
   PetscCall(VecScatterCreateToZero(N, &scatter, &Z));
   for (PetscInt pass = 0; pass < 2; pass++) {
-    PetscScalar *g;
-    PetscInt     n;
-    PetscCall(VecGetLocalSize(G, &n));
-    PetscCall(VecGetArray(G, &g));
-    PetscCall(PetscArraycpy(g, pass ? x : x0, n));
-    PetscCall(VecRestoreArray(G, &g));
+    PetscCall(ClothToDMDA(cloth, pass ? x : x0, G));
     PetscCall(DMDAGlobalToNaturalBegin(da, G, INSERT_VALUES, N));
     PetscCall(DMDAGlobalToNaturalEnd(da, G, INSERT_VALUES, N));
     PetscCall(VecScatterBegin(scatter, N, Z, INSERT_VALUES, SCATTER_FORWARD));

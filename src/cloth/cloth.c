@@ -1,6 +1,7 @@
 /* The cloth lattice: options, DMDA layout, masses, pins and element lists. */
 #include "clothimpl.h"
 #include <petscdmda.h>
+#include <partition.h>
 
 static const char *const orientation_names[] = {"horizontal", "vertical", "ClothOrientation", "CLOTH_", NULL};
 static const char *const shape_names[]       = {"square", "circle", "ClothShape", "CLOTH_", NULL};
@@ -82,6 +83,12 @@ PetscErrorCode ClothSetFromOptions(Cloth c)
   PetscCall(PetscMalloc1(npin, &c->pin_list));
   PetscCall(PetscOptionsIntArray("-cloth_pin_list", "Pinned lattice indices i0,j0,i1,j1,... (with -cloth_pin list)", "ClothSetFromOptions", c->pin_list, &npin, &set));
   c->npin_list = set ? npin / 2 : 0;
+  {
+    PetscInt ipart = (PetscInt) c->partition;
+    PetscCall(PetscOptionsEList("-cloth_partition", "Particles to ranks: dmda (blocks of the lattice) or metis (k-way partition of the interaction graph; balances irregular shapes)", "ClothSetFromOptions", PartitionTypes, 2, PartitionTypes[ipart],
+                                &ipart, NULL));
+    c->partition = (PartitionType) ipart;
+  }
   PetscCall(PetscOptionsEList("-cloth_hessian", "Hessian in the implicit matrix: projected (SPD, default) or exact (may be indefinite)", "ClothSetFromOptions", hessian_names, 2, hessian_names[0], &hess, NULL));
   PetscOptionsEnd();
   c->pin           = (ClothPinType) ipin;
@@ -163,43 +170,45 @@ static PetscErrorCode ElementsDestroy(ClothElements *el)
   PetscFunctionReturn(0);
 }
 
-/* Build the element lists over the ghosted block: every element with at least one
- * owned particle (so owned particles receive all their forces without a reverse
- * scatter), its energy counted by the owner of its first or vertex particle. */
-static PetscErrorCode ClothBuildElements(Cloth c)
+/* Build the element lists: every element with at least one owned particle (so
+ * owned particles receive all their forces without a reverse scatter), in natural
+ * lattice order, its energy counted by the owner of its first or vertex particle.
+ * local[n] is the local index of natural particle n, or -1. */
+static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const PetscInt *owner, PetscMPIInt rank)
 {
   const PetscReal dx = c->spacing[0], dy = c->spacing[1];
-  PetscInt        gxs = c->gxs, gys = c->gys, gxe = c->gxs + c->gxm, gye = c->gys + c->gym, nl = c->nlocal;
+  const PetscInt  Mx = c->Mx, My = c->My, nl = c->nlocal;
   ClothElements  *st = &c->stretch_el, *sh = &c->shear_el, *be = &c->bend_el;
 
-#define LOCAL(i, j) (((j) -gys) * c->gxm + ((i) -gxs))
-#define OWNED(i, j) ((i) >= c->xs && (i) < c->xs + c->xm && (j) >= c->ys && (j) < c->ys + c->ym)
+#define NAT(i, j)   ((j) *Mx + (i))
+#define LOCAL(i, j) local[NAT(i, j)]
+#define OWNED(i, j) (owner[NAT(i, j)] == rank)
 #define ACT(i, j)   ClothIsActive(c, i, j)
   PetscFunctionBeginUser;
   PetscCall(ElementsAllocate(st, 2 * nl, 2, PETSC_TRUE));
   PetscCall(ElementsAllocate(sh, 4 * nl, 3, PETSC_FALSE));
   PetscCall(ElementsAllocate(be, 2 * nl, 3, PETSC_FALSE));
-  for (PetscInt j = gys; j < gye; j++) {
-    for (PetscInt i = gxs; i < gxe; i++) {
+  for (PetscInt j = 0; j < My; j++) {
+    for (PetscInt i = 0; i < Mx; i++) {
       /* stretch along the warp (i) and the weft (j) */
-      if (c->stretch[0] > 0 && i + 1 < gxe && (OWNED(i, j) || OWNED(i + 1, j)) && ACT(i, j) && ACT(i + 1, j)) {
+      if (c->stretch[0] > 0 && i + 1 < Mx && (OWNED(i, j) || OWNED(i + 1, j)) && ACT(i, j) && ACT(i + 1, j)) {
         PetscInt e       = st->n++;
         st->p[2 * e]     = LOCAL(i, j);
         st->p[2 * e + 1] = LOCAL(i + 1, j);
-        st->coef[e]      = c->stretch[0] * dy * EdgeWeight(j, c->My) / dx;
+        st->coef[e]      = c->stretch[0] * dy * EdgeWeight(j, My) / dx;
         st->rest[e]      = dx;
         st->own[e]       = (unsigned char) OWNED(i, j);
       }
-      if (c->stretch[1] > 0 && j + 1 < gye && (OWNED(i, j) || OWNED(i, j + 1)) && ACT(i, j) && ACT(i, j + 1)) {
+      if (c->stretch[1] > 0 && j + 1 < My && (OWNED(i, j) || OWNED(i, j + 1)) && ACT(i, j) && ACT(i, j + 1)) {
         PetscInt e       = st->n++;
         st->p[2 * e]     = LOCAL(i, j);
         st->p[2 * e + 1] = LOCAL(i, j + 1);
-        st->coef[e]      = c->stretch[1] * dx * EdgeWeight(i, c->Mx) / dy;
+        st->coef[e]      = c->stretch[1] * dx * EdgeWeight(i, Mx) / dy;
         st->rest[e]      = dy;
         st->own[e]       = (unsigned char) OWNED(i, j);
       }
       /* shear: the four corners of cell (i, j) as (a: warp end, b: weft end, c: vertex) */
-      if (c->shear > 0 && i + 1 < gxe && j + 1 < gye && (OWNED(i, j) || OWNED(i + 1, j) || OWNED(i, j + 1) || OWNED(i + 1, j + 1)) && ACT(i, j) && ACT(i + 1, j) && ACT(i, j + 1) && ACT(i + 1, j + 1)) {
+      if (c->shear > 0 && i + 1 < Mx && j + 1 < My && (OWNED(i, j) || OWNED(i + 1, j) || OWNED(i, j + 1) || OWNED(i + 1, j + 1)) && ACT(i, j) && ACT(i + 1, j) && ACT(i, j + 1) && ACT(i + 1, j + 1)) {
         const PetscInt corner[4][3] = {
           {LOCAL(i + 1, j), LOCAL(i, j + 1), LOCAL(i, j)}, {LOCAL(i, j), LOCAL(i + 1, j + 1), LOCAL(i + 1, j)}, {LOCAL(i + 1, j + 1), LOCAL(i, j), LOCAL(i, j + 1)}, {LOCAL(i, j + 1), LOCAL(i + 1, j), LOCAL(i + 1, j + 1)}};
         for (PetscInt k = 0; k < 4; k++) {
@@ -210,24 +219,25 @@ static PetscErrorCode ClothBuildElements(Cloth c)
         }
       }
       /* bending: triples along the warp and the weft centred on (i, j) */
-      if (c->bend[0] > 0 && i - 1 >= gxs && i + 1 < gxe && (OWNED(i - 1, j) || OWNED(i, j) || OWNED(i + 1, j)) && ACT(i - 1, j) && ACT(i, j) && ACT(i + 1, j)) {
+      if (c->bend[0] > 0 && i >= 1 && i + 1 < Mx && (OWNED(i - 1, j) || OWNED(i, j) || OWNED(i + 1, j)) && ACT(i - 1, j) && ACT(i, j) && ACT(i + 1, j)) {
         PetscInt e       = be->n++;
         be->p[3 * e]     = LOCAL(i - 1, j);
         be->p[3 * e + 1] = LOCAL(i + 1, j);
         be->p[3 * e + 2] = LOCAL(i, j);
-        be->coef[e]      = c->bend[0] * dy * EdgeWeight(j, c->My) / dx;
+        be->coef[e]      = c->bend[0] * dy * EdgeWeight(j, My) / dx;
         be->own[e]       = (unsigned char) OWNED(i, j);
       }
-      if (c->bend[1] > 0 && j - 1 >= gys && j + 1 < gye && (OWNED(i, j - 1) || OWNED(i, j) || OWNED(i, j + 1)) && ACT(i, j - 1) && ACT(i, j) && ACT(i, j + 1)) {
+      if (c->bend[1] > 0 && j >= 1 && j + 1 < My && (OWNED(i, j - 1) || OWNED(i, j) || OWNED(i, j + 1)) && ACT(i, j - 1) && ACT(i, j) && ACT(i, j + 1)) {
         PetscInt e       = be->n++;
         be->p[3 * e]     = LOCAL(i, j - 1);
         be->p[3 * e + 1] = LOCAL(i, j + 1);
         be->p[3 * e + 2] = LOCAL(i, j);
-        be->coef[e]      = c->bend[1] * dx * EdgeWeight(i, c->Mx) / dy;
+        be->coef[e]      = c->bend[1] * dx * EdgeWeight(i, Mx) / dy;
         be->own[e]       = (unsigned char) OWNED(i, j);
       }
     }
   }
+#undef NAT
 #undef LOCAL
 #undef OWNED
 #undef ACT
@@ -241,15 +251,116 @@ static PetscInt CountOwned(const ClothElements *el, PetscInt per)
   return n / per;
 }
 
+static PetscBool ActiveCallback(void *ctx, PetscInt i, PetscInt j) { return ClothIsActive((Cloth) ctx, i, j); }
+
+/* The 12 interaction neighbours (paper Fig. 2): whatever a kernel of an owned
+ * particle touches is owned or one of these ghosts. */
+static const PetscInt neighbours[12][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}, {1, 1}, {-1, 1}, {1, -1}, {-1, -1}, {2, 0}, {-2, 0}, {0, 2}, {0, -2}};
+
+/* Local layout from the owner array: owned particles first (natural order), then
+ * ghosts (natural order); global block numbers rank by rank; ghost scatter. */
+static PetscErrorCode ClothBuildLayout(Cloth c, const PetscInt *owner, PetscInt **local_out)
+{
+  const PetscInt N = c->Mx * c->My;
+  PetscMPIInt    rank, size;
+  PetscInt      *local, *offset, *count, *gl, nghost = 0;
+  IS             from, to;
+
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(c->comm, &rank));
+  PetscCallMPI(MPI_Comm_size(c->comm, &size));
+  PetscCall(PetscMalloc1(N, &local));
+  PetscCall(PetscCalloc2(size + 1, &offset, size, &count));
+  for (PetscInt n = 0; n < N; n++) count[owner[n]]++;
+  for (PetscMPIInt r = 0; r < size; r++) offset[r + 1] = offset[r] + count[r];
+  c->nowned = count[rank];
+  /* position of each particle in its owner's list = its global block number */
+  PetscCall(PetscMalloc1(N, &gl));
+  for (PetscMPIInt r = 0; r < size; r++) count[r] = 0;
+  for (PetscInt n = 0; n < N; n++) gl[n] = offset[owner[n]] + count[owner[n]]++;
+  for (PetscInt n = 0; n < N; n++) local[n] = -1;
+  c->nlocal = 0;
+  for (PetscInt n = 0; n < N; n++)
+    if (owner[n] == rank) local[n] = c->nlocal++;
+  for (PetscInt n = 0; n < N; n++) {
+    if (owner[n] == rank || local[n] >= 0) continue;
+    for (PetscInt s = 0; s < 12; s++) {
+      PetscInt i = n % c->Mx - neighbours[s][0], j = n / c->Mx - neighbours[s][1];
+      if (i >= 0 && i < c->Mx && j >= 0 && j < c->My && owner[j * c->Mx + i] == rank) {
+        local[n] = c->nowned + nghost++;
+        break;
+      }
+    }
+  }
+  c->nlocal = c->nowned + nghost;
+  PetscCall(PetscMalloc2(c->nlocal, &c->natural, c->nlocal, &c->global));
+  for (PetscInt n = 0; n < N; n++)
+    if (local[n] >= 0) {
+      c->natural[local[n]] = n;
+      c->global[local[n]]  = gl[n];
+    }
+  c->rstart = offset[rank];
+  PetscCall(PetscFree(gl));
+  PetscCall(PetscFree2(offset, count));
+  /* vectors and the ghost scatter */
+  PetscCall(VecCreateMPI(c->comm, 3 * c->nowned, PETSC_DETERMINE, &c->Xg));
+  PetscCall(VecSetBlockSize(c->Xg, 3));
+  PetscCall(VecCreateSeq(PETSC_COMM_SELF, 3 * c->nlocal, &c->Xl));
+  PetscCall(VecSetBlockSize(c->Xl, 3));
+  PetscCall(VecDuplicate(c->Xl, &c->Yl));
+  PetscCall(VecDuplicate(c->Xl, &c->Zl));
+  PetscCall(ISCreateBlock(c->comm, 3, c->nlocal, c->global, PETSC_COPY_VALUES, &from));
+  PetscCall(ISCreateStride(PETSC_COMM_SELF, 3 * c->nlocal, 0, 1, &to));
+  PetscCall(VecScatterCreate(c->Xg, from, c->Xl, to, &c->ghost));
+  PetscCall(ISDestroy(&from));
+  PetscCall(ISDestroy(&to));
+  PetscCall(VecReplaceArray(c->Xg, NULL)); /* the global vector only ever wraps caller arrays */
+  *local_out = local;
+  PetscFunctionReturn(0);
+}
+
+/* Scatter between the Cloth's particle order and the DMDA's (I/O in natural
+ * order); NULL when they are the same (the DMDA partition). */
+static PetscErrorCode ClothBuildDMDAScatter(Cloth c)
+{
+  AO        ao;
+  PetscInt *idx;
+  IS        from, to;
+  Vec       Xda;
+
+  PetscFunctionBeginUser;
+  if (c->partition == PARTITION_DMDA) PetscFunctionReturn(0);
+  PetscCall(DMDAGetAO(c->da, &ao));
+  PetscCall(PetscMalloc1(c->nowned, &idx));
+  /* the DMDA's AO numbers unknowns (3 per particle): map the first of each */
+  for (PetscInt k = 0; k < c->nowned; k++) idx[k] = 3 * c->natural[k];
+  PetscCall(AOApplicationToPetsc(ao, c->nowned, idx));
+  for (PetscInt k = 0; k < c->nowned; k++) idx[k] /= 3;
+  PetscCall(ISCreateBlock(c->comm, 3, c->nowned, idx, PETSC_COPY_VALUES, &to));
+  PetscCall(ISCreateStride(c->comm, 3 * c->nowned, 3 * c->rstart, 1, &from));
+  PetscCall(DMCreateGlobalVector(c->da, &Xda));
+  {
+    Vec X;
+    PetscCall(VecCreateMPI(c->comm, 3 * c->nowned, PETSC_DETERMINE, &X));
+    PetscCall(VecScatterCreate(X, from, Xda, to, &c->to_dmda));
+    PetscCall(VecDestroy(&X));
+  }
+  PetscCall(VecDestroy(&Xda));
+  PetscCall(ISDestroy(&from));
+  PetscCall(ISDestroy(&to));
+  PetscCall(PetscFree(idx));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode ClothSetUp(Cloth c)
 {
-  const PetscInt        *gidx;
-  ISLocalToGlobalMapping ltog;
-  PetscInt               k, counts[4], sums[4];
-  PetscReal              mass;
+  PetscInt   *owner, *local = NULL, counts[5], sums[5], lo, hi;
+  PetscReal   mass;
+  PetscMPIInt rank;
 
   PetscFunctionBeginUser;
   if (c->setup) PetscFunctionReturn(0);
+  PetscCallMPI(MPI_Comm_rank(c->comm, &rank));
   PetscCall(DMDACreate2d(c->comm, DM_BOUNDARY_NONE, DM_BOUNDARY_NONE, DMDA_STENCIL_BOX, c->Mx, c->My, PETSC_DECIDE, PETSC_DECIDE, 3, 2, NULL, NULL, &c->da));
   PetscCall(DMSetFromOptions(c->da));
   PetscCall(DMSetUp(c->da));
@@ -257,57 +368,60 @@ PetscErrorCode ClothSetUp(Cloth c)
   PetscCall(DMDASetFieldName(c->da, 1, "y"));
   PetscCall(DMDASetFieldName(c->da, 2, "z"));
   PetscCall(DMDAGetInfo(c->da, NULL, &c->Mx, &c->My, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL));
-  PetscCall(DMDAGetCorners(c->da, &c->xs, &c->ys, NULL, &c->xm, &c->ym, NULL));
-  PetscCall(DMDAGetGhostCorners(c->da, &c->gxs, &c->gys, NULL, &c->gxm, &c->gym, NULL));
   c->spacing[0] = c->size[0] / (c->Mx - 1);
   c->spacing[1] = c->size[1] / (c->My - 1);
-  c->nowned     = c->xm * c->ym;
-  c->nlocal     = c->gxm * c->gym;
-  PetscCall(DMCreateGlobalVector(c->da, &c->Xg));
-  PetscCall(DMCreateLocalVector(c->da, &c->Xl));
-  PetscCall(VecDuplicate(c->Xl, &c->Yl));
-  PetscCall(VecReplaceArray(c->Xg, NULL)); /* the global vector only ever wraps caller arrays */
 
-  PetscCall(DMGetLocalToGlobalMapping(c->da, &ltog));
-  PetscCall(ISLocalToGlobalMappingGetBlockIndices(ltog, &gidx));
+  PetscCall(PetscMalloc1(c->Mx * c->My, &owner));
+  PetscCall(PartitionOwners(c->comm, c->partition, c->da, c->Mx, c->My, ActiveCallback, c, owner));
+  PetscCall(ClothBuildLayout(c, owner, &local));
+  PetscCall(ClothBuildDMDAScatter(c));
+
   PetscCall(PetscMalloc4(c->nowned, &c->owned_local, c->nowned, &c->mass, c->nowned, &c->pinned, c->nowned, &c->active));
-  PetscCall(PetscMalloc4(c->nlocal, &c->row_map, c->nlocal, &c->col_map, c->nlocal, &c->pinned_local, c->nlocal, &c->global));
-  for (PetscInt j = c->gys; j < c->gys + c->gym; j++) {
-    for (PetscInt i = c->gxs; i < c->gxs + c->gxm; i++) {
-      PetscInt  l        = (j - c->gys) * c->gxm + (i - c->gxs);
-      PetscBool owned    = (PetscBool) (i >= c->xs && i < c->xs + c->xm && j >= c->ys && j < c->ys + c->ym);
-      c->pinned_local[l] = (PetscBool) (IsPinned(c, i, j) || !ClothIsActive(c, i, j));
-      c->global[l]       = gidx[l];
-      c->col_map[l]      = c->pinned_local[l] ? -1 : gidx[l];
-      c->row_map[l]      = owned ? c->col_map[l] : -1;
-    }
-  }
-  PetscCall(ISLocalToGlobalMappingRestoreBlockIndices(ltog, &gidx));
-  k    = 0;
+  PetscCall(PetscMalloc3(c->nlocal, &c->row_map, c->nlocal, &c->col_map, c->nlocal, &c->pinned_local));
   mass = 0;
-  for (PetscInt j = c->ys; j < c->ys + c->ym; j++) {
-    for (PetscInt i = c->xs; i < c->xs + c->xm; i++, k++) {
-      PetscInt l        = (j - c->gys) * c->gxm + (i - c->gxs);
-      c->owned_local[k] = l;
-      c->mass[k]        = c->density * c->spacing[0] * c->spacing[1] * EdgeWeight(i, c->Mx) * EdgeWeight(j, c->My);
-      c->pinned[k]      = c->pinned_local[l];
-      c->active[k]      = ClothIsActive(c, i, j);
-      if (c->active[k]) mass += c->mass[k];
+  for (PetscInt l = 0; l < c->nlocal; l++) {
+    PetscInt i = c->natural[l] % c->Mx, j = c->natural[l] / c->Mx;
+    c->pinned_local[l] = (PetscBool) (IsPinned(c, i, j) || !ClothIsActive(c, i, j));
+    c->col_map[l]      = c->pinned_local[l] ? -1 : c->global[l];
+    c->row_map[l]      = l < c->nowned ? c->col_map[l] : -1;
+    if (l < c->nowned) {
+      c->owned_local[l] = l;
+      c->mass[l]        = c->density * c->spacing[0] * c->spacing[1] * EdgeWeight(i, c->Mx) * EdgeWeight(j, c->My);
+      c->pinned[l]      = c->pinned_local[l];
+      c->active[l]      = ClothIsActive(c, i, j);
+      if (c->active[l]) mass += c->mass[l];
     }
   }
-  PetscCall(ClothBuildElements(c));
+  PetscCall(ClothBuildElements(c, local, owner, rank));
+  /* partition quality: owned active particles and cut stretch edges */
   counts[0] = CountOwned(&c->stretch_el, 1);
   counts[1] = CountOwned(&c->shear_el, 4);
   counts[2] = CountOwned(&c->bend_el, 1);
   counts[3] = 0;
-  for (k = 0; k < c->nowned; k++) counts[3] += c->pinned[k] && c->active[k];
-  PetscCall(MPIU_Allreduce(counts, sums, 4, MPIU_INT, MPI_SUM, c->comm));
+  counts[4] = 0;
+  for (PetscInt k = 0; k < c->nowned; k++) counts[3] += c->pinned[k] && c->active[k];
+  for (PetscInt e = 0; e < c->stretch_el.n; e++)
+    if (c->stretch_el.own[e] && (c->stretch_el.p[2 * e] >= c->nowned || c->stretch_el.p[2 * e + 1] >= c->nowned)) counts[4]++;
+  PetscCall(MPIU_Allreduce(counts, sums, 5, MPIU_INT, MPI_SUM, c->comm));
   PetscCall(MPIU_Allreduce(&mass, &c->total_mass, 1, MPIU_REAL, MPI_SUM, c->comm));
   c->nstretch = sums[0];
   c->nshear   = sums[1];
   c->nbend    = sums[2];
   c->npinned  = sums[3];
-  c->setup    = PETSC_TRUE;
+  c->ncut     = sums[4];
+  {
+    PetscInt act = 0;
+    for (PetscInt k = 0; k < c->nowned; k++) act += c->active[k];
+    PetscCall(MPIU_Allreduce(&act, &lo, 1, MPIU_INT, MPI_MIN, c->comm));
+    PetscCall(MPIU_Allreduce(&act, &hi, 1, MPIU_INT, MPI_MAX, c->comm));
+    PetscCall(MPIU_Allreduce(&act, &sums[0], 1, MPIU_INT, MPI_SUM, c->comm));
+    c->active_total = sums[0];
+    c->owned_min    = lo;
+    c->owned_max    = hi;
+  }
+  PetscCall(PetscFree(owner));
+  PetscCall(PetscFree(local));
+  c->setup = PETSC_TRUE;
   PetscFunctionReturn(0);
 }
 
@@ -323,7 +437,8 @@ PetscErrorCode ClothDestroy(Cloth *cloth)
     PetscCall(ElementsDestroy(&c->shear_el));
     PetscCall(ElementsDestroy(&c->bend_el));
     PetscCall(PetscFree4(c->owned_local, c->mass, c->pinned, c->active));
-    PetscCall(PetscFree4(c->row_map, c->col_map, c->pinned_local, c->global));
+    PetscCall(PetscFree3(c->row_map, c->col_map, c->pinned_local));
+    PetscCall(PetscFree2(c->natural, c->global));
     PetscCall(PetscFree4(c->ctype, c->ctype_owned, c->cnormal, c->cnormal_owned));
     PetscCall(PetscFree(c->map));
     PetscCall(PetscFree(c->map_diag));
@@ -331,6 +446,9 @@ PetscErrorCode ClothDestroy(Cloth *cloth)
   PetscCall(VecDestroy(&c->Xg));
   PetscCall(VecDestroy(&c->Xl));
   PetscCall(VecDestroy(&c->Yl));
+  PetscCall(VecDestroy(&c->Zl));
+  PetscCall(VecScatterDestroy(&c->ghost));
+  PetscCall(VecScatterDestroy(&c->to_dmda));
   PetscCall(DMDestroy(&c->da));
   PetscCall(PetscFree(*cloth));
   PetscFunctionReturn(0);
@@ -377,17 +495,63 @@ PetscErrorCode ClothGetMasses(Cloth c, const PetscReal **mass, const PetscBool *
 
 PetscErrorCode ClothSetInitialState(Cloth c, PetscScalar *x, PetscScalar *v)
 {
-  PetscInt k = 0;
-
   PetscFunctionBeginUser;
-  for (PetscInt j = c->ys; j < c->ys + c->ym; j++) {
-    for (PetscInt i = c->xs; i < c->xs + c->xm; i++, k++) {
-      PetscReal a = i * c->spacing[0] - 0.5 * c->size[0], b = j * c->spacing[1] - 0.5 * c->size[1];
-      x[3 * k]     = c->origin[0] + a;
-      x[3 * k + 1] = c->origin[1] + (c->orientation == CLOTH_HORIZONTAL ? b : 0);
-      x[3 * k + 2] = c->origin[2] + (c->orientation == CLOTH_HORIZONTAL ? 0 : b);
-      for (PetscInt d = 0; d < 3; d++) v[3 * k + d] = 0;
-    }
+  for (PetscInt k = 0; k < c->nowned; k++) {
+    PetscInt  i = c->natural[k] % c->Mx, j = c->natural[k] / c->Mx;
+    PetscReal a = i * c->spacing[0] - 0.5 * c->size[0], b = j * c->spacing[1] - 0.5 * c->size[1];
+    x[3 * k]     = c->origin[0] + a;
+    x[3 * k + 1] = c->origin[1] + (c->orientation == CLOTH_HORIZONTAL ? b : 0);
+    x[3 * k + 2] = c->origin[2] + (c->orientation == CLOTH_HORIZONTAL ? 0 : b);
+    for (PetscInt d = 0; d < 3; d++) v[3 * k + d] = 0;
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ClothGetNatural(Cloth c, const PetscInt **natural)
+{
+  PetscFunctionBeginUser;
+  *natural = c->natural;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ClothCreateVector(Cloth c, Vec *X)
+{
+  PetscFunctionBeginUser;
+  PetscCall(VecCreateMPI(c->comm, 3 * c->nowned, PETSC_DETERMINE, X));
+  PetscCall(VecSetBlockSize(*X, 3));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ClothToDMDA(Cloth c, const PetscScalar *x, Vec Xda)
+{
+  PetscFunctionBeginUser;
+  if (!c->to_dmda) {
+    PetscScalar *a;
+    PetscCall(VecGetArray(Xda, &a));
+    PetscCall(PetscArraycpy(a, x, 3 * c->nowned));
+    PetscCall(VecRestoreArray(Xda, &a));
+  } else {
+    PetscCall(VecPlaceArray(c->Xg, x));
+    PetscCall(VecScatterBegin(c->to_dmda, c->Xg, Xda, INSERT_VALUES, SCATTER_FORWARD));
+    PetscCall(VecScatterEnd(c->to_dmda, c->Xg, Xda, INSERT_VALUES, SCATTER_FORWARD));
+    PetscCall(VecResetArray(c->Xg));
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ClothFromDMDA(Cloth c, Vec Xda, PetscScalar *x)
+{
+  PetscFunctionBeginUser;
+  if (!c->to_dmda) {
+    const PetscScalar *a;
+    PetscCall(VecGetArrayRead(Xda, &a));
+    PetscCall(PetscArraycpy(x, a, 3 * c->nowned));
+    PetscCall(VecRestoreArrayRead(Xda, &a));
+  } else {
+    PetscCall(VecPlaceArray(c->Xg, x));
+    PetscCall(VecScatterBegin(c->to_dmda, Xda, c->Xg, INSERT_VALUES, SCATTER_REVERSE));
+    PetscCall(VecScatterEnd(c->to_dmda, Xda, c->Xg, INSERT_VALUES, SCATTER_REVERSE));
+    PetscCall(VecResetArray(c->Xg));
   }
   PetscFunctionReturn(0);
 }
@@ -398,6 +562,13 @@ PetscErrorCode ClothView(Cloth c, PetscViewer viewer)
   PetscCall(PetscViewerASCIIPrintf(viewer, "Cloth: %" PetscInt_FMT " x %" PetscInt_FMT " particles (%g x %g m, spacing %g x %g m), %" PetscInt_FMT " pinned, mass %g kg\n", c->Mx, c->My, (double) c->size[0], (double) c->size[1],
                                    (double) c->spacing[0], (double) c->spacing[1], c->npinned, (double) c->total_mass));
   PetscCall(PetscViewerASCIIPrintf(viewer, "  interactions: %" PetscInt_FMT " stretch edges, %" PetscInt_FMT " shear cells, %" PetscInt_FMT " bending triples\n", c->nstretch, c->nshear, c->nbend));
+  {
+    PetscMPIInt size;
+    PetscCallMPI(MPI_Comm_size(c->comm, &size));
+    if (size > 1)
+      PetscCall(PetscViewerASCIIPrintf(viewer, "  partition: %s on %d ranks, %" PetscInt_FMT " to %" PetscInt_FMT " active particles per rank (imbalance %.3f), %" PetscInt_FMT " of %" PetscInt_FMT " stretch edges cut\n", PartitionTypes[c->partition],
+                                       size, c->owned_min, c->owned_max, (double) (c->owned_max * size / PetscMax(c->active_total, 1)), c->ncut, c->nstretch));
+  }
   PetscCall(PetscViewerASCIIPrintf(viewer, "  material: stretch %g,%g N/m, shear %g N/m, bend %g,%g N m, density %g kg/m^2, damping %g 1/s\n", (double) c->stretch[0], (double) c->stretch[1], (double) c->shear, (double) c->bend[0],
                                    (double) c->bend[1], (double) c->density, (double) c->damping));
   PetscCall(PetscViewerASCIIPrintf(viewer, "  gravity (%g, %g, %g) m/s^2, Hessian %s\n", (double) c->gravity[0], (double) c->gravity[1], (double) c->gravity[2], c->exact_hessian ? "exact" : "SPD-projected"));

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cloth.h>
+#include <partition.h>
 
 /* Elements as local particle indices (owned + ghost), each with its coefficient.
  * `own` marks elements whose energy this rank counts (exactly one rank each);
@@ -40,15 +41,21 @@ struct _p_Cloth {
   ClothOrientation orientation;
   ClothPinType     pin;
   ClothShape       shape;
+  PartitionType    partition;
   PetscInt        *pin_list, npin_list; /* (i, j) pairs */
   PetscBool        exact_hessian;       /* keep indefinite Hessians (tests only)  */
   PetscBool        setup;
   /* lattice */
   DM            da;
-  Vec           Xg, Xl, Yl; /* global (array placed), local ghosted work vectors */
+  Vec           Xg, Xl, Yl, Zl;             /* global (array placed), local (owned + ghost) work vectors */
+  VecScatter    ghost;                      /* global -> local                                    */
+  VecScatter    to_dmda;                    /* Cloth order -> DMDA order (NULL: the same)         */
+  PetscInt     *natural;                    /* local -> natural lattice index j Mx + i            */
+  PetscInt      rstart;                     /* global block number of the first owned particle    */
+  PetscInt      ncut, owned_min, owned_max; /* partition quality                      */
+  PetscReal     active_total;
   PetscInt      Mx, My;
   PetscReal     spacing[2];
-  PetscInt      xs, ys, xm, ym, gxs, gys, gxm, gym;
   PetscInt      nowned, nlocal;
   PetscInt     *owned_local;       /* local index of each owned particle       */
   PetscInt     *row_map, *col_map; /* local -> global block index, or -1       */

@@ -10,8 +10,8 @@ PetscErrorCode ClothScatterPositions(Cloth c, const PetscScalar *x, const PetscS
 {
   PetscFunctionBeginUser;
   PetscCall(VecPlaceArray(c->Xg, x));
-  PetscCall(DMGlobalToLocalBegin(c->da, c->Xg, INSERT_VALUES, c->Xl));
-  PetscCall(DMGlobalToLocalEnd(c->da, c->Xg, INSERT_VALUES, c->Xl));
+  PetscCall(VecScatterBegin(c->ghost, c->Xg, c->Xl, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterEnd(c->ghost, c->Xg, c->Xl, INSERT_VALUES, SCATTER_FORWARD));
   PetscCall(VecResetArray(c->Xg));
   PetscCall(VecGetArrayRead(c->Xl, xl));
   PetscFunctionReturn(0);
@@ -242,9 +242,10 @@ PetscErrorCode ClothApplyHessian(Cloth c, const PetscScalar *x, const PetscScala
   PetscReal            H[81];
 
   PetscFunctionBeginUser;
-  PetscCall(DMGetLocalVector(c->da, &Zl));
+  Zl = c->Zl;
   PetscCall(VecPlaceArray(c->Xg, z));
-  PetscCall(DMGlobalToLocal(c->da, c->Xg, INSERT_VALUES, Zl));
+  PetscCall(VecScatterBegin(c->ghost, c->Xg, Zl, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterEnd(c->ghost, c->Xg, Zl, INSERT_VALUES, SCATTER_FORWARD));
   PetscCall(VecResetArray(c->Xg));
   PetscCall(ClothScatterPositions(c, x, &xl));
   PetscCall(VecGetArray(Zl, &zl));
@@ -270,7 +271,6 @@ PetscErrorCode ClothApplyHessian(Cloth c, const PetscScalar *x, const PetscScala
   PetscCall(VecRestoreArray(c->Yl, &yl));
   PetscCall(VecRestoreArray(Zl, &zl));
   PetscCall(ClothEndScatter(c, &xl));
-  PetscCall(DMRestoreLocalVector(c->da, &Zl));
   PetscFunctionReturn(0);
 }
 

@@ -139,7 +139,6 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
 {
   TS_DrapeBE *be = (TS_DrapeBE *) ts->data;
   SNES        snes;
-  DM          da;
   ClothInfo   info;
 
   PetscFunctionBeginUser;
@@ -150,16 +149,14 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
     PetscCall(PetscContainerGetPointer(container, (void **) &be->cloth));
   }
   PetscCall(ClothGetInfo(be->cloth, &info));
-  PetscCall(ClothGetDM(be->cloth, &da));
   PetscCall(ClothGetMasses(be->cloth, &be->mass, &be->pinned));
   be->damping = info.damping;
   be->n       = 3 * info.nowned;
-  PetscCall(DMCreateGlobalVector(da, &be->DV));
+  PetscCall(ClothCreateVector(be->cloth, &be->DV));
   PetscCall(VecDuplicate(be->DV, &be->R));
   PetscCall(ClothCreateMatrix(be->cloth, &be->J));
   PetscCall(PetscMalloc4(be->n, &be->xt, be->n, &be->vt, be->n, &be->at, be->n, &be->z));
   PetscCall(TSGetSNES(ts, &snes));
-  PetscCall(SNESSetDM(snes, da));
   PetscCall(SNESSetFunction(snes, be->R, BEFunction, be));
   PetscCall(SNESSetJacobian(snes, be->J, be->J, BEJacobian, be));
   PetscFunctionReturn(0);

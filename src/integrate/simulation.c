@@ -41,7 +41,7 @@ struct _p_Simulation {
   PetscReal       cusick_radius, cusick_center[2]; /* Cusick analysis      */
   PetscScalar    *x0;                              /* flat initial state   */
   PetscBool       progress, summary, help;
-  char            restart[PETSC_MAX_PATH_LEN];     /* -restart file         */
+  char            restart[PETSC_MAX_PATH_LEN]; /* -restart file         */
   PetscBool       have_restart;
   PetscReal       restart_time;
   PetscInt        restart_step;
@@ -144,7 +144,7 @@ static PetscErrorCode PostStep(TS ts)
     }
   }
   {
-    PetscMPIInt sig = (PetscMPIInt)caught_signal, any;
+    PetscMPIInt sig = (PetscMPIInt) caught_signal, any;
     PetscCallMPI(MPI_Allreduce(&sig, &any, 1, MPI_INT, MPI_MAX, s->comm));
     if (any) {
       s->interrupted = any;
@@ -210,7 +210,8 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
   PetscFunctionBeginUser;
   PetscCall(PetscOptionsHasHelp(NULL, &s->help));
   PetscOptionsBegin(s->comm, NULL, "Restart", "Simulation");
-  PetscCall(PetscOptionsString("-restart", "Continue the run stored in this drape HDF5 file from its last complete frame (its options apply; the command line overrides them)", "RestartLoad", s->restart, s->restart, sizeof s->restart, &s->have_restart));
+  PetscCall(
+    PetscOptionsString("-restart", "Continue the run stored in this drape HDF5 file from its last complete frame (its options apply; the command line overrides them)", "RestartLoad", s->restart, s->restart, sizeof s->restart, &s->have_restart));
   PetscOptionsEnd();
   if (s->have_restart) PetscCall(RestartInsertOptions(s->comm, s->restart));
   PetscOptionsBegin(s->comm, NULL, "drape run control", "Simulation");
@@ -331,7 +332,7 @@ PetscErrorCode SimulationSetUp(Simulation s)
 PetscErrorCode SimulationInterrupted(Simulation s, PetscBool *interrupted)
 {
   PetscFunctionBeginUser;
-  *interrupted = (PetscBool)(s->interrupted != 0);
+  *interrupted = (PetscBool) (s->interrupted != 0);
   PetscFunctionReturn(0);
 }
 
@@ -396,7 +397,7 @@ static PetscErrorCode CheckDivergence(Simulation s, TS ts, PetscInt step, PetscR
   if (!s->baseline) {
     ClothEnergies en;
     s->baseline = PETSC_TRUE;
-    PetscReal     g = PetscSqrtReal(PetscSqr(info.gravity[0]) + PetscSqr(info.gravity[1]) + PetscSqr(info.gravity[2]));
+    PetscReal g = PetscSqrtReal(PetscSqr(info.gravity[0]) + PetscSqr(info.gravity[1]) + PetscSqr(info.gravity[2]));
     PetscCall(ClothComputeEnergies(s->cloth, u, u + s->n, &en));
     s->energy0      = e + en.stretch + en.shear + en.bend;
     s->energy_scale = info.mass * g * PetscMax(info.size[0], info.size[1]) + PetscAbsReal(s->energy0 - en.gravity) + PETSC_SMALL;
@@ -540,8 +541,10 @@ PetscErrorCode SimulationRun(Simulation s)
   if (s->interrupted) {
     char file[PETSC_MAX_PATH_LEN] = "";
     PetscCall(PetscOptionsGetString(NULL, NULL, "-output_file", file, sizeof file, NULL));
-    if (enabled) PetscCall(PetscPrintf(s->comm, "Stopped by %s after step %" PetscInt_FMT " at t = %g s; the state is the last frame of %s: continue with -restart %s\n", s->interrupted == SIGTERM ? "SIGTERM" : "SIGINT", steps, (double)t, file, file));
-    else PetscCall(PetscPrintf(s->comm, "Stopped by %s after step %" PetscInt_FMT " at t = %g s; without -output_file there is nothing to restart from\n", s->interrupted == SIGTERM ? "SIGTERM" : "SIGINT", steps, (double)t));
+    if (enabled)
+      PetscCall(PetscPrintf(s->comm, "Stopped by %s after step %" PetscInt_FMT " at t = %g s; the state is the last frame of %s: continue with -restart %s\n", s->interrupted == SIGTERM ? "SIGTERM" : "SIGINT", steps, (double) t, file, file));
+    else
+      PetscCall(PetscPrintf(s->comm, "Stopped by %s after step %" PetscInt_FMT " at t = %g s; without -output_file there is nothing to restart from\n", s->interrupted == SIGTERM ? "SIGTERM" : "SIGINT", steps, (double) t));
   }
   if (s->cusick_radius > 0) {
     PetscReal dc;
@@ -557,7 +560,7 @@ PetscErrorCode SimulationRun(Simulation s)
     PetscReal wall = (PetscReal) (t1 - s->wall0);
     PetscCall(TSGetKSPIterations(s->ts, &its));
     PetscInt run = steps - s->restart_step; /* steps taken by this run */
-    PetscCall(PetscPrintf(s->comm, "Summary: %" PetscInt_FMT " steps to t = %g s in %.3f s wall, %.4e particle-steps/s", run, (double)t, (double)wall, wall > 0 ? (double)(run * info.nparticles / wall) : 0.0));
+    PetscCall(PetscPrintf(s->comm, "Summary: %" PetscInt_FMT " steps to t = %g s in %.3f s wall, %.4e particle-steps/s", run, (double) t, (double) wall, wall > 0 ? (double) (run * info.nparticles / wall) : 0.0));
     if (its > 0) PetscCall(PetscPrintf(s->comm, ", %.2f CG iterations per step", (double) its / PetscMax(run, 1)));
     PetscCall(PetscPrintf(s->comm, "\n"));
   }

@@ -237,7 +237,6 @@ static PetscErrorCode OutputWriteXDMF(Output o)
 PetscErrorCode OutputWriteFrame(Output o, Cloth cloth, PetscInt step, PetscReal t, const PetscScalar *x, const PetscScalar *v, const ClothEnergies *en)
 {
   PetscScalar *a;
-  PetscInt     n;
   PetscReal    values[NSCALARS];
   hid_t        fid;
 
@@ -252,13 +251,8 @@ PetscErrorCode OutputWriteFrame(Output o, Cloth cloth, PetscInt step, PetscReal 
   values[6] = en->contact_depth;
   values[7] = (PetscReal) en->contact_count;
   values[8] = t;
-  PetscCall(VecGetLocalSize(o->X, &n));
-  PetscCall(VecGetArray(o->X, &a));
-  PetscCall(PetscArraycpy(a, x, n));
-  PetscCall(VecRestoreArray(o->X, &a));
-  PetscCall(VecGetArray(o->V, &a));
-  PetscCall(PetscArraycpy(a, v, n));
-  PetscCall(VecRestoreArray(o->V, &a));
+  PetscCall(ClothToDMDA(cloth, x, o->X));
+  PetscCall(ClothToDMDA(cloth, v, o->V));
   PetscCall(PetscViewerHDF5SetTimestep(o->viewer, o->nframes));
   PetscCall(VecView(o->X, o->viewer));
   PetscCall(VecView(o->V, o->viewer));

@@ -56,7 +56,7 @@ static PetscErrorCode RestartInspect(const char file[], PetscInt *nframes, char 
     }
     sid = H5Dget_space(did);
     if (H5Sget_simple_extent_dims(sid, dims, NULL) < 1) dims[0] = 0;
-    *nframes = PetscMin(*nframes, (PetscInt)dims[0]);
+    *nframes = PetscMin(*nframes, (PetscInt) dims[0]);
     H5Sclose(sid);
     H5Dclose(did);
   }
@@ -79,7 +79,7 @@ PetscErrorCode RestartInsertOptions(MPI_Comm comm, const char file[])
   PetscMPIInt rank;
   PetscInt    nframes = 0, len = 0;
   char       *options = NULL, reason[256] = "";
-  const char *why     = NULL;
+  const char *why = NULL;
   int         argc;
   char      **argv;
 
@@ -88,13 +88,13 @@ PetscErrorCode RestartInsertOptions(MPI_Comm comm, const char file[])
   if (!rank) {
     PetscCall(RestartInspect(file, &nframes, &options, &why));
     if (why) PetscCall(PetscStrncpy(reason, why, sizeof reason));
-    if (options) PetscCall(PetscStrlen(options, (size_t *)&len));
+    if (options) PetscCall(PetscStrlen(options, (size_t *) &len));
   }
   PetscCallMPI(MPI_Bcast(reason, sizeof reason, MPI_CHAR, 0, comm));
   PetscCheck(!reason[0], comm, PETSC_ERR_FILE_UNEXPECTED, "Cannot restart from %s: %s", file, reason);
   PetscCallMPI(MPI_Bcast(&len, 1, MPIU_INT, 0, comm));
   if (rank) PetscCall(PetscCalloc1(len + 1, &options));
-  PetscCallMPI(MPI_Bcast(options, (PetscMPIInt)len + 1, MPI_CHAR, 0, comm));
+  PetscCallMPI(MPI_Bcast(options, (PetscMPIInt) len + 1, MPI_CHAR, 0, comm));
   /* the stored run's options, then the command line again: it wins */
   PetscCall(PetscOptionsInsertString(NULL, options));
   PetscCall(PetscGetArgs(&argc, &argv));
@@ -106,7 +106,7 @@ PetscErrorCode RestartInsertOptions(MPI_Comm comm, const char file[])
 PetscErrorCode RestartLoad(MPI_Comm comm, const char file[], Cloth cloth, PetscScalar *x, PetscScalar *v, PetscReal *t, PetscInt *step, PetscInt *nframes, PetscReal **times)
 {
   PetscMPIInt rank;
-  PetscInt    n = 0, nl, dims[2] = {0, 0};
+  PetscInt    n = 0, dims[2] = {0, 0};
   char       *options = NULL;
   const char *why;
   PetscViewer viewer;
@@ -129,8 +129,8 @@ PetscErrorCode RestartLoad(MPI_Comm comm, const char file[], Cloth cloth, PetscS
     {
       hsize_t d[4];
       H5Sget_simple_extent_dims(sid, d, NULL);
-      dims[0] = (PetscInt)d[2];
-      dims[1] = (PetscInt)d[1];
+      dims[0] = (PetscInt) d[2];
+      dims[1] = (PetscInt) d[1];
     }
     H5Sclose(sid);
     H5Dclose(did);
@@ -140,7 +140,7 @@ PetscErrorCode RestartLoad(MPI_Comm comm, const char file[], Cloth cloth, PetscS
       PetscCall(PetscMalloc1(PetscMax(n, 1), &buf));
       did = H5Dopen2(fid, "time", H5P_DEFAULT);
       {
-        hsize_t start[2] = {0, 0}, count[2] = {(hsize_t)n, 1};
+        hsize_t start[2] = {0, 0}, count[2] = {(hsize_t) n, 1};
         hid_t   fs = H5Dget_space(did), ms = H5Screate_simple(2, count, NULL);
         H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, NULL, count, NULL);
         H5Dread(did, H5T_NATIVE_DOUBLE, ms, fs, H5P_DEFAULT, *times);
@@ -150,7 +150,7 @@ PetscErrorCode RestartLoad(MPI_Comm comm, const char file[], Cloth cloth, PetscS
       H5Dclose(did);
       did = H5Dopen2(fid, "step", H5P_DEFAULT);
       {
-        hsize_t start[2] = {(hsize_t)(n - 1), 0}, count[2] = {1, 1};
+        hsize_t start[2] = {(hsize_t) (n - 1), 0}, count[2] = {1, 1};
         hid_t   fs = H5Dget_space(did), ms = H5Screate_simple(2, count, NULL);
         H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, NULL, count, NULL);
         H5Dread(did, H5T_NATIVE_DOUBLE, ms, fs, H5P_DEFAULT, buf);
@@ -166,26 +166,23 @@ PetscErrorCode RestartLoad(MPI_Comm comm, const char file[], Cloth cloth, PetscS
   PetscCallMPI(MPI_Bcast(&n, 1, MPIU_INT, 0, comm));
   PetscCallMPI(MPI_Bcast(dims, 2, MPIU_INT, 0, comm));
   PetscCallMPI(MPI_Bcast(&stepv, 1, MPIU_REAL, 0, comm));
-  PetscCheck(dims[0] == info.Mx && dims[1] == info.My, comm, PETSC_ERR_USER_INPUT, "Cannot restart from %s: its lattice is %" PetscInt_FMT " x %" PetscInt_FMT ", this run's is %" PetscInt_FMT " x %" PetscInt_FMT, file, dims[0], dims[1], info.Mx, info.My);
+  PetscCheck(dims[0] == info.Mx && dims[1] == info.My, comm, PETSC_ERR_USER_INPUT, "Cannot restart from %s: its lattice is %" PetscInt_FMT " x %" PetscInt_FMT ", this run's is %" PetscInt_FMT " x %" PetscInt_FMT, file, dims[0], dims[1], info.Mx,
+             info.My);
   if (rank) PetscCall(PetscMalloc1(n, times));
-  PetscCallMPI(MPI_Bcast(*times, (PetscMPIInt)n, MPIU_REAL, 0, comm));
+  PetscCallMPI(MPI_Bcast(*times, (PetscMPIInt) n, MPIU_REAL, 0, comm));
   *nframes = n;
   *t       = (*times)[n - 1];
-  *step    = (PetscInt)stepv;
+  *step    = (PetscInt) stepv;
 
   PetscCall(ClothGetDM(cloth, &da));
   PetscCall(DMCreateGlobalVector(da, &X));
-  PetscCall(VecGetLocalSize(X, &nl));
   PetscCall(PetscViewerHDF5Open(comm, file, FILE_MODE_READ, &viewer));
   PetscCall(PetscViewerHDF5PushTimestepping(viewer));
   PetscCall(PetscViewerHDF5SetTimestep(viewer, n - 1));
   for (PetscInt f = 0; f < 2; f++) {
-    const PetscScalar *a;
-    PetscCall(PetscObjectSetName((PetscObject)X, f ? "velocity" : "position"));
+    PetscCall(PetscObjectSetName((PetscObject) X, f ? "velocity" : "position"));
     PetscCall(VecLoad(X, viewer));
-    PetscCall(VecGetArrayRead(X, &a));
-    PetscCall(PetscArraycpy(f ? v : x, a, nl));
-    PetscCall(VecRestoreArrayRead(X, &a));
+    PetscCall(ClothFromDMDA(cloth, X, f ? v : x));
   }
   PetscCall(PetscViewerHDF5PopTimestepping(viewer));
   PetscCall(PetscViewerDestroy(&viewer));

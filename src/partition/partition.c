@@ -1,0 +1,65 @@
+/* Particle ownership: DMDA blocks or METIS k-way. */
+#include <partition.h>
+#include <petscdmda.h>
+#include <metis.h>
+
+const char *const PartitionTypes[] = {"dmda", "metis", "PartitionType", "PARTITION_", NULL};
+
+/* The 12 interaction neighbours of the paper (Fig. 2): stretch, shear, bending. */
+static const PetscInt stencil[12][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}, {1, 1}, {-1, 1}, {1, -1}, {-1, -1}, {2, 0}, {-2, 0}, {0, 2}, {0, -2}};
+
+static PetscErrorCode PartitionMetis(MPI_Comm comm, PetscInt Mx, PetscInt My, PetscBool (*active)(void *, PetscInt, PetscInt), void *ctx, PetscInt *owner)
+{
+  PetscMPIInt size, rank;
+  PetscInt    N = Mx * My;
+
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  if (!rank) {
+    idx_t *vertex, *xadj, *adjncy, *part, nv = 0, ne = 0, ncon = 1, nparts = size, objval, options[METIS_NOPTIONS];
+    PetscCall(PetscMalloc4(N, &vertex, N + 1, &xadj, 12 * N + 1, &adjncy, N + 1, &part));
+    for (PetscInt n = 0; n < N; n++) vertex[n] = active(ctx, n % Mx, n / Mx) ? nv++ : -1;
+    xadj[0] = 0;
+    for (PetscInt n = 0; n < N; n++) {
+      if (vertex[n] < 0) continue;
+      for (PetscInt s = 0; s < 12; s++) {
+        PetscInt i = n % Mx + stencil[s][0], j = n / Mx + stencil[s][1];
+        if (i >= 0 && i < Mx && j >= 0 && j < My && vertex[j * Mx + i] >= 0) adjncy[ne++] = vertex[j * Mx + i];
+      }
+      xadj[vertex[n] + 1] = ne;
+    }
+    if (size > 1 && nv > 0) {
+      int status;
+      METIS_SetDefaultOptions(options);
+      options[METIS_OPTION_SEED]      = 2026;
+      options[METIS_OPTION_NUMBERING] = 0;
+      status                          = METIS_PartGraphKway(&nv, &ncon, xadj, adjncy, NULL, NULL, NULL, &nparts, NULL, NULL, options, &objval, part);
+      PetscCheck(status == METIS_OK, PETSC_COMM_SELF, PETSC_ERR_LIB, "METIS_PartGraphKway failed with status %d", status);
+    } else
+      for (idx_t v = 0; v < nv; v++) part[v] = 0;
+    /* inactive particles (outside the cloth's outline) do no work: blocks */
+    for (PetscInt n = 0; n < N; n++) owner[n] = vertex[n] >= 0 ? (PetscInt) part[vertex[n]] : (PetscInt) ((n * (PetscInt64) size) / N);
+    PetscCall(PetscFree4(vertex, xadj, adjncy, part));
+  }
+  PetscCallMPI(MPI_Bcast(owner, (PetscMPIInt) N, MPIU_INT, 0, comm));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode PartitionOwners(MPI_Comm comm, PartitionType type, DM da, PetscInt Mx, PetscInt My, PetscBool (*active)(void *, PetscInt, PetscInt), void *ctx, PetscInt *owner)
+{
+  PetscFunctionBeginUser;
+  if (type == PARTITION_METIS) {
+    PetscCall(PartitionMetis(comm, Mx, My, active, ctx, owner));
+  } else {
+    const PetscInt *lx, *ly;
+    PetscInt        m, n;
+    PetscCall(DMDAGetInfo(da, NULL, NULL, NULL, NULL, &m, &n, NULL, NULL, NULL, NULL, NULL, NULL, NULL));
+    PetscCall(DMDAGetOwnershipRanges(da, &lx, &ly, NULL));
+    for (PetscInt pj = 0, j0 = 0; pj < n; j0 += ly[pj++])
+      for (PetscInt pi = 0, i0 = 0; pi < m; i0 += lx[pi++])
+        for (PetscInt j = j0; j < j0 + ly[pj]; j++)
+          for (PetscInt i = i0; i < i0 + lx[pi]; i++) owner[j * Mx + i] = pj * m + pi;
+  }
+  PetscFunctionReturn(0);
+}

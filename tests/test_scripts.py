@@ -1,0 +1,256 @@
+"""Post-processing scripts: drape_h5.load, render.py, animate.py, export_obj.py on
+small real runs (a square cloth over a sphere, a circle Cusick specimen), and their
+one-line errors on bad input."""
+import os
+import shutil
+import subprocess
+import sys
+import warnings
+
+import h5py
+import numpy as np
+import pytest
+
+from conftest import DRAPE, ROOT
+
+SCRIPTS = ROOT / "scripts"
+sys.path.insert(0, str(SCRIPTS))
+with warnings.catch_warnings():  # matplotlib's import trips newer pyparsing's deprecations
+    warnings.simplefilter("ignore", DeprecationWarning)
+    import matplotlib.image
+    from PIL import Image
+
+    import animate
+    import drape_h5
+    import export_obj
+    import render
+
+SPHERE = "-options_file runs/sphere.opts -da_grid_x 11 -da_grid_y 11 -ts_max_time 0.1"
+CIRCLE = ("-options_file runs/cusick.opts -cloth_shape circle -cloth_size 0.3 -da_grid_x 21 -da_grid_y 17 "
+          "-ts_max_time 0.06")
+
+
+def drape(args, out):
+    cmd = [str(DRAPE), *args.split(), "-drape_progress", "0", "-output_file", str(out)]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert proc.returncode == 0, f"{' '.join(cmd)} failed:\n{proc.stdout}\n{proc.stderr}"
+    return out
+
+
+def script(name, *args, env=None):
+    """Run scripts/<name> as a program."""
+    return subprocess.run([sys.executable, str(SCRIPTS / name), *map(str, args)], capture_output=True, text=True,
+                          timeout=120, cwd=ROOT, env=env)
+
+
+@pytest.fixture(scope="module")
+def sphere(tmp_path_factory):
+    return drape(SPHERE, tmp_path_factory.mktemp("sphere") / "s.h5")
+
+
+@pytest.fixture(scope="module")
+def circle(tmp_path_factory):
+    return drape(CIRCLE, tmp_path_factory.mktemp("circle") / "c.h5")
+
+
+def inside_circle(mx, my):
+    """Count of lattice points inside the inscribed circle, straight from the formula."""
+    count = 0
+    for j in range(my):
+        for i in range(mx):
+            a = (i - (mx - 1) / 2) / ((mx - 1) / 2)
+            b = (j - (my - 1) / 2) / ((my - 1) / 2)
+            count += a * a + b * b <= 1 + 1e-12
+    return count
+
+
+def obj_counts(path):
+    """(vertices [n, 3], faces [m, k] 1-based vertex numbers) of an OBJ file."""
+    v, f = [], []
+    for line in open(path):
+        parts = line.split()
+        if parts and parts[0] == "v":
+            v.append([float(x) for x in parts[1:4]])
+        elif parts and parts[0] == "f":
+            f.append([int(x.split("/")[0]) for x in parts[1:]])
+    return np.array(v), np.array(f)
+
+
+# ---------------------------------------------------------------------------- reader
+
+
+def test_load_square_run(sphere):
+    run = drape_h5.load(sphere)
+    with h5py.File(sphere, "r") as f:
+        n = f["time"].shape[0]
+        assert run.nframes == n > 2
+        assert np.array_equal(run.positions, f["position"][:n])
+        assert np.array_equal(run.solid_triangles.ravel(), f["solid_triangles"][:])
+    assert run.active.shape == (11, 11) and run.active.all()
+    assert run.active_cells.sum() == 100
+    assert run.floor == 0.0
+    assert run.option("solid_type") == "sphere"
+    assert run.option("cloth_center") == "0,0,0.6"
+    assert set(run.contact) == {"depth", "count"}
+
+
+def test_circle_active_mask(circle):
+    """The mask of a circle specimen is the inscribed disc; the particles outside never move."""
+    run = drape_h5.load(circle)
+    my, mx = run.shape
+    assert (mx, my) == (21, 17)
+    assert run.active.sum() == inside_circle(mx, my)
+    still = np.all(run.positions == run.positions[0], axis=(0, 3))
+    assert still[~run.active].all()
+    assert not still[run.active].all()  # the specimen itself moves
+    assert run.option("cloth_shape") == "circle"
+
+
+def test_parse_options():
+    opts = drape_h5.parse_options("-solid_floor -0.45 -cloth_shape circle -gravity 0,0,-9.81 -flag -x 1")
+    assert opts == {"solid_floor": "-0.45", "cloth_shape": "circle", "gravity": "0,0,-9.81", "flag": "", "x": "1"}
+
+
+# ---------------------------------------------------------------------------- render.py
+
+
+def test_render_png(sphere, tmp_path):
+    out = tmp_path / "pic" / "s.png"
+    res = script("render.py", sphere, "-o", out, "--frame", "-1", "--elev", "30", "--azim", "-50")
+    assert res.returncode == 0, res.stderr
+    assert "render: wrote" in res.stdout
+    assert out.stat().st_size > 10_000
+    img = matplotlib.image.imread(out)
+    assert img.ndim == 3 and min(img.shape[:2]) > 200
+    assert img[..., :3].var() > 1e-3, "blank picture"
+    rgb = img[..., :3].reshape(-1, 3)
+    assert (rgb.max(axis=1) - rgb.min(axis=1) > 0.3).mean() > 0.01, "no coloured cloth in the picture"
+
+
+def test_render_circle_and_first_frame(circle, tmp_path):
+    run = drape_h5.load(circle)
+    out = tmp_path / "c.png"
+    render.render(run, 0, str(out), dpi=60)
+    img = matplotlib.image.imread(out)
+    assert img[..., :3].var() > 1e-3
+
+
+def test_cloth_facets_follow_the_mask(circle):
+    run = drape_h5.load(circle)
+    quads, tris, qn, tn = render.cloth_facets(run.positions[-1], run.active)
+    assert len(quads) == run.active_cells.sum() and len(qn) == len(quads)
+    assert len(tris) > 0 and np.isfinite(tn).all()  # the disc's edge, one triangle per 3-corner cell
+
+
+def test_clip_box_keeps_area_inside():
+    tri = np.array([[[0, 0, 0], [2, 0, 0], [0, 2, 0]]], float)
+    for lo, hi, area in (([-1, -1, -1], [3, 3, 1], 2.0), ([-1, -1, -1], [1, 3, 1], 1.5), ([-1, -1, -1], [3, 1, 1], 1.5)):
+        t = render.clip_box(tri, np.array(lo, float), np.array(hi, float))
+        a = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum()
+        assert a == pytest.approx(area)
+
+
+# ---------------------------------------------------------------------------- animate.py
+
+
+def test_animate_gif(sphere, tmp_path):
+    out = tmp_path / "s.gif"
+    n = drape_h5.load(sphere).nframes
+    res = script("animate.py", sphere, "-o", out, "--every", "2", "--fps", "10", "--dpi", "40")
+    assert res.returncode == 0, res.stderr
+    expected = animate.frames_shown(n, 2)
+    assert expected == list(range(0, n, 2)) + ([n - 1] if (n - 1) % 2 else [])
+    assert animate.frames_shown(10, 3, count=5) == [0, 3, 4]
+    with Image.open(out) as im:
+        assert im.n_frames == len(expected)
+
+
+def test_animate_mp4_needs_ffmpeg(sphere, tmp_path):
+    out = tmp_path / "s.mp4"
+    if shutil.which("ffmpeg"):
+        res = script("animate.py", sphere, "-o", out, "--every", "3", "--dpi", "40")
+        assert res.returncode == 0, res.stderr
+        assert out.stat().st_size > 0
+    res = script("animate.py", sphere, "-o", out, env={**os.environ, "PATH": ""})
+    assert res.returncode == 2
+    assert "ffmpeg" in res.stderr and "Traceback" not in res.stderr
+
+
+# ---------------------------------------------------------------------------- export_obj.py
+
+
+def test_export_obj_frame(sphere, tmp_path):
+    run = drape_h5.load(sphere)
+    k = run.nframes - 2
+    res = script("export_obj.py", sphere, "-o", tmp_path, "--frame", k)
+    assert res.returncode == 0, res.stderr
+    v, f = obj_counts(tmp_path / f"cloth_{k:05d}.obj")
+    assert len(v) == run.active.sum() == 121
+    assert f.shape == (2 * 100, 3)
+    assert f.min() == 1 and f.max() == len(v)
+    assert np.allclose(v, run.positions[k].reshape(-1, 3), rtol=0, atol=1e-8)
+    sv, sf = obj_counts(tmp_path / "solid.obj")
+    assert len(sf) == len(run.solid_triangles)
+    assert np.allclose(np.sort(sv[sf - 1].reshape(-1, 9), axis=0),
+                       np.sort(run.solid_triangles.reshape(-1, 9), axis=0), atol=1e-8)
+    assert (tmp_path / "floor.obj").exists()
+    assert sorted(p.name for p in tmp_path.glob("cloth_*.obj")) == [f"cloth_{k:05d}.obj"]
+
+
+def test_export_obj_all_circle(circle, tmp_path):
+    run = drape_h5.load(circle)
+    export_obj.main([str(circle), "-o", str(tmp_path), "--all", "--normals", "--uv"])
+    files = sorted(tmp_path.glob("cloth_*.obj"))
+    assert [p.name for p in files] == [f"cloth_{k:05d}.obj" for k in range(run.nframes)]
+    ncells = int(run.active_cells.sum())
+    assert 0 < ncells < 20 * 16
+    for k, path in enumerate(files):
+        v, f = obj_counts(path)
+        assert len(v) == inside_circle(21, 17)
+        assert len(f) == 2 * ncells
+        assert np.allclose(v, run.positions[k][run.active], rtol=0, atol=1e-8)
+    text = files[0].read_text()
+    assert text.count("\nvn ") == text.count("\nvt ") == len(v)
+
+
+def test_obj_triangles_face_up_for_a_flat_sheet(sphere):
+    run = drape_h5.load(sphere)
+    index, tri = export_obj.cloth_mesh(run.active)
+    v = run.positions[0][run.active]
+    n = np.cross(v[tri[:, 1]] - v[tri[:, 0]], v[tri[:, 2]] - v[tri[:, 0]])
+    assert (n[:, 2] > 0).all()
+
+
+# ---------------------------------------------------------------------------- bad input
+
+
+@pytest.mark.parametrize("module,case", [pytest.param(m, c, id=f"{m.__name__}-{c}") for m in (render, animate, export_obj)
+                                         for c in ("missing", "not_hdf5", "not_drape", "frame")
+                                         if (m, c) != (animate, "frame")])  # animate.py has no --frame
+def test_bad_input_one_line_error(module, case, sphere, tmp_path, capsys):
+    args = []
+    if case == "missing":
+        path, want = tmp_path / "nope.h5", "no such file"
+    elif case == "not_hdf5":
+        path, want = tmp_path / "text.h5", "not an HDF5 file"
+        path.write_text("hello\n")
+    elif case == "not_drape":
+        path, want = tmp_path / "other.h5", "not a drape output file"
+        with h5py.File(path, "w") as f:
+            f["time"] = np.zeros((1, 1))
+    else:
+        path, want, args = sphere, "out of range", ["--frame", "999"]
+    out = ["-o", str(tmp_path / ("out" + {render: ".png", animate: ".gif", export_obj: ""}[module]))]
+    with pytest.raises(SystemExit) as exc:
+        module.main([str(path), *out, *args])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    errors = [line for line in err.splitlines() if "error:" in line]
+    assert len(errors) == 1 and want in errors[0], err
+    assert "Traceback" not in err
+
+
+def test_bad_input_from_the_command_line(tmp_path):
+    res = script("render.py", tmp_path / "missing.h5")
+    assert res.returncode == 2
+    assert res.stderr.strip().splitlines()[-1] == f"render.py: error: {tmp_path / 'missing.h5'}: no such file"
