@@ -39,3 +39,62 @@ def test_metis_balances_a_circular_cloth():
     assert metis[0] > 0 and dmda[0] > 0
     assert metis[2] < 1.05 < 1.2 < dmda[2], (metis, dmda)
     assert metis[3] <= 1.5 * dmda[3]
+
+
+def inside(polys, x, y):
+    """Even-odd rule, as drape applies it."""
+    c = False
+    for ring in polys:
+        n = len(ring)
+        for k in range(n):
+            (xk, yk), (xl, yl) = ring[k], ring[k - 1]
+            if (yk > y) != (yl > y) and x < (xl - xk) * (y - yk) / (yl - yk) + xk:
+                c = not c
+    return c
+
+
+def test_polygon_panel_with_a_hole(tmp):
+    """A cut garment panel with a hole (runs/outlines/panel.txt): drape keeps exactly
+    the lattice particles inside (even-odd rule), the hole's particles never move,
+    and METIS on 3 ranks gives the 1-rank frames."""
+    from conftest import ROOT
+    rings, ring = [], []
+    for line in (ROOT / "runs/outlines/panel.txt").read_text().splitlines():
+        line = line.strip()
+        if line.startswith("#"):
+            continue
+        if not line:
+            if ring:
+                rings.append(ring)
+            ring = []
+            continue
+        ring.append(tuple(map(float, line.split())))
+    if ring:
+        rings.append(ring)
+    n = 41
+    h = 1.0 / (n - 1)  # the same arithmetic as drape: points on an edge fall the same way
+    active = np.array([[inside(rings, i * h - 0.5, j * h - 0.5) for i in range(n)] for j in range(n)])
+    args = (f"-da_grid_x {n} -da_grid_y {n} -cloth_outline runs/outlines/panel.txt -cloth_center 0,0,0.3 -solid_floor 0 "
+            f"-contact_mode friction -ts_type basicsymplectic -ts_dt 2e-4 -ts_max_time 0.3 -output_interval 0.1")
+    one, three = tmp / "one.h5", tmp / "three.h5"
+    res = run(f"{args} -output_file {one}")
+    run(f"{args} -cloth_partition metis -output_file {three}", np_=3)
+    a, b = Frames(one), Frames(three)
+    mass = res.value(r"mass (\S+) kg")
+    cells = active.sum()
+    assert abs(mass - 0.15 * cells / (n - 1) ** 2) < 0.03 * mass  # lumped masses of the active particles
+    moved = np.abs(a.x[-1] - a.x[0]).max(axis=-1) > 0
+    assert np.array_equal(moved, active)  # exactly the particles inside fall
+    assert np.abs(a.x - b.x).max() == 0.0
+
+
+@pytest.mark.parametrize("text,message", [("0 0\n1 x\n", "is not 'x y' in metres"), ("0 0\n1 1\n\n", "needs at least 3"),
+                                          ("5 5\n6 5\n6 6\n", "No lattice particle lies inside")])
+def test_bad_outline_is_refused(tmp, text, message):
+    import subprocess
+    from conftest import DRAPE
+    path = tmp / "outline.txt"
+    path.write_text(text)
+    res = subprocess.run([str(DRAPE), "-cloth_outline", str(path), "-ts_max_steps", "1"], capture_output=True, text=True)
+    lines = [l for l in res.stderr.splitlines() if l.strip()]
+    assert res.returncode != 0 and len(lines) == 1 and message in lines[0], res.stderr

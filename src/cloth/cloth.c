@@ -4,7 +4,7 @@
 #include <partition.h>
 
 static const char *const orientation_names[] = {"horizontal", "vertical", "ClothOrientation", "CLOTH_", NULL};
-static const char *const shape_names[]       = {"square", "circle", "ClothShape", "CLOTH_", NULL};
+static const char *const shape_names[]       = {"square", "circle", "polygon", "ClothShape", "CLOTH_", NULL};
 static const char *const pin_names[]         = {"none", "corners", "edge_corners", "edge", "list", "ClothPinType", "CLOTH_PIN_", NULL};
 
 PetscErrorCode ClothCreate(MPI_Comm comm, Cloth *cloth)
@@ -48,6 +48,83 @@ static PetscErrorCode OptionsWarpWeft(PetscOptionItems *PetscOptionsObject, cons
   PetscFunctionReturn(0);
 }
 
+/* Read the polygon rings of -cloth_outline (every rank reads the small file). */
+static PetscErrorCode ClothReadOutline(Cloth c)
+{
+  FILE     *fp;
+  char      line[512];
+  PetscInt  n = 0, cap = 256, lineno = 0, inring = 0;
+  PetscBool open_ring = PETSC_FALSE;
+
+  PetscFunctionBeginUser;
+  fp = fopen(c->outline, "r");
+  PetscCheck(fp, PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "Cannot open the cloth outline file %s", c->outline);
+  PetscCall(PetscMalloc1(2 * cap, &c->ring_xy));
+  PetscCall(PetscMalloc1(cap + 1, &c->ring_start));
+  c->nring = 0;
+  while (fgets(line, sizeof line, fp)) {
+    double x, y;
+    char  *p = line;
+    lineno++;
+    while (*p == ' ' || *p == '\t') p++;
+    if (*p == '#') continue;
+    if (*p == '\n' || *p == '\r' || *p == 0) { /* a blank line ends a ring */
+      if (open_ring) {
+        if (inring < 3) fclose(fp);
+        PetscCheck(inring >= 3, PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED, "Ring %" PetscInt_FMT " of the outline %s has %" PetscInt_FMT " vertices; a ring needs at least 3", c->nring, c->outline, inring);
+        open_ring = PETSC_FALSE;
+      }
+      continue;
+    }
+    p[strcspn(p, "\r\n")] = 0;
+    if (sscanf(p, "%lf %lf", &x, &y) != 2) {
+      fclose(fp);
+      SETERRQ(PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED, "Line %" PetscInt_FMT " of the outline %s is not 'x y' in metres: '%s'", lineno, c->outline, p);
+    }
+    if (!open_ring) {
+      c->ring_start[c->nring++] = n;
+      open_ring                 = PETSC_TRUE;
+      inring                    = 0;
+    }
+    if (n >= cap || c->nring >= cap) {
+      PetscReal *xy;
+      PetscInt  *rs;
+      cap *= 2;
+      PetscCall(PetscMalloc1(2 * cap, &xy));
+      PetscCall(PetscMalloc1(cap + 1, &rs));
+      PetscCall(PetscArraycpy(xy, c->ring_xy, 2 * n));
+      PetscCall(PetscArraycpy(rs, c->ring_start, c->nring));
+      PetscCall(PetscFree(c->ring_xy));
+      PetscCall(PetscFree(c->ring_start));
+      c->ring_xy    = xy;
+      c->ring_start = rs;
+    }
+    c->ring_xy[2 * n]     = x;
+    c->ring_xy[2 * n + 1] = y;
+    n++;
+    inring++;
+  }
+  fclose(fp);
+  PetscCheck(!open_ring || inring >= 3, PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED, "The last ring of the outline %s has %" PetscInt_FMT " vertices; a ring needs at least 3", c->outline, inring);
+  PetscCheck(c->nring > 0, PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED, "The outline %s has no polygon: write lines 'x y' (m), a blank line between rings", c->outline);
+  c->ring_start[c->nring] = n;
+  PetscFunctionReturn(0);
+}
+
+/* Even-odd rule over all rings: holes are rings inside the outline. */
+static PetscBool InsideOutline(Cloth c, PetscReal x, PetscReal y)
+{
+  PetscBool in = PETSC_FALSE;
+  for (PetscInt r = 0; r < c->nring; r++) {
+    PetscInt s = c->ring_start[r], e = c->ring_start[r + 1];
+    for (PetscInt k = s, l = e - 1; k < e; l = k++) {
+      PetscReal xk = c->ring_xy[2 * k], yk = c->ring_xy[2 * k + 1], xl = c->ring_xy[2 * l], yl = c->ring_xy[2 * l + 1];
+      if ((yk > y) != (yl > y) && x < (xl - xk) * (y - yk) / (yl - yk) + xk) in = (PetscBool) !in;
+    }
+  }
+  return in;
+}
+
 PetscErrorCode ClothSetFromOptions(Cloth c)
 {
   PetscInt          n, npin = 0, ipin = (PetscInt) c->pin, iorient = (PetscInt) c->orientation, hess = 0;
@@ -74,9 +151,14 @@ PetscErrorCode ClothSetFromOptions(Cloth c)
   PetscCheck(!set || n == 3, c->comm, PETSC_ERR_USER_INPUT, "Option -cloth_center needs three components x,y,z; got %" PetscInt_FMT, n);
   PetscCall(PetscOptionsEList("-cloth_orientation", "Initial sheet: horizontal (warp x, weft y) or vertical (warp x, weft z)", "ClothSetFromOptions", orientation_names, 2, orientation_names[iorient], &iorient, NULL));
   {
-    PetscInt ishape = (PetscInt) c->shape;
-    PetscCall(PetscOptionsEList("-cloth_shape", "Cloth outline: square (the whole lattice) or circle (the disc inscribed in -cloth_size, e.g. a Cusick specimen)", "ClothSetFromOptions", shape_names, 2, shape_names[ishape], &ishape, NULL));
+    PetscInt  ishape = (PetscInt) c->shape;
+    PetscBool set_outline;
+    PetscCall(PetscOptionsEList("-cloth_shape", "Cloth outline: square (the whole lattice), circle (the disc inscribed in -cloth_size, e.g. a Cusick specimen), polygon (-cloth_outline)", "ClothSetFromOptions", shape_names, 3, shape_names[ishape],
+                                &ishape, NULL));
     c->shape = (ClothShape) ishape;
+    PetscCall(PetscOptionsString("-cloth_outline", "Polygon file for -cloth_shape polygon: lines 'x y' (m, sheet coordinates centred on the cloth), a blank line between rings; the first ring is the outline, the others holes", "ClothSetFromOptions",
+                                 c->outline, c->outline, sizeof c->outline, &set_outline));
+    if (set_outline && c->shape == CLOTH_SQUARE) c->shape = CLOTH_POLYGON;
   }
   PetscCall(PetscOptionsEList("-cloth_pin", "Pinned particles: none, corners (all 4), edge_corners (two corners of the last weft row), edge (the last weft row), list", "ClothSetFromOptions", pin_names, 5, pin_names[ipin], &ipin, NULL));
   npin = 2 * 1024;
@@ -95,6 +177,8 @@ PetscErrorCode ClothSetFromOptions(Cloth c)
   c->orientation   = (ClothOrientation) iorient;
   c->exact_hessian = hess == 1 ? PETSC_TRUE : PETSC_FALSE;
 
+  PetscCheck(c->shape != CLOTH_POLYGON || c->outline[0], c->comm, PETSC_ERR_USER_INPUT, "-cloth_shape polygon needs -cloth_outline FILE");
+  if (c->shape == CLOTH_POLYGON) PetscCall(ClothReadOutline(c));
   PetscCheck(c->Mx >= 2 && c->My >= 2, c->comm, PETSC_ERR_USER_INPUT, "The lattice must have at least 2 x 2 particles; got -da_grid_x %" PetscInt_FMT " -da_grid_y %" PetscInt_FMT, c->Mx, c->My);
   PetscCheck(c->size[0] > 0 && c->size[1] > 0, c->comm, PETSC_ERR_USER_INPUT, "-cloth_size must be positive (metres); got %g,%g", (double) c->size[0], (double) c->size[1]);
   PetscCheck(c->density > 0, c->comm, PETSC_ERR_USER_INPUT, "-cloth_density must be positive (kg/m^2); got %g", (double) c->density);
@@ -116,6 +200,8 @@ PetscBool ClothIsActive(Cloth c, PetscInt i, PetscInt j)
   PetscReal a, b, r;
 
   if (c->shape == CLOTH_SQUARE) return PETSC_TRUE;
+  if (c->mask) return (PetscBool) c->mask[j * c->Mx + i];
+  if (c->shape == CLOTH_POLYGON) return InsideOutline(c, i * c->spacing[0] - 0.5 * c->size[0], j * c->spacing[1] - 0.5 * c->size[1]);
   a = (i - 0.5 * (c->Mx - 1)) / (0.5 * (c->Mx - 1));
   b = (j - 0.5 * (c->My - 1)) / (0.5 * (c->My - 1));
   r = a * a + b * b;
@@ -371,6 +457,14 @@ PetscErrorCode ClothSetUp(Cloth c)
   c->spacing[0] = c->size[0] / (c->Mx - 1);
   c->spacing[1] = c->size[1] / (c->My - 1);
 
+  if (c->shape != CLOTH_SQUARE) {
+    unsigned char *mask;
+    PetscInt       nact = 0;
+    PetscCall(PetscMalloc1(c->Mx * c->My, &mask));
+    for (PetscInt n = 0; n < c->Mx * c->My; n++) nact += mask[n] = (unsigned char) ClothIsActive(c, n % c->Mx, n / c->Mx);
+    c->mask = mask;
+    PetscCheck(nact > 0, c->comm, PETSC_ERR_USER_INPUT, "No lattice particle lies inside the cloth's outline; check -cloth_outline against -cloth_size");
+  }
   PetscCall(PetscMalloc1(c->Mx * c->My, &owner));
   PetscCall(PartitionOwners(c->comm, c->partition, c->da, c->Mx, c->My, ActiveCallback, c, owner));
   PetscCall(ClothBuildLayout(c, owner, &local));
@@ -432,6 +526,9 @@ PetscErrorCode ClothDestroy(Cloth *cloth)
   PetscFunctionBeginUser;
   if (!c) PetscFunctionReturn(0);
   PetscCall(PetscFree(c->pin_list));
+  PetscCall(PetscFree(c->mask));
+  PetscCall(PetscFree(c->ring_xy));
+  PetscCall(PetscFree(c->ring_start));
   if (c->setup) {
     PetscCall(ElementsDestroy(&c->stretch_el));
     PetscCall(ElementsDestroy(&c->shear_el));

@@ -30,7 +30,8 @@ typedef enum {
 
 typedef enum {
   CLOTH_SQUARE,
-  CLOTH_CIRCLE
+  CLOTH_CIRCLE,
+  CLOTH_POLYGON
 } ClothShape;
 
 struct _p_Cloth {
@@ -41,6 +42,10 @@ struct _p_Cloth {
   ClothOrientation orientation;
   ClothPinType     pin;
   ClothShape       shape;
+  char             outline[PETSC_MAX_PATH_LEN]; /* polygon file (-cloth_outline)  */
+  PetscInt         nring, *ring_start;          /* rings: outer boundary, holes     */
+  PetscReal       *ring_xy;                     /* vertices, 2 each, all rings      */
+  unsigned char   *mask;                        /* active flag per lattice particle */
   PartitionType    partition;
   PetscInt        *pin_list, npin_list; /* (i, j) pairs */
   PetscBool        exact_hessian;       /* keep indefinite Hessians (tests only)  */

@@ -47,6 +47,7 @@ struct _p_Simulation {
   PetscInt        restart_step;
   PetscInt        interrupted; /* signal that stopped the run */
   PetscBool       baseline;    /* energy0 set              */
+  PetscBool       at_rest;     /* stopped by -drape_rest_tol */
   /* monitor state */
   PetscReal energy0, energy_scale, wall0, wall_last;
 };
@@ -149,6 +150,7 @@ static PetscErrorCode PostStep(TS ts)
     if (any) {
       s->interrupted = any;
       PetscCall(TSSetConvergedReason(ts, TS_CONVERGED_USER));
+      s->at_rest = PETSC_TRUE;
     }
   }
   PetscCall(VecGetArray(s->U, &u));
@@ -552,7 +554,8 @@ PetscErrorCode SimulationRun(Simulation s)
     PetscCall(VecGetArrayRead(s->U, &u));
     PetscCall(CusickAnalyse(s->cloth, u, s->x0, s->cusick_radius, s->cusick_center, &dc, &folds));
     PetscCall(VecRestoreArrayRead(s->U, &u));
-    PetscCall(PetscPrintf(s->comm, "Cusick drape test: drape coefficient DC = %.4f, %" PetscInt_FMT " folds (pedestal radius %g m)\n", (double) dc, folds, (double) s->cusick_radius));
+    PetscCall(PetscPrintf(s->comm, "Cusick drape test: drape coefficient DC = %.4f, %" PetscInt_FMT " folds (pedestal radius %g m)%s\n", (double) dc, folds, (double) s->cusick_radius,
+                          s->at_rest ? "" : "; WARNING: the run ended before the cloth came to rest (set -drape_rest_tol and a longer -ts_max_time)"));
     PetscCall(OutputWriteResult(s->output, "drape_coefficient", dc));
     PetscCall(OutputWriteResult(s->output, "drape_folds", (PetscReal) folds));
   }

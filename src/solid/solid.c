@@ -259,7 +259,7 @@ PetscBool SolidBoxNear(Solid s, const PetscReal lo[3], const PetscReal hi[3], Pe
     /* lowest corner of the box along n */
     PetscReal m = 0;
     for (PetscInt d = 0; d < 3; d++) m += s->plane[d] * (s->plane[d] > 0 ? lo[d] : hi[d]);
-    if (m < s->plane[3] + grow) return PETSC_TRUE;
+    if (m <= s->plane[3] + grow) return PETSC_TRUE;
   }
   return PETSC_FALSE;
 }
