@@ -139,10 +139,12 @@ PetscErrorCode OutputOpen(Output o, Cloth cloth, Solid solid, const char *descri
   if (o->append) {
     /* a restart continues its own file: frames and attributes are already there */
     PetscCall(PetscViewerHDF5Open(o->comm, o->file, FILE_MODE_APPEND, &o->viewer));
+    PetscCall(PetscViewerHDF5SetCollective(o->viewer, PETSC_TRUE));
     PetscCall(PetscViewerHDF5PushTimestepping(o->viewer));
     PetscFunctionReturn(0);
   }
   PetscCall(PetscViewerHDF5Open(o->comm, o->file, FILE_MODE_WRITE, &o->viewer));
+  PetscCall(PetscViewerHDF5SetCollective(o->viewer, PETSC_TRUE)); /* collective MPI-IO */
   PetscCall(PetscOptionsGetAll(NULL, &given));
   PetscCall(PetscViewerHDF5WriteAttribute(o->viewer, "/", "drape_version", PETSC_STRING, DRAPE_VERSION));
   PetscCall(PetscViewerHDF5WriteAttribute(o->viewer, "/", "options", PETSC_STRING, given));
