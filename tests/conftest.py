@@ -4,8 +4,8 @@ Every successful run is made with -malloc_debug -malloc_dump -options_left and i
 checked for leaks and unused options, so each test also guards those."""
 import os
 import re
-import shutil
 import subprocess
+import time
 from pathlib import Path
 
 import h5py
@@ -54,6 +54,20 @@ def run(args, np_=1, check=True, checks=True, timeout=600):
             assert "There are no unused options." in proc.stdout, f"unused options:\n{proc.stdout}"
             assert not LEAK.search(proc.stdout + proc.stderr), f"memory leak:\n{proc.stdout}{proc.stderr}"
     return res
+
+
+def wait_for_frames(path, n, timeout=60):
+    """Wait until the HDF5 file a running drape writes holds n complete frames."""
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        time.sleep(0.3)
+        try:
+            with h5py.File(path, "r", locking=False) as f:
+                if f["time"].shape[0] >= n:
+                    return
+        except (OSError, KeyError):
+            pass
+    raise AssertionError(f"{path} did not reach {n} frames in {timeout} s")
 
 
 class Frames:

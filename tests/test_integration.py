@@ -1,13 +1,12 @@
 """Integration: whole runs on 1, 2 and 4 ranks, output files, bad input."""
 import hashlib
 import subprocess
-import time
 
 import h5py
 import numpy as np
 import pytest
 
-from conftest import DRAPE, ROOT, Frames, run
+from conftest import DRAPE, ROOT, Frames, run, wait_for_frames
 
 SCENE = "-da_grid_x 13 -da_grid_y 11 -cloth_pin edge_corners -ts_max_time 0.05 -output_interval 0.01"
 
@@ -60,15 +59,7 @@ def test_killed_run_leaves_readable_frames(tmp):
     cmd = [str(DRAPE)] + (f"-da_grid_x 40 -da_grid_y 40 -cloth_pin edge_corners -ts_type basicsymplectic "
                           f"-ts_dt 1e-4 -ts_max_time 100 -output_steps 20 -drape_progress 0 -output_file {out}").split()
     proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.time() + 60
-    while time.time() < deadline:
-        time.sleep(0.5)
-        try:
-            with h5py.File(out, "r", locking=False) as f:
-                if f["time"].shape[0] >= 3:
-                    break
-        except (OSError, KeyError):
-            pass
+    wait_for_frames(out, 3)
     proc.kill()
     proc.wait()
     fr = Frames(out)

@@ -20,6 +20,17 @@ def run_unit(name, *args, timeout=300):
     return proc, output
 
 
+def run_unit_ranks(name, np_, args, npassed):
+    """A C unit test on np_ ranks with leak checking; asserts its closing line."""
+    cmd = [str(BUILD / "tests" / name)] + args + ["-malloc_debug", "-malloc_dump"]
+    if np_ > 1:
+        cmd = ["mpiexec"] + (["--allow-run-as-root"] if os.geteuid() == 0 else []) + ["--oversubscribe", "-np", str(np_)] + cmd
+    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert re.search(rf"^{npassed} passed, 0 failed$", proc.stdout, re.MULTILINE), proc.stdout
+    assert " bytes " not in proc.stdout + proc.stderr, "memory leak"
+
+
 def test_kernels():
     proc, output = run_unit("test_kernels")
     assert proc.returncode == 0, f"test_kernels exited with code {proc.returncode}\n{output}"
@@ -30,27 +41,11 @@ def test_kernels():
 def test_cloth_rigid_motion_and_force_balance(np_):
     """A rigidly moved cloth at rest feels no internal force; forces rotate with the
     cloth and have no resultant or torque (1 and 2 ranks, no leaks)."""
-    exe = BUILD / "tests" / "test_cloth"
-    cmd = [str(exe), "-da_grid_x", "9", "-da_grid_y", "7", "-cloth_pin", "edge_corners", "-malloc_debug", "-malloc_dump"]
-    if np_ > 1:
-        cmd = ["mpiexec"] + (["--allow-run-as-root"] if os.geteuid() == 0 else []) + ["--oversubscribe", "-np", str(np_)] + cmd
-    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    assert re.search(r"^3 passed, 0 failed$", proc.stdout, re.MULTILINE), proc.stdout
-    assert " bytes " not in proc.stdout + proc.stderr, "memory leak"
-
+    run_unit_ranks("test_cloth", np_, ["-da_grid_x", "9", "-da_grid_y", "7", "-cloth_pin", "edge_corners"], 3)
 
 @pytest.mark.parametrize("np_", [1, 2])
 def test_cusick_analysis_known_silhouettes(np_):
     """Drape coefficient and folds on constructed silhouettes: a square and a 7-lobed
     star (exact areas, 4 and 7 maxima), the flat specimen (DC = 1), one hanging
     straight down the pedestal (DC = 0), a shrunk specimen (exact DC)."""
-    exe = BUILD / "tests" / "test_cusick"
-    cmd = [str(exe), "-cloth_shape", "circle", "-cloth_size", "0.3", "-da_grid_x", "41", "-da_grid_y", "41",
-           "-malloc_debug", "-malloc_dump"]
-    if np_ > 1:
-        cmd = ["mpiexec"] + (["--allow-run-as-root"] if os.geteuid() == 0 else []) + ["--oversubscribe", "-np", str(np_)] + cmd
-    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    assert re.search(r"^5 passed, 0 failed$", proc.stdout, re.MULTILINE), proc.stdout
-    assert " bytes " not in proc.stdout + proc.stderr, "memory leak"
+    run_unit_ranks("test_cusick", np_, ["-cloth_shape", "circle", "-cloth_size", "0.3", "-da_grid_x", "41", "-da_grid_y", "41"], 5)
