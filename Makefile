@@ -61,18 +61,18 @@ $(VENV)/.installed: scripts/requirements.txt
 venv: $(VENV)/.installed
 
 run: deps venv
-	@$(MAKE) --no-print-directory all
+	@$(MAKE) --no-print-directory -j$$(nproc) all
 	@mkdir -p $(OUT)
 	$(MPIEXEC) -np $(NP) $(BUILD)/drape -options_file runs/hang.opts -output_file $(OUT)/hang.h5
 	$(VENV)/bin/python scripts/render.py $(OUT)/hang.h5 -o $(OUT)/hang.png
 	@echo "drape: wrote $(OUT)/hang.h5, $(OUT)/hang.xmf (ParaView) and $(OUT)/hang.png"
 
 test: deps venv
-	@$(MAKE) --no-print-directory all
+	@$(MAKE) --no-print-directory -j$$(nproc) all
 	DRAPE_BUILD=$(BUILD) $(VENV)/bin/python -m pytest -q tests
 
 bench: deps venv
-	@$(MAKE) --no-print-directory all
+	@$(MAKE) --no-print-directory -j$$(nproc) all
 	$(VENV)/bin/python scripts/bench_core.py --out $(OUT)/bench_core.csv
 
 format:

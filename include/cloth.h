@@ -60,6 +60,10 @@ PETSC_EXTERN PetscBool ClothIsActive(Cloth, PetscInt i, PetscInt j);
 /* Owned-order active flags. */
 PETSC_EXTERN PetscErrorCode ClothGetActive(Cloth, const PetscBool **);
 
+/* Work of a particle, from its initial position, for -cloth_partition metis to
+ * balance (e.g. contact candidates count more); call before ClothSetUp. */
+PETSC_EXTERN PetscErrorCode ClothSetPartitionWeight(Cloth, PetscInt (*work)(void *, const PetscReal x[3]), void *ctx);
+
 /* Initial state: the flat sheet at rest given by the options. */
 PETSC_EXTERN PetscErrorCode ClothSetInitialState(Cloth, PetscScalar *x, PetscScalar *v);
 /* Acceleration a = F(x, v)/m with internal, gravity and damping forces; 0 at pins. */

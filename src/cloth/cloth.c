@@ -337,6 +337,15 @@ static PetscInt CountOwned(const ClothElements *el, PetscInt per)
   return n / per;
 }
 
+/* Position of lattice particle (i, j) in the initial flat sheet. */
+static void InitialPosition(Cloth c, PetscInt i, PetscInt j, PetscReal x[3])
+{
+  PetscReal a = i * c->spacing[0] - 0.5 * c->size[0], b = j * c->spacing[1] - 0.5 * c->size[1];
+  x[0] = c->origin[0] + a;
+  x[1] = c->origin[1] + (c->orientation == CLOTH_HORIZONTAL ? b : 0);
+  x[2] = c->origin[2] + (c->orientation == CLOTH_HORIZONTAL ? 0 : b);
+}
+
 static PetscBool ActiveCallback(void *ctx, PetscInt i, PetscInt j) { return ClothIsActive((Cloth) ctx, i, j); }
 
 /* The 12 interaction neighbours (paper Fig. 2): whatever a kernel of an owned
@@ -466,7 +475,19 @@ PetscErrorCode ClothSetUp(Cloth c)
     PetscCheck(nact > 0, c->comm, PETSC_ERR_USER_INPUT, "No lattice particle lies inside the cloth's outline; check -cloth_outline against -cloth_size");
   }
   PetscCall(PetscMalloc1(c->Mx * c->My, &owner));
-  PetscCall(PartitionOwners(c->comm, c->partition, c->da, c->Mx, c->My, ActiveCallback, c, owner));
+  {
+    PetscInt *weight = NULL;
+    if (c->work && c->partition == PARTITION_METIS) {
+      PetscCall(PetscMalloc1(c->Mx * c->My, &weight));
+      for (PetscInt n = 0; n < c->Mx * c->My; n++) {
+        PetscReal x[3];
+        InitialPosition(c, n % c->Mx, n / c->Mx, x);
+        weight[n] = c->work(c->work_ctx, x);
+      }
+    }
+    PetscCall(PartitionOwners(c->comm, c->partition, c->da, c->Mx, c->My, ActiveCallback, c, weight, owner));
+    PetscCall(PetscFree(weight));
+  }
   PetscCall(ClothBuildLayout(c, owner, &local));
   PetscCall(ClothBuildDMDAScatter(c));
 
@@ -594,13 +615,17 @@ PetscErrorCode ClothSetInitialState(Cloth c, PetscScalar *x, PetscScalar *v)
 {
   PetscFunctionBeginUser;
   for (PetscInt k = 0; k < c->nowned; k++) {
-    PetscInt  i = c->natural[k] % c->Mx, j = c->natural[k] / c->Mx;
-    PetscReal a = i * c->spacing[0] - 0.5 * c->size[0], b = j * c->spacing[1] - 0.5 * c->size[1];
-    x[3 * k]     = c->origin[0] + a;
-    x[3 * k + 1] = c->origin[1] + (c->orientation == CLOTH_HORIZONTAL ? b : 0);
-    x[3 * k + 2] = c->origin[2] + (c->orientation == CLOTH_HORIZONTAL ? 0 : b);
+    InitialPosition(c, c->natural[k] % c->Mx, c->natural[k] / c->Mx, x + 3 * k);
     for (PetscInt d = 0; d < 3; d++) v[3 * k + d] = 0;
   }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ClothSetPartitionWeight(Cloth c, PetscInt (*work)(void *, const PetscReal x[3]), void *ctx)
+{
+  PetscFunctionBeginUser;
+  c->work     = work;
+  c->work_ctx = ctx;
   PetscFunctionReturn(0);
 }
 

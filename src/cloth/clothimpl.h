@@ -47,9 +47,11 @@ struct _p_Cloth {
   PetscReal       *ring_xy;                     /* vertices, 2 each, all rings      */
   unsigned char   *mask;                        /* active flag per lattice particle */
   PartitionType    partition;
-  PetscInt        *pin_list, npin_list; /* (i, j) pairs */
-  PetscBool        exact_hessian;       /* keep indefinite Hessians (tests only)  */
-  PetscBool        setup;
+  PetscInt (*work)(void *, const PetscReal *); /* particle work at its initial position */
+  void     *work_ctx;
+  PetscInt *pin_list, npin_list; /* (i, j) pairs */
+  PetscBool exact_hessian;       /* keep indefinite Hessians (tests only)  */
+  PetscBool setup;
   /* lattice */
   DM            da;
   Vec           Xg, Xl, Yl, Zl;             /* global (array placed), local (owned + ghost) work vectors */

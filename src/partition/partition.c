@@ -8,7 +8,7 @@ const char *const PartitionTypes[] = {"dmda", "metis", "PartitionType", "PARTITI
 /* The 12 interaction neighbours of the paper (Fig. 2): stretch, shear, bending. */
 static const PetscInt stencil[12][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}, {1, 1}, {-1, 1}, {1, -1}, {-1, -1}, {2, 0}, {-2, 0}, {0, 2}, {0, -2}};
 
-static PetscErrorCode PartitionMetis(MPI_Comm comm, PetscInt Mx, PetscInt My, PetscBool (*active)(void *, PetscInt, PetscInt), void *ctx, PetscInt *owner)
+static PetscErrorCode PartitionMetis(MPI_Comm comm, PetscInt Mx, PetscInt My, PetscBool (*active)(void *, PetscInt, PetscInt), void *ctx, const PetscInt *weight, PetscInt *owner)
 {
   PetscMPIInt size, rank;
   PetscInt    N = Mx * My;
@@ -17,9 +17,12 @@ static PetscErrorCode PartitionMetis(MPI_Comm comm, PetscInt Mx, PetscInt My, Pe
   PetscCallMPI(MPI_Comm_size(comm, &size));
   PetscCallMPI(MPI_Comm_rank(comm, &rank));
   if (!rank) {
-    idx_t *vertex, *xadj, *adjncy, *part, nv = 0, ne = 0, ncon = 1, nparts = size, objval, options[METIS_NOPTIONS];
-    PetscCall(PetscMalloc4(N, &vertex, N + 1, &xadj, 12 * N + 1, &adjncy, N + 1, &part));
-    for (PetscInt n = 0; n < N; n++) vertex[n] = active(ctx, n % Mx, n / Mx) ? nv++ : -1;
+    idx_t *vertex, *xadj, *adjncy, *part, *vwgt, nv = 0, ne = 0, ncon = 1, nparts = size, objval, options[METIS_NOPTIONS];
+    PetscCall(PetscMalloc5(N, &vertex, N + 1, &xadj, 12 * N + 1, &adjncy, N + 1, &part, N + 1, &vwgt));
+    for (PetscInt n = 0; n < N; n++) {
+      vertex[n] = active(ctx, n % Mx, n / Mx) ? nv++ : -1;
+      if (vertex[n] >= 0) vwgt[vertex[n]] = weight ? (idx_t) weight[n] : 1;
+    }
     xadj[0] = 0;
     for (PetscInt n = 0; n < N; n++) {
       if (vertex[n] < 0) continue;
@@ -40,17 +43,17 @@ static PetscErrorCode PartitionMetis(MPI_Comm comm, PetscInt Mx, PetscInt My, Pe
       for (idx_t v = 0; v < nv; v++) part[v] = 0;
     /* inactive particles (outside the cloth's outline) do no work: blocks */
     for (PetscInt n = 0; n < N; n++) owner[n] = vertex[n] >= 0 ? (PetscInt) part[vertex[n]] : (PetscInt) ((n * (PetscInt64) size) / N);
-    PetscCall(PetscFree4(vertex, xadj, adjncy, part));
+    PetscCall(PetscFree5(vertex, xadj, adjncy, part, vwgt));
   }
   PetscCallMPI(MPI_Bcast(owner, (PetscMPIInt) N, MPIU_INT, 0, comm));
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode PartitionOwners(MPI_Comm comm, PartitionType type, DM da, PetscInt Mx, PetscInt My, PetscBool (*active)(void *, PetscInt, PetscInt), void *ctx, PetscInt *owner)
+PetscErrorCode PartitionOwners(MPI_Comm comm, PartitionType type, DM da, PetscInt Mx, PetscInt My, PetscBool (*active)(void *, PetscInt, PetscInt), void *ctx, const PetscInt *weight, PetscInt *owner)
 {
   PetscFunctionBeginUser;
   if (type == PARTITION_METIS) {
-    PetscCall(PartitionMetis(comm, Mx, My, active, ctx, owner));
+    PetscCall(PartitionMetis(comm, Mx, My, active, ctx, weight, owner));
   } else {
     const PetscInt *lx, *ly;
     PetscInt        m, n;
