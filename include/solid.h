@@ -64,6 +64,8 @@ PETSC_EXTERN PetscErrorCode ContactGetMode(Contact, ContactMode *, PetscReal *fr
  * the step, so that the position follows the corrected velocity (a particle held
  * by static friction does not creep); 0 otherwise. */
 PETSC_EXTERN PetscErrorCode ContactProject(Contact, PetscInt n, PetscScalar *x, PetscScalar *v, const PetscBool *pinned, PetscReal h, PetscReal *depth, PetscInt *ncontact);
+/* Refuse an initial state with particles inside the solid (one sentence). */
+PETSC_EXTERN PetscErrorCode ContactCheckInitial(Contact, PetscInt n, const PetscScalar *x);
 /* Constraint of local particle l (of nlocal) at x for the implicit solve: 0 free,
  * 1 normal (slides along the surface), 2 fixed (sticky); n the outward normal. */
 PETSC_EXTERN PetscErrorCode ContactConstraint(void *contact, PetscInt l, PetscInt nlocal, const PetscReal x[3], PetscInt *type, PetscReal n[3]);

@@ -85,6 +85,11 @@ BAD = [
     ("-output_interval -1 -output_file x.h5", "-output_interval must be zero or positive"),
     ("-cloth_stiffnes 3", "Unknown option -cloth_stiffnes"),
     ("-drape_stability_its -2", "-drape_stability_its must be zero or positive"),
+    ("-cloth_size 1,2,3", "-cloth_size takes one value"),
+    ("-cloth_bend 1,2,3", "-cloth_bend needs one value (warp = weft) or two"),
+    ("-solid_floor 2", "particles inside the solid"),
+    ("-cloth_shape circle -cusick_pedestal_radius 1", "leaves no overhang"),
+    ("-cusick_center 0.1", "-cusick_center needs two coordinates"),
 ]
 
 
@@ -121,3 +126,11 @@ def test_help_lists_drape_options():
     for opt in ("-cloth_size", "-cloth_density", "-cloth_damping", "-cloth_stretch", "-cloth_shear", "-cloth_bend",
                 "-cloth_pin", "-gravity", "-output_file", "-output_interval", "-drape_progress", "-ts_type"):
         assert opt in res.stdout, opt
+
+
+def test_small_lattices_on_many_ranks_and_solver_options(tmp):
+    """More ranks than a coarse lattice has rows, with either partition, runs (no
+    hang); the implicit matrix type option is read, not refused."""
+    for part in ("dmda", "metis"):
+        run(f"-da_grid_x 5 -da_grid_y 5 -cloth_partition {part} -ts_max_steps 5", np_=4)
+    run("-ts_type beuler -ts_dt 1e-3 -ts_max_time 0.01 -drape_mat_type aij")

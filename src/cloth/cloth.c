@@ -36,15 +36,19 @@ PetscErrorCode ClothCreate(MPI_Comm comm, Cloth *cloth)
 /* Read a 1- or 2-entry option: one value means warp = weft. */
 static PetscErrorCode OptionsWarpWeft(PetscOptionItems *PetscOptionsObject, const char *name, const char *text, PetscReal value[2])
 {
-  PetscInt  n = 2;
+  PetscInt  n      = 3; /* one more than allowed: detects extra values */
+  PetscReal tmp[3] = {value[0], value[1], 0};
   PetscBool set;
   char      deflt[64];
 
   PetscFunctionBeginUser;
   PetscCall(PetscSNPrintf(deflt, sizeof deflt, "%g,%g", (double) value[0], (double) value[1]));
-  PetscCall(PetscOptionsRealArray(name, text, deflt, value, &n, &set));
-  if (set && n == 1) value[1] = value[0];
-  PetscCheck(!set || n > 0, PETSC_COMM_WORLD, PETSC_ERR_USER_INPUT, "Option %s needs one value (warp = weft) or two (warp,weft)", name);
+  PetscCall(PetscOptionsRealArray(name, text, deflt, tmp, &n, &set));
+  PetscCheck(!set || (n > 0 && n <= 2), PETSC_COMM_WORLD, PETSC_ERR_USER_INPUT, "Option %s needs one value (warp = weft) or two (warp,weft)", name);
+  if (set) {
+    value[0] = tmp[0];
+    value[1] = n == 1 ? tmp[0] : tmp[1];
+  }
   PetscFunctionReturn(0);
 }
 
@@ -135,9 +139,16 @@ PetscErrorCode ClothSetFromOptions(Cloth c)
   PetscOptionsBegin(c->comm, NULL, "Cloth: lattice, material, pins and initial state", "Cloth");
   PetscCall(PetscOptionsInt("-da_grid_x", "Particles along the warp (lattice columns)", "ClothSetFromOptions", c->Mx, &c->Mx, NULL));
   PetscCall(PetscOptionsInt("-da_grid_y", "Particles along the weft (lattice rows)", "ClothSetFromOptions", c->My, &c->My, NULL));
-  n = 2;
-  PetscCall(PetscOptionsRealArray("-cloth_size", "Cloth size along warp,weft (m)", "ClothSetFromOptions", c->size, &n, &set));
-  if (set && n == 1) c->size[1] = c->size[0];
+  {
+    PetscReal tmp[3] = {c->size[0], c->size[1], 0};
+    n                = 3; /* one more than allowed: detects extra values */
+    PetscCall(PetscOptionsRealArray("-cloth_size", "Cloth size along warp,weft (m)", "ClothSetFromOptions", tmp, &n, &set));
+    PetscCheck(!set || (n >= 1 && n <= 2), c->comm, PETSC_ERR_USER_INPUT, "-cloth_size takes one value (a square) or two (warp,weft), in metres");
+    if (set) {
+      c->size[0] = tmp[0];
+      c->size[1] = n == 1 ? tmp[0] : tmp[1];
+    }
+  }
   PetscCall(PetscOptionsReal("-cloth_density", "Areal density (kg/m^2)", "ClothSetFromOptions", c->density, &c->density, NULL));
   PetscCall(PetscOptionsReal("-cloth_damping", "Mass-proportional damping c, force -c m v (1/s)", "ClothSetFromOptions", c->damping, &c->damping, NULL));
   PetscCall(OptionsWarpWeft(PetscOptionsObject, "-cloth_stretch", "Tensile rigidity warp[,weft] (N/m); 0 removes the stretch energy", c->stretch));
@@ -161,9 +172,10 @@ PetscErrorCode ClothSetFromOptions(Cloth c)
     if (set_outline && c->shape == CLOTH_SQUARE) c->shape = CLOTH_POLYGON;
   }
   PetscCall(PetscOptionsEList("-cloth_pin", "Pinned particles: none, corners (all 4), edge_corners (two corners of the last weft row), edge (the last weft row), list", "ClothSetFromOptions", pin_names, 5, pin_names[ipin], &ipin, NULL));
-  npin = 2 * 1024;
+  npin = 2 * 1024; /* one more than allowed: detects truncation */
   PetscCall(PetscMalloc1(npin, &c->pin_list));
   PetscCall(PetscOptionsIntArray("-cloth_pin_list", "Pinned lattice indices i0,j0,i1,j1,... (with -cloth_pin list)", "ClothSetFromOptions", c->pin_list, &npin, &set));
+  PetscCheck(!set || npin < 2 * 1024, c->comm, PETSC_ERR_USER_INPUT, "-cloth_pin_list takes at most 1023 pairs; for more, pin an edge or the corners");
   c->npin_list = set ? npin / 2 : 0;
   {
     PetscInt ipart = (PetscInt) c->partition;
@@ -456,7 +468,7 @@ PetscErrorCode ClothSetUp(Cloth c)
   PetscFunctionBeginUser;
   if (c->setup) PetscFunctionReturn(0);
   PetscCallMPI(MPI_Comm_rank(c->comm, &rank));
-  PetscCall(DMDACreate2d(c->comm, DM_BOUNDARY_NONE, DM_BOUNDARY_NONE, DMDA_STENCIL_BOX, c->Mx, c->My, PETSC_DECIDE, PETSC_DECIDE, 3, 2, NULL, NULL, &c->da));
+  PetscCall(DMDACreate2d(c->comm, DM_BOUNDARY_NONE, DM_BOUNDARY_NONE, DMDA_STENCIL_BOX, c->Mx, c->My, PETSC_DECIDE, PETSC_DECIDE, 3, 0, NULL, NULL, &c->da)); /* for I/O only: no ghosts */
   PetscCall(DMSetFromOptions(c->da));
   PetscCall(DMSetUp(c->da));
   PetscCall(DMDASetFieldName(c->da, 0, "x"));

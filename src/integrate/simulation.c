@@ -150,7 +150,6 @@ static PetscErrorCode PostStep(TS ts)
     if (any) {
       s->interrupted = any;
       PetscCall(TSSetConvergedReason(ts, TS_CONVERGED_USER));
-      s->at_rest = PETSC_TRUE;
     }
   }
   PetscCall(VecGetArray(s->U, &u));
@@ -169,6 +168,7 @@ static PetscErrorCode PostStep(TS ts)
   if (s->rest_tol > 0) {
     PetscReal loc[2] = {0, 0}, sum[2];
     for (PetscInt i = 0; i < s->n; i++) {
+      if (pinned[i / 3]) continue; /* pinned and inactive particles never move */
       loc[0] += 0.5 * mass[i / 3] * u[s->n + i] * u[s->n + i];
       if (i % 3 == 0) loc[1] += mass[i / 3];
     }
@@ -181,6 +181,7 @@ static PetscErrorCode PostStep(TS ts)
     else if (t - s->rest_since >= s->rest_time) {
       PetscCall(PetscPrintf(s->comm, "At rest at t = %g s: kinetic energy below -drape_rest_tol %g J/kg since t = %g s\n", (double) t, (double) s->rest_tol, (double) s->rest_since));
       PetscCall(TSSetConvergedReason(ts, TS_CONVERGED_USER));
+      s->at_rest = PETSC_TRUE;
     }
   }
   PetscCall(VecRestoreArray(s->U, &u));
@@ -224,8 +225,10 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
   PetscCall(PetscOptionsReal("-drape_rest_time", "Simulated time the cloth must stay below -drape_rest_tol to count as at rest (s)", "SimulationRun", s->rest_time, &s->rest_time, NULL));
   PetscCall(PetscOptionsReal("-cusick_pedestal_radius", "Cusick drape test: pedestal radius (m); > 0 reports the drape coefficient and folds at the end", "CusickAnalyse", s->cusick_radius, &s->cusick_radius, NULL));
   {
-    PetscInt n = 2;
-    PetscCall(PetscOptionsRealArray("-cusick_center", "Cusick drape test: pedestal centre x,y (m)", "CusickAnalyse", s->cusick_center, &n, NULL));
+    PetscInt  n = 2;
+    PetscBool set;
+    PetscCall(PetscOptionsRealArray("-cusick_center", "Cusick drape test: pedestal centre x,y (m)", "CusickAnalyse", s->cusick_center, &n, &set));
+    PetscCheck(!set || n == 2, s->comm, PETSC_ERR_USER_INPUT, "-cusick_center needs two coordinates x,y");
   }
   PetscCall(PetscOptionsBool("-drape_summary", "One-line summary at the end of the run", "SimulationRun", s->summary, &s->summary, NULL));
   PetscOptionsEnd();
@@ -286,6 +289,8 @@ PetscErrorCode SimulationSetUp(Simulation s)
   PetscCall(VecGetArray(s->U, &u));
   PetscCall(ClothSetInitialState(s->cloth, u, u + s->n));
   if (s->cusick_radius > 0) {
+    PetscCheck(2 * s->cusick_radius < PetscMin(info.size[0], info.size[1]), s->comm, PETSC_ERR_USER_INPUT, "-cusick_pedestal_radius %g m leaves no overhang on a %g x %g m specimen: the pedestal must be smaller than the specimen",
+               (double) s->cusick_radius, (double) info.size[0], (double) info.size[1]);
     PetscCall(PetscMalloc1(s->n, &s->x0));
     PetscCall(PetscArraycpy(s->x0, u, s->n));
   }
@@ -338,6 +343,13 @@ PetscErrorCode SimulationSetUp(Simulation s)
     PetscCall(TSGetTimeStep(s->ts, &dt));
     PetscCheck(dt > 0, s->comm, PETSC_ERR_USER_INPUT, "-ts_dt must be positive (seconds); got %g", (double) dt);
   }
+  if (s->contact) {
+    PetscCall(VecGetArray(s->U, &u));
+    PetscCall(ContactCheckInitial(s->contact, s->n / 3, u));
+    PetscCall(VecRestoreArray(s->U, &u));
+  }
+  /* create the solvers now, so their options are read before drape checks for unused ones */
+  PetscCall(TSSetUp(s->ts));
   PetscFunctionReturn(0);
 }
 
@@ -573,7 +585,7 @@ PetscErrorCode SimulationRun(Simulation s)
     PetscReal wall = (PetscReal) (t1 - s->wall0);
     PetscCall(TSGetKSPIterations(s->ts, &its));
     PetscInt run = steps - s->restart_step; /* steps taken by this run */
-    PetscCall(PetscPrintf(s->comm, "Summary: %" PetscInt_FMT " steps to t = %g s in %.3f s wall, %.4e particle-steps/s", run, (double) t, (double) wall, wall > 0 ? (double) (run * info.nparticles / wall) : 0.0));
+    PetscCall(PetscPrintf(s->comm, "Summary: %" PetscInt_FMT " steps to t = %g s in %.3f s wall, %.4e particle-steps/s", run, (double) t, (double) wall, wall > 0 ? ((double) run * info.nparticles / wall) : 0.0));
     if (its > 0) PetscCall(PetscPrintf(s->comm, ", %.2f CG iterations per step", (double) its / PetscMax(run, 1)));
     PetscCall(PetscPrintf(s->comm, "\n"));
   }

@@ -16,7 +16,7 @@ PetscErrorCode StabilityEstimate(Cloth cloth, const PetscScalar *x, PetscInt ite
   const PetscReal *mass;
   const PetscBool *pinned;
   PetscScalar     *z, *w;
-  PetscRandom      rnd;
+  const PetscInt  *natural;
   PetscReal        lambda = 0, c, Om2, loc[2], sum[2];
   PetscInt         n;
   DM               da;
@@ -30,11 +30,12 @@ PetscErrorCode StabilityEstimate(Cloth cloth, const PetscScalar *x, PetscInt ite
   comm = PetscObjectComm((PetscObject) da);
   n    = 3 * info.nowned;
   PetscCall(PetscMalloc2(n, &z, n, &w));
-  PetscCall(PetscRandomCreate(comm, &rnd));
-  PetscCall(PetscRandomSetSeed(rnd, 20260101));
-  PetscCall(PetscRandomSeed(rnd));
-  for (PetscInt i = 0; i < n; i++) PetscCall(PetscRandomGetValueReal(rnd, &z[i]));
-  PetscCall(PetscRandomDestroy(&rnd));
+  /* start vector from each particle's lattice index: the same on any number of ranks */
+  PetscCall(ClothGetNatural(cloth, &natural));
+  for (PetscInt i = 0; i < n; i++) {
+    PetscReal h = PetscSinReal(12.9898 * (3 * natural[i / 3] + i % 3) + 78.233) * 43758.5453;
+    z[i]        = h - PetscFloorReal(h);
+  }
   for (PetscInt it = 0; it < iterations; it++) {
     /* w = M^-1/2 H M^-1/2 z, lambda = (z.w)/(z.z) */
     for (PetscInt i = 0; i < n; i++) z[i] /= PetscSqrtReal(mass[i / 3]);

@@ -88,7 +88,11 @@ PetscErrorCode RestartInsertOptions(MPI_Comm comm, const char file[])
   if (!rank) {
     PetscCall(RestartInspect(file, &nframes, &options, &why));
     if (why) PetscCall(PetscStrncpy(reason, why, sizeof reason));
-    if (options) PetscCall(PetscStrlen(options, (size_t *) &len));
+    if (options) {
+      size_t n;
+      PetscCall(PetscStrlen(options, &n));
+      len = (PetscInt) n;
+    }
   }
   PetscCallMPI(MPI_Bcast(reason, sizeof reason, MPI_CHAR, 0, comm));
   PetscCheck(!reason[0], comm, PETSC_ERR_FILE_UNEXPECTED, "Cannot restart from %s: %s", file, reason);

@@ -37,7 +37,7 @@ static PetscErrorCode PartitionMetis(MPI_Comm comm, PetscInt Mx, PetscInt My, Pe
       METIS_SetDefaultOptions(options);
       options[METIS_OPTION_SEED]      = 2026;
       options[METIS_OPTION_NUMBERING] = 0;
-      status                          = METIS_PartGraphKway(&nv, &ncon, xadj, adjncy, NULL, NULL, NULL, &nparts, NULL, NULL, options, &objval, part);
+      status                          = METIS_PartGraphKway(&nv, &ncon, xadj, adjncy, vwgt, NULL, NULL, &nparts, NULL, NULL, options, &objval, part);
       PetscCheck(status == METIS_OK, PETSC_COMM_SELF, PETSC_ERR_LIB, "METIS_PartGraphKway failed with status %d", status);
     } else
       for (idx_t v = 0; v < nv; v++) part[v] = 0;

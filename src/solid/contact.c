@@ -183,3 +183,19 @@ PetscErrorCode ContactConstraint(void *ctx, PetscInt l, PetscInt nlocal, const P
   if (dist <= c->thickness * (1 + 1e-6) + PETSC_SMALL) *type = c->mode == CONTACT_STICKY ? 2 : 1;
   PetscFunctionReturn(0);
 }
+
+PetscErrorCode ContactCheckInitial(Contact c, PetscInt n, const PetscScalar *x)
+{
+  PetscInt  inside = 0, total;
+  PetscReal dist, nrm[3];
+
+  PetscFunctionBeginUser;
+  for (PetscInt k = 0; k < n; k++) {
+    if (!SolidBoxNear(c->solid, x + 3 * k, x + 3 * k, 0)) continue;
+    PetscCall(SolidQuery(c->solid, x + 3 * k, &dist, nrm));
+    if (dist < 0) inside++;
+  }
+  PetscCall(MPIU_Allreduce(&inside, &total, 1, MPIU_INT, MPI_SUM, c->comm));
+  PetscCheck(!total, c->comm, PETSC_ERR_USER_INPUT, "The initial cloth has %" PetscInt_FMT " particles inside the solid; place it outside (-cloth_center, -cloth_orientation) or move the solid (-solid_translate, -solid_floor, -solid_plane)", total);
+  PetscFunctionReturn(0);
+}
