@@ -1,11 +1,12 @@
 /* The cloth: a lattice of particles at warp/weft crossings (paper sections 2-3).
  *
- * A Cloth owns the lattice (a DMDA with 3 dof per particle that decides which
- * rank owns which particles and exchanges ghosts), the material, the pins, the
- * lumped masses and the local element lists (stretch edges, shear corners,
- * bending triples) that the physics kernels loop over.  Every array handed out
- * by the functions below is "owned-particle order": 3 entries per particle
- * owned by this rank, in the order of the DMDA's global vector. */
+ * A Cloth owns the lattice, the material, the pins, the lumped masses, the
+ * partition (DMDA blocks or METIS, -cloth_partition: which rank owns which
+ * particle), the ghost exchange and the local element lists (stretch edges, shear
+ * corners, bending triples) that the physics kernels loop over. Every array handed
+ * out by the functions below is in "owned-particle order": 3 entries per particle
+ * owned by this rank, in natural lattice order within the rank; a DMDA (dof 3)
+ * remains for natural-order I/O (ClothToDMDA, ClothFromDMDA). */
 #pragma once
 
 #include <petscdm.h>

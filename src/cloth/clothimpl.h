@@ -69,7 +69,7 @@ struct _p_Cloth {
   PetscInt     *global;            /* local -> global block index              */
   PetscReal    *mass;              /* owned particles                          */
   PetscBool    *pinned;            /* owned particles                          */
-  PetscBool    *pinned_local;      /* owned + ghost                            */
+  PetscBool    *pinned_local;      /* owned + ghost; inactive particles too    */
   PetscBool    *active;            /* owned: inside the cloth outline          */
   ClothElements stretch_el, shear_el, bend_el;
   PetscInt      nstretch, nshear, nbend, npinned; /* global counts            */
