@@ -494,7 +494,7 @@ static PetscErrorCode SimulationViewStart(Simulation s)
       PetscCall(PetscViewerASCIIPrintf(viewer, "  explicit Euler: stable for h < %.4e s at damping %g 1/s (c/Omega_max^2)\n", (double) s->limits.euler, (double) info.damping));
     else
       PetscCall(PetscViewerASCIIPrintf(viewer, "  explicit Euler: unstable at every step without damping (energy grows by 1 + (Omega h)^2 per step)\n"));
-    PetscCall(PetscViewerASCIIPrintf(viewer, "  backward Euler: no step limit\n"));
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  backward Euler: no step limit for the linearised problem (a single linearisation, -snes_type ksponly, can still fail at very large steps on stiff fabric)\n"));
   }
   if (!strcmp(type, TSBASICSYMPLECTIC)) PetscCall(TSBasicSymplecticGetType(s->ts, (TSBasicSymplecticType *) &name));
   PetscCall(PetscViewerASCIIPrintf(viewer, "Integrator: -ts_type %s%s%s, h = %g s", type, name ? " -ts_basicsymplectic_type " : "", name ? name : "", (double) dt));
