@@ -68,6 +68,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -121,10 +122,14 @@ class Drape:
         cmd = self.launcher() + [str(self.exe)] + args + ["-drape_progress", "0"]
         if h5:
             cmd += ["-output_file", str(h5)]
-        try:
-            proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
-        except OSError as e:
-            fail(f"cannot run {self.exe}: {e}")
+        for attempt in range(10):  # the executable may be being relinked by a concurrent 'make'
+            try:
+                proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+                break
+            except OSError as e:
+                if attempt == 9 or not self.exe.exists() and attempt >= 2:
+                    fail(f"cannot run {self.exe}: {e}")
+                time.sleep(3)
         proc.cmd = " ".join(cmd)
         return proc, h5
 
