@@ -676,6 +676,19 @@ static PetscErrorCode GroupKnownStretch(PetscRandom rnd)
   PetscFunctionReturn(0);
 }
 
+/* A random vertex, two orthonormal directions, edge lengths and coefficient. */
+static PetscErrorCode RandomPlacement(PetscRandom rnd, PetscReal xc[3], PetscReal a[3], PetscReal nrm[3], PetscReal *l1, PetscReal *l2, PetscReal *kappa)
+{
+  PetscFunctionBeginUser;
+  for (PetscInt i = 0; i < 3; i++) PetscCall(Uniform(rnd, -1, 1, &xc[i]));
+  PetscCall(RandomUnit(rnd, a));
+  PetscCall(RandomUnitOrthogonal(rnd, a, nrm));
+  PetscCall(Uniform(rnd, 0.5, 2, l1));
+  PetscCall(Uniform(rnd, 0.5, 2, l2));
+  PetscCall(Uniform(rnd, 0.5, 3, kappa));
+  PetscFunctionReturn(0);
+}
+
 /* right angle: E = 0, g = 0; unit edges at pi/2 + 0.1: E = kappa * 0.01 */
 static PetscErrorCode GroupKnownShear(PetscRandom rnd)
 {
@@ -684,12 +697,7 @@ static PetscErrorCode GroupKnownShear(PetscRandom rnd)
 
   PetscFunctionBeginUser;
   for (PetscInt t = 0; t < 5; t++) {
-    for (PetscInt i = 0; i < 3; i++) PetscCall(Uniform(rnd, -1, 1, &xc[i]));
-    PetscCall(RandomUnit(rnd, a));
-    PetscCall(RandomUnitOrthogonal(rnd, a, nrm));
-    PetscCall(Uniform(rnd, 0.5, 2, &l1));
-    PetscCall(Uniform(rnd, 0.5, 2, &l2));
-    PetscCall(Uniform(rnd, 0.5, 3, &kappa));
+    PetscCall(RandomPlacement(rnd, xc, a, nrm, &l1, &l2, &kappa));
     /* right angle, e2 = l2 nrm exactly */
     PetscCall(SetAngle(&el, ELEM_SHEAR, xc, a, nrm, l1, l2, PETSC_PI / 2, kappa));
     for (PetscInt i = 0; i < 3; i++) el.x[3 + i] = xc[i] + l2 * nrm[i];
@@ -721,12 +729,7 @@ static PetscErrorCode GroupKnownBend(PetscRandom rnd)
 
   PetscFunctionBeginUser;
   for (PetscInt t = 0; t < 5; t++) {
-    for (PetscInt i = 0; i < 3; i++) PetscCall(Uniform(rnd, -1, 1, &xc[i]));
-    PetscCall(RandomUnit(rnd, a));
-    PetscCall(RandomUnitOrthogonal(rnd, a, nrm));
-    PetscCall(Uniform(rnd, 0.5, 2, &l1));
-    PetscCall(Uniform(rnd, 0.5, 2, &l2));
-    PetscCall(Uniform(rnd, 0.5, 3, &kappa));
+    PetscCall(RandomPlacement(rnd, xc, a, nrm, &l1, &l2, &kappa));
     /* straight, e2 = -l2 a exactly */
     PetscCall(SetAngle(&el, ELEM_BEND, xc, a, nrm, l1, l2, PETSC_PI, kappa));
     for (PetscInt i = 0; i < 3; i++) el.x[3 + i] = xc[i] - l2 * a[i];
