@@ -32,7 +32,7 @@ static void AccumulateInternalForce(Cloth c, const PetscReal *xl, PetscReal *fl)
 
   for (PetscInt e = 0; e < st->n; e++) {
     const PetscInt a = st->p[2 * e], b = st->p[2 * e + 1];
-    KernelStretch(xl + 3 * a, xl + 3 * b, st->coef[e], st->rest[e], g, NULL, PETSC_FALSE);
+    KernelStretchGradient(xl + 3 * a, xl + 3 * b, st->coef[e], st->rest[e], g);
     for (PetscInt d = 0; d < 3; d++) {
       fl[3 * a + d] -= g[d];
       fl[3 * b + d] -= g[3 + d];
@@ -40,10 +40,10 @@ static void AccumulateInternalForce(Cloth c, const PetscReal *xl, PetscReal *fl)
   }
   for (PetscInt pass = 0; pass < 2; pass++) {
     const ClothElements *el   = pass ? be : sh;
-    KernelAngleKind      kind = pass ? KERNEL_BEND : KERNEL_SHEAR;
+    const PetscBool      bend = pass ? PETSC_TRUE : PETSC_FALSE;
     for (PetscInt e = 0; e < el->n; e++) {
       const PetscInt a = el->p[3 * e], b = el->p[3 * e + 1], v = el->p[3 * e + 2];
-      KernelAngle(kind, xl + 3 * a, xl + 3 * b, xl + 3 * v, el->coef[e], g, NULL, PETSC_FALSE);
+      KernelAngleGradient(bend, xl + 3 * a, xl + 3 * b, xl + 3 * v, el->coef[e], g);
       for (PetscInt d = 0; d < 3; d++) {
         fl[3 * a + d] -= g[d];
         fl[3 * b + d] -= g[3 + d];

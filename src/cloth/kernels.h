@@ -120,6 +120,55 @@ static inline PetscReal KernelStretch(const PetscReal *xa, const PetscReal *xb, 
   return 0.5 * k * dl * dl;
 }
 
+/* Gradients only, for the explicit schemes' force loop: the same formulas as
+ * KernelStretch/KernelAngle at order 1, arranged for fewest divisions and square
+ * roots (one reciprocal 1/(u w) serves 1/u, 1/w and 1/sqrt(u w)). They are checked
+ * against the general kernels in tests/unit/test_kernels.c. g = [g_a, g_b(, g_c)]. */
+static inline void KernelStretchGradient(const PetscReal *xa, const PetscReal *xb, PetscReal k, PetscReal L, PetscReal g[6])
+{
+  const PetscReal e0 = xb[0] - xa[0], e1 = xb[1] - xa[1], e2 = xb[2] - xa[2];
+  const PetscReal t = k - k * L / PetscSqrtReal(e0 * e0 + e1 * e1 + e2 * e2);
+
+  g[3] = t * e0;
+  g[4] = t * e1;
+  g[5] = t * e2;
+  g[0] = -g[3];
+  g[1] = -g[4];
+  g[2] = -g[5];
+}
+
+/* 2 E_u, 2 E_w and E_s of the shear (bend = PETSC_FALSE) or bending energy, then
+ * g_a = 2E_u e1 + E_s e2, g_b = 2E_w e2 + E_s e1, g_c = -(g_a + g_b). */
+static inline void KernelAngleGradient(PetscBool bend, const PetscReal *xa, const PetscReal *xb, const PetscReal *xc, PetscReal kappa, PetscReal g[9])
+{
+  const PetscReal e1[3] = {xa[0] - xc[0], xa[1] - xc[1], xa[2] - xc[2]}, e2[3] = {xb[0] - xc[0], xb[1] - xc[1], xb[2] - xc[2]};
+  const PetscReal u = e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2], w = e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2];
+  const PetscReal s   = e1[0] * e2[0] + e1[1] * e2[1] + e1[2] * e2[2];
+  const PetscReal inv = 1 / (u * w), P = PetscSqrtReal(u * w), iP = P * inv;
+  PetscReal       c = s * iP, Eu2, Ew2, Es;
+
+  if (bend) {
+    Eu2 = -kappa * c * w * inv;
+    Ew2 = -kappa * c * u * inv;
+    Es  = kappa * iP;
+  } else {
+    PetscReal a, r, g1, q;
+    c   = PetscMin(PetscMax(c, -1 + 1e-14), 1 - 1e-14);
+    a   = PetscAsinReal(c);
+    r   = PetscSqrtReal(1 - c * c);
+    g1  = 2 * a / r;
+    q   = kappa * P * inv * (a * a - g1 * c);
+    Eu2 = q * w;
+    Ew2 = q * u;
+    Es  = kappa * g1;
+  }
+  for (PetscInt i = 0; i < 3; i++) {
+    g[i]     = Eu2 * e1[i] + Es * e2[i];
+    g[3 + i] = Ew2 * e2[i] + Es * e1[i];
+    g[6 + i] = -g[i] - g[3 + i];
+  }
+}
+
 /* First and second partials of an angle energy E(u, w, s). */
 typedef struct {
   PetscReal E, Eu, Ew, Es, Euu, Eww, Ess, Euw, Eus, Ews;

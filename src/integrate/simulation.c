@@ -435,10 +435,9 @@ static PetscErrorCode CheckDivergence(Simulation s, TS ts, PetscInt step, PetscR
     PetscCall(PetscSNPrintf(euler, sizeof euler, "h < %.4e s", (double) s->limits.euler));
   else
     PetscCall(PetscStrcpy(euler, "unstable at every step without damping"));
-  PetscCall(PetscObjectTypeCompare((PetscObject)ts, TSBEULER, &implicit));
-  SETERRQ(s->comm, PETSC_ERR_NOT_CONVERGED,
-          "The run diverged at step %" PetscInt_FMT " (t = %g s): %s. Estimated stability limits: symplectic Euler h < %.4e s, explicit Euler %s; this run used -ts_type %s -ts_dt %g. %s", step, (double)t,
-          sum[2] != 0 ? "positions or velocities are not finite" : "the energy grew beyond what gravity and the initial state can supply", (double)s->limits.symplectic, euler, type, (double)dt,
+  PetscCall(PetscObjectTypeCompare((PetscObject) ts, TSBEULER, &implicit));
+  SETERRQ(s->comm, PETSC_ERR_NOT_CONVERGED, "The run diverged at step %" PetscInt_FMT " (t = %g s): %s. Estimated stability limits: symplectic Euler h < %.4e s, explicit Euler %s; this run used -ts_type %s -ts_dt %g. %s", step, (double) t,
+          sum[2] != 0 ? "positions or velocities are not finite" : "the energy grew beyond what gravity and the initial state can supply", (double) s->limits.symplectic, euler, type, (double) dt,
           implicit ? "Reduce -ts_dt: the single linearisation of -snes_type ksponly fails at steps this large for this fabric" : "Reduce -ts_dt or use -ts_type beuler");
 }
 
@@ -501,8 +500,10 @@ static PetscErrorCode SimulationViewStart(Simulation s)
   if (s->stability_its > 0) {
     PetscBool explicit_euler;
     PetscCall(PetscStrcmp(type, TSEULER, &explicit_euler));
-    if (explicit_euler && s->limits.euler > 0 && s->limits.euler < PETSC_INFINITY) PetscCall(PetscViewerASCIIPrintf(viewer, " (%.3g x the explicit Euler limit)", (double)(dt / s->limits.euler)));
-    else if (!explicit_euler && s->limits.symplectic < PETSC_INFINITY) PetscCall(PetscViewerASCIIPrintf(viewer, " (%.3g x the symplectic limit)", (double)(dt / s->limits.symplectic)));
+    if (explicit_euler && s->limits.euler > 0 && s->limits.euler < PETSC_INFINITY)
+      PetscCall(PetscViewerASCIIPrintf(viewer, " (%.3g x the explicit Euler limit)", (double) (dt / s->limits.euler)));
+    else if (!explicit_euler && s->limits.symplectic < PETSC_INFINITY)
+      PetscCall(PetscViewerASCIIPrintf(viewer, " (%.3g x the symplectic limit)", (double) (dt / s->limits.symplectic)));
   }
   PetscCall(PetscViewerASCIIPrintf(viewer, ", to t = %g s\n", (double) tmax));
   if (!strcmp(type, TSBEULER)) {
