@@ -17,8 +17,9 @@ typedef struct _p_Cloth *Cloth;
 /* Internal energy split by kind, plus kinetic and gravitational energy. */
 typedef struct {
   PetscReal kinetic, gravity, stretch, shear, bend;
-  PetscReal contact_depth; /* deepest penetration corrected since the last frame, m */
-  PetscInt  contact_count; /* particles in contact after the last step            */
+  PetscReal contact_depth;    /* deepest penetration corrected since the last frame, m */
+  PetscInt  contact_count;    /* particles in contact after the last step            */
+  PetscReal contact_force[3]; /* mean force of the solid on the cloth since the last frame, N */
 } ClothEnergies;
 
 /* Summary numbers a driver prints or writes next to the results. */

@@ -22,6 +22,7 @@ PETSC_EXTERN PetscErrorCode SimulationInterrupted(Simulation, PetscBool *);
  * an assembled MATAIJ), registered as TS type "beuler". The Cloth must be composed
  * on the TS as a PetscContainer named "drape_cloth". */
 PETSC_EXTERN PetscErrorCode DrapeTSRegisterBEuler(void);
+PETSC_EXTERN PetscErrorCode TSDrapeGetContactImpulse(TS, PetscReal[3]);
 
 /* stability.c: Omega_max^2 = lambda_max(M^-1 H) by power iteration, and the step
  * limits it implies for the explicit schemes. */

@@ -63,7 +63,7 @@ PETSC_EXTERN PetscErrorCode ContactGetMode(Contact, ContactMode *, PetscReal *fr
  * whose position update used the new velocity (symplectic and backward Euler),
  * the step, so that the position follows the corrected velocity (a particle held
  * by static friction does not creep); 0 otherwise. */
-PETSC_EXTERN PetscErrorCode ContactProject(Contact, PetscInt n, PetscScalar *x, PetscScalar *v, const PetscBool *pinned, PetscReal h, PetscReal *depth, PetscInt *ncontact);
+PETSC_EXTERN PetscErrorCode ContactProject(Contact, PetscInt n, PetscScalar *x, PetscScalar *v, const PetscReal *mass, const PetscBool *pinned, PetscReal h, PetscReal *depth, PetscInt *ncontact, PetscReal impulse[3]);
 /* Refuse an initial state with particles inside the solid (one sentence). */
 PETSC_EXTERN PetscErrorCode ContactCheckInitial(Contact, PetscInt n, const PetscScalar *x);
 /* Constraint of local particle l (of nlocal) at x for the implicit solve: 0 free,

@@ -81,6 +81,7 @@ class Frames:
             self.x = f["position"][:n]
             self.v = f["velocity"][:n]
             self.energy = {k[7:]: f[k][:n].ravel() for k in f if k.startswith("energy_")}
+            self.contact_force = f["contact_force"][:n].reshape(n, 3)
             self.attrs = dict(f.attrs)
 
     @property

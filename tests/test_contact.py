@@ -19,7 +19,8 @@ SCHEMES = {
 @pytest.mark.parametrize("scheme", SCHEMES)
 def test_cloth_settles_on_a_plane(tmp, scheme):
     """A cloth dropped on a floor ends flat at floor + thickness, at rest, and no
-    particle is ever below that at the end of a step."""
+    particle is ever below that at the end of a step; at rest the floor carries
+    the cloth's weight (vertical force balance, from the contact impulses)."""
     out = tmp / "plane.h5"
     run(f"-da_grid_x 10 -da_grid_y 10 -cloth_center 0,0,0.1 -solid_floor 0.05 -contact_mode friction "
         f"-ts_max_time 1.5 -output_interval 0.01 -output_file {out} {SCHEMES[scheme]}")
@@ -29,6 +30,13 @@ def test_cloth_settles_on_a_plane(tmp, scheme):
     assert np.abs(z[-1] - (0.05 + THICK)).max() < 1e-9
     assert fr.energy["kinetic"][-1] < 1e-5 * 0.15 * 9.81 * 0.05  # of the energy the fall released
     assert fr.x[-1, ..., :2].std() > 0.2  # still spread out, not collapsed
+    weight = 0.15 * 1.0 * 9.81  # density x area x g
+    # explicit Euler chatters at rest (v = 0, g h, 0, ...): its damping carries c h / 2 of the weight
+    tol = 5 * 1e-4 if scheme == "euler" else 1e-9
+    force = fr.contact_force[-1]
+    assert abs(force[2] - weight) <= tol * weight, (force, weight)
+    assert np.abs(force[:2]).max() <= 1e-9 * weight
+    assert np.all(fr.contact_force[0] == 0)  # no time before the first frame
 
 
 def tilted_gravity(alpha):
@@ -56,6 +64,11 @@ def test_friction_on_an_inclined_plane(tmp, scheme, tan_alpha):
     else:
         assert np.abs(xc[-1] - expect[-1]) < 0.02 * expect[-1], (xc[-1], expect[-1])
     assert np.abs(fr.x[..., 2] - THICK).max() < 1e-9
+    # the force of the plane: normal M g cos(alpha); along the slope static friction
+    # holding M g sin(alpha) when sticking, kinetic -mu M g cos(alpha) when sliding
+    Mg = 0.15 * 0.3 * 0.3 * 9.81
+    expect_force = [-min(math.sin(alpha), mu * math.cos(alpha)) * Mg, 0, math.cos(alpha) * Mg]
+    assert np.abs(fr.contact_force[1:] - expect_force).max() < 1e-9 * Mg, (fr.contact_force[-1], expect_force)
 
 
 def test_sticky_contact_has_zero_velocity(tmp):

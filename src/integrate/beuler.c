@@ -18,7 +18,9 @@
  * is w with dv = S w + z, z making the constrained velocity components zero, and
  * SNES solves S R(dv) + (I - S) M w = 0 whose matrix S A S + (I - S) M stays SPD.
  * With friction, the normal impulse the constraint carried bounds the tangential
- * velocity change (Coulomb) after the solve. */
+ * velocity change (Coulomb) after the solve. The impulse the constraints gave the
+ * cloth in the last step, sum of m (v - v0 - h a(x_t, v_t)) over the constrained
+ * particles, is what TSDrapeGetContactImpulse() returns. */
 #include <petsc/private/tsimpl.h>
 #include <drape.h>
 #include <simulation.h>
@@ -36,7 +38,8 @@ typedef struct {
   PetscScalar       *z;
   PetscBool          constrained;
   PetscReal          h, damping, friction;
-  PetscInt           n; /* 3 x owned particles */
+  PetscReal          impulse[3]; /* of the last step, owned particles */
+  PetscInt           n;          /* 3 x owned particles */
 } TS_DrapeBE;
 
 /* Trial state of the step: v_t = v0 + dv, x_t = x0 + h v_t; pinned particles stay
@@ -111,11 +114,10 @@ static PetscErrorCode BEJacobian(SNES snes, Vec DV, Mat J, Mat P, void *ctx)
 
 /* Coulomb friction on sliding contacts: the impulse per unit mass the normal
  * constraint carried, j = n.(dv - h a) (dv = h a + j n), bounds the tangential
- * velocity change. */
+ * velocity change. be->at holds the acceleration at the trial state. */
 static PetscErrorCode BEFriction(TS_DrapeBE *be)
 {
   PetscFunctionBeginUser;
-  PetscCall(ClothComputeAcceleration(be->cloth, be->xt, be->vt, be->at));
   for (PetscInt k = 0; k < be->n / 3; k++) {
     const PetscReal *nk = be->cnormal + 3 * k;
     PetscReal       *v = be->vt + 3 * k, j = 0, vn = 0, vt[3], lt = 0;
@@ -210,7 +212,15 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
             ts->steps, (double) ts->ptime, (double) ts->time_step, SNESConvergedReasons[sreason], KSPConvergedReasons[kreason], lits);
   }
   PetscCall(TrialState(be, be->DV));
-  if (be->constrained && be->friction > 0) PetscCall(BEFriction(be));
+  be->impulse[0] = be->impulse[1] = be->impulse[2] = 0;
+  if (be->constrained) {
+    PetscCall(ClothComputeAcceleration(be->cloth, be->xt, be->vt, be->at));
+    if (be->friction > 0) PetscCall(BEFriction(be));
+    for (PetscInt k = 0; k < be->n / 3; k++) {
+      if (!be->ctype[k]) continue;
+      for (PetscInt d = 0; d < 3; d++) be->impulse[d] += be->mass[k] * (be->vt[3 * k + d] - be->v0[3 * k + d] - be->h * be->at[3 * k + d]);
+    }
+  }
   for (PetscInt i = 0; i < be->n; i++) {
     u[be->n + i] = be->vt[i];
     u[i]         = be->x0[i] + be->h * be->vt[i];
@@ -233,9 +243,29 @@ static PetscErrorCode TSReset_DrapeBE(TS ts)
   PetscFunctionReturn(0);
 }
 
+static PetscErrorCode TSDrapeGetContactImpulse_DrapeBE(TS ts, PetscReal impulse[3])
+{
+  TS_DrapeBE *be = (TS_DrapeBE *) ts->data;
+
+  PetscFunctionBeginUser;
+  for (PetscInt d = 0; d < 3; d++) impulse[d] = be->impulse[d];
+  PetscFunctionReturn(0);
+}
+
+/* Impulse (N s) the contact constraints of the implicit solve gave this rank's
+ * particles in the last step; zero for TS types without such constraints. */
+PetscErrorCode TSDrapeGetContactImpulse(TS ts, PetscReal impulse[3])
+{
+  PetscFunctionBeginUser;
+  impulse[0] = impulse[1] = impulse[2] = 0;
+  PetscTryMethod(ts, "TSDrapeGetContactImpulse_C", (TS, PetscReal *), (ts, impulse));
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode TSDestroy_DrapeBE(TS ts)
 {
   PetscFunctionBeginUser;
+  PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeGetContactImpulse_C", NULL));
   PetscCall(TSReset_DrapeBE(ts));
   PetscCall(PetscFree(ts->data));
   PetscFunctionReturn(0);
@@ -268,6 +298,7 @@ static PetscErrorCode TSCreate_DrapeBE(TS ts)
   ts->ops->view          = TSView_DrapeBE;
   ts->usessnes           = PETSC_TRUE;
   ts->default_adapt_type = TSADAPTNONE;
+  PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeGetContactImpulse_C", TSDrapeGetContactImpulse_DrapeBE));
   /* drape's defaults; -snes_type, -ksp_type, -pc_type ... override them */
   PetscCall(TSGetSNES(ts, &snes));
   PetscCall(SNESSetType(snes, SNESKSPONLY));

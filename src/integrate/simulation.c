@@ -30,6 +30,7 @@ struct _p_Simulation {
   Contact         contact; /* NULL when the scene has no solid */
   PetscReal       depth;   /* deepest penetration since the last frame, m */
   PetscInt        ncontact;
+  PetscReal       impulse[3], impulse_t0; /* contact impulse on this rank's particles since impulse_t0, N s */
   TS              ts;
   Vec             U;
   IS              is_x, is_v;
@@ -162,7 +163,10 @@ static PetscErrorCode PostStep(TS ts)
       PetscCall(TSGetTime(ts, &t));
       h = t - t0;
     }
-    PetscCall(ContactProject(s->contact, s->n / 3, u, u + s->n, pinned, h, &depth, &s->ncontact));
+    PetscReal j[3];
+    PetscCall(TSDrapeGetContactImpulse(ts, j));
+    for (PetscInt d = 0; d < 3; d++) s->impulse[d] += j[d];
+    PetscCall(ContactProject(s->contact, s->n / 3, u, u + s->n, mass, pinned, h, &depth, &s->ncontact, s->impulse));
     s->depth = PetscMax(s->depth, depth);
   }
   if (s->rest_tol > 0) {
@@ -329,6 +333,7 @@ PetscErrorCode SimulationSetUp(Simulation s)
   PetscCall(TSSetFromOptions(s->ts));
   if (s->have_restart) {
     PetscCall(TSSetTime(s->ts, s->restart_time));
+    s->impulse_t0 = s->restart_time;
     PetscCall(TSSetStepNumber(s->ts, s->restart_step));
   }
   PetscCall(TSGetType(s->ts, &type));
@@ -379,6 +384,22 @@ PetscErrorCode SimulationDestroy(Simulation *sim)
   PetscFunctionReturn(0);
 }
 
+/* Mean force of the solid on the cloth since the last call (N): the contact
+ * impulses of the steps in between over the time they took. */
+static PetscErrorCode SimulationContactForce(Simulation s, PetscReal t, PetscReal force[3])
+{
+  PetscReal sum[3];
+
+  PetscFunctionBeginUser;
+  PetscCall(MPIU_Allreduce(s->impulse, sum, 3, MPIU_REAL, MPI_SUM, s->comm));
+  for (PetscInt d = 0; d < 3; d++) {
+    force[d]      = t > s->impulse_t0 ? sum[d] / (t - s->impulse_t0) : 0;
+    s->impulse[d] = 0;
+  }
+  s->impulse_t0 = t;
+  PetscFunctionReturn(0);
+}
+
 /* Write a frame of the current state (energies computed only here). */
 static PetscErrorCode SimulationWriteFrame(Simulation s, PetscInt step, PetscReal t, const PetscScalar *u)
 {
@@ -389,6 +410,7 @@ static PetscErrorCode SimulationWriteFrame(Simulation s, PetscInt step, PetscRea
   PetscCall(ClothComputeEnergies(s->cloth, u, u + s->n, &en));
   en.contact_depth = s->depth;
   en.contact_count = s->ncontact;
+  PetscCall(SimulationContactForce(s, t, en.contact_force));
   PetscCall(OutputWriteFrame(s->output, s->cloth, step, t, u, u + s->n, &en));
   s->depth = 0;
   PetscCall(PetscLogEventEnd(drape_log.output, 0, 0, 0, 0));

@@ -6,6 +6,8 @@
  *   /time, /step, /energy_kinetic, /energy_gravity, /energy_stretch,
  *   /energy_shear, /energy_bend, /contact_depth, /contact_count   [t][1]
  *                                           (s, -, J, m, -)
+ *   /contact_force   [t][3]  mean force of the solid on the cloth since the
+ *                            previous frame (N; 0 in the first frame)
  *   /solid_triangles  [9 x triangles]       (m) the solid's mesh, for pictures
  *   attributes of /: drape_version, options (as given), description, lattice.
  * /time is written last in each frame, so its length counts the complete frames;
@@ -14,8 +16,9 @@
 #include <drape.h>
 #include <petscviewerhdf5.h>
 
-#define NSCALARS 9
-static const char *const scalar_names[NSCALARS] = {"step", "energy_kinetic", "energy_gravity", "energy_stretch", "energy_shear", "energy_bend", "contact_depth", "contact_count", "time"};
+#define NSCALARS 10
+static const char *const scalar_names[NSCALARS] = {"step", "energy_kinetic", "energy_gravity", "energy_stretch", "energy_shear", "energy_bend", "contact_depth", "contact_count", "contact_force", "time"};
+static const PetscInt    scalar_sizes[NSCALARS] = {1, 1, 1, 1, 1, 1, 1, 1, 3, 1};
 
 struct _p_Output {
   MPI_Comm    comm;
@@ -133,7 +136,7 @@ PetscErrorCode OutputOpen(Output o, Cloth cloth, Solid solid, const char *descri
   PetscCall(PetscObjectSetName((PetscObject) o->V, "velocity"));
   PetscCallMPI(MPI_Comm_rank(o->comm, &rank));
   for (PetscInt k = 0; k < NSCALARS; k++) {
-    PetscCall(VecCreateMPI(o->comm, rank ? 0 : 1, 1, &o->scalars[k]));
+    PetscCall(VecCreateMPI(o->comm, rank ? 0 : scalar_sizes[k], scalar_sizes[k], &o->scalars[k]));
     PetscCall(PetscObjectSetName((PetscObject) o->scalars[k], scalar_names[k]));
   }
   if (o->append) {
@@ -239,20 +242,21 @@ static PetscErrorCode OutputWriteXDMF(Output o)
 PetscErrorCode OutputWriteFrame(Output o, Cloth cloth, PetscInt step, PetscReal t, const PetscScalar *x, const PetscScalar *v, const ClothEnergies *en)
 {
   PetscScalar *a;
-  PetscReal    values[NSCALARS];
+  PetscReal    values[NSCALARS][3];
   hid_t        fid;
 
   PetscFunctionBeginUser;
   if (!o->enabled) PetscFunctionReturn(0);
-  values[0] = (PetscReal) step;
-  values[1] = en->kinetic;
-  values[2] = en->gravity;
-  values[3] = en->stretch;
-  values[4] = en->shear;
-  values[5] = en->bend;
-  values[6] = en->contact_depth;
-  values[7] = (PetscReal) en->contact_count;
-  values[8] = t;
+  values[0][0] = (PetscReal) step;
+  values[1][0] = en->kinetic;
+  values[2][0] = en->gravity;
+  values[3][0] = en->stretch;
+  values[4][0] = en->shear;
+  values[5][0] = en->bend;
+  values[6][0] = en->contact_depth;
+  values[7][0] = (PetscReal) en->contact_count;
+  for (PetscInt d = 0; d < 3; d++) values[8][d] = en->contact_force[d];
+  values[9][0] = t;
   PetscCall(ClothToDMDA(cloth, x, o->X));
   PetscCall(ClothToDMDA(cloth, v, o->V));
   PetscCall(PetscViewerHDF5SetTimestep(o->viewer, o->nframes));
@@ -263,7 +267,7 @@ PetscErrorCode OutputWriteFrame(Output o, Cloth cloth, PetscInt step, PetscReal 
     PetscCall(VecGetLocalSize(o->scalars[k], &nl));
     if (nl) {
       PetscCall(VecGetArray(o->scalars[k], &a));
-      a[0] = values[k];
+      for (PetscInt d = 0; d < nl; d++) a[d] = values[k][d];
       PetscCall(VecRestoreArray(o->scalars[k], &a));
     }
     PetscCall(VecView(o->scalars[k], o->viewer));

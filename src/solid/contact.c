@@ -132,7 +132,10 @@ static void ContactVelocity(ContactMode mode, PetscReal mu, const PetscReal n[3]
   for (PetscInt d = 0; d < 3; d++) v[d] -= (lt <= mu * dvn ? 1 : mu * dvn / lt) * vt[d];
 }
 
-PetscErrorCode ContactProject(Contact c, PetscInt n, PetscScalar *x, PetscScalar *v, const PetscBool *pinned, PetscReal h, PetscReal *depth, PetscInt *ncontact)
+/* Project the owned particles that reached the solid back onto its contact
+ * surface and constrain their velocity; impulse[3] (local, not summed over ranks)
+ * gains the impulse the solid gave them, sum of m (v_after - v_before). */
+PetscErrorCode ContactProject(Contact c, PetscInt n, PetscScalar *x, PetscScalar *v, const PetscReal *mass, const PetscBool *pinned, PetscReal h, PetscReal *depth, PetscInt *ncontact, PetscReal impulse[3])
 {
   PetscReal lo[3] = {PETSC_MAX_REAL, PETSC_MAX_REAL, PETSC_MAX_REAL}, hi[3] = {-PETSC_MAX_REAL, -PETSC_MAX_REAL, -PETSC_MAX_REAL};
   PetscReal deepest = 0, grow = c->thickness;
@@ -158,7 +161,10 @@ PetscErrorCode ContactProject(Contact c, PetscInt n, PetscScalar *x, PetscScalar
       deepest           = PetscMax(deepest, c->thickness - dist);
       ContactVelocity(c->mode, c->mu, nrm, v + 3 * k);
       /* position: back onto the contact surface, and along the corrected velocity */
-      for (PetscInt d = 0; d < 3; d++) dx[d] = h * (v[3 * k + d] - vold[d]);
+      for (PetscInt d = 0; d < 3; d++) {
+        dx[d] = h * (v[3 * k + d] - vold[d]);
+        impulse[d] += mass[k] * (v[3 * k + d] - vold[d]);
+      }
       {
         PetscReal dxn = dx[0] * nrm[0] + dx[1] * nrm[1] + dx[2] * nrm[2];
         for (PetscInt d = 0; d < 3; d++) p[d] += dx[d] - dxn * nrm[d] + (c->thickness - dist) * nrm[d];
