@@ -149,10 +149,17 @@ PetscErrorCode ClothSetFromOptions(Cloth c)
       c->size[1] = n == 1 ? tmp[0] : tmp[1];
     }
   }
+  {
+    char fabric[64], list[1024], text[1200];
+    PetscCall(ClothFabricList(list, sizeof list));
+    PetscCall(PetscSNPrintf(text, sizeof text, "Measured fabric for density and rigidities (Wang, Ramamoorthi & O'Brien 2011; the -cloth_* options below override single values): %s", list));
+    PetscCall(PetscOptionsString("-cloth_fabric", text, "ClothSetFabric", "", fabric, sizeof fabric, &set));
+    if (set) PetscCall(ClothSetFabric(c, fabric));
+  }
   PetscCall(PetscOptionsReal("-cloth_density", "Areal density (kg/m^2)", "ClothSetFromOptions", c->density, &c->density, NULL));
   PetscCall(PetscOptionsReal("-cloth_damping", "Mass-proportional damping c, force -c m v (1/s)", "ClothSetFromOptions", c->damping, &c->damping, NULL));
   PetscCall(OptionsWarpWeft(PetscOptionsObject, "-cloth_stretch", "Tensile rigidity warp[,weft] (N/m); 0 removes the stretch energy", c->stretch));
-  PetscCall(PetscOptionsReal("-cloth_shear", "In-plane shear rigidity (N/m per rad^2); 0 removes the shear energy", "ClothSetFromOptions", c->shear, &c->shear, NULL));
+  PetscCall(PetscOptionsReal("-cloth_shear", "In-plane shear rigidity (N/m: energy per area S gamma^2/2 for a shear angle gamma); 0 removes the shear energy", "ClothSetFromOptions", c->shear, &c->shear, NULL));
   PetscCall(OptionsWarpWeft(PetscOptionsObject, "-cloth_bend", "Bending rigidity warp[,weft] (N m); 0 removes the bending energy", c->bend));
   n = 3;
   PetscCall(PetscOptionsRealArray("-gravity", "Gravity vector gx,gy,gz (m/s^2)", "ClothSetFromOptions", c->gravity, &n, &set));
@@ -703,6 +710,7 @@ PetscErrorCode ClothView(Cloth c, PetscViewer viewer)
       PetscCall(PetscViewerASCIIPrintf(viewer, "  partition: %s on %d ranks, %" PetscInt_FMT " to %" PetscInt_FMT " active particles per rank (imbalance %.3f), %" PetscInt_FMT " of %" PetscInt_FMT " stretch edges cut\n", PartitionTypes[c->partition],
                                        size, c->owned_min, c->owned_max, (double) (c->owned_max * size / PetscMax(c->active_total, 1)), c->ncut, c->nstretch));
   }
+  if (c->fabric[0]) PetscCall(PetscViewerASCIIPrintf(viewer, "  fabric: %s\n", c->fabric));
   PetscCall(PetscViewerASCIIPrintf(viewer, "  material: stretch %g,%g N/m, shear %g N/m, bend %g,%g N m, density %g kg/m^2, damping %g 1/s\n", (double) c->stretch[0], (double) c->stretch[1], (double) c->shear, (double) c->bend[0],
                                    (double) c->bend[1], (double) c->density, (double) c->damping));
   PetscCall(PetscViewerASCIIPrintf(viewer, "  gravity (%g, %g, %g) m/s^2, Hessian %s\n", (double) c->gravity[0], (double) c->gravity[1], (double) c->gravity[2], c->exact_hessian ? "exact" : "SPD-projected"));

@@ -39,6 +39,7 @@ struct _p_Cloth {
   /* options */
   PetscReal        size[2], density, damping, gravity[3], origin[3];
   PetscReal        stretch[2], shear, bend[2];
+  char             fabric[256]; /* named fabric the material came from, or "" */
   ClothOrientation orientation;
   ClothPinType     pin;
   ClothShape       shape;
@@ -89,3 +90,7 @@ struct _p_Cloth {
 /* forces.c */
 PETSC_INTERN PetscErrorCode ClothScatterPositions(Cloth, const PetscScalar *, const PetscScalar **);
 PETSC_INTERN PetscErrorCode ClothEndScatter(Cloth, const PetscScalar **);
+
+/* fabrics.c: the measured fabrics of -cloth_fabric */
+PETSC_INTERN PetscErrorCode ClothSetFabric(Cloth, const char *);
+PETSC_INTERN PetscErrorCode ClothFabricList(char *, size_t);

@@ -1,0 +1,99 @@
+/* Named fabrics (-cloth_fabric): measured materials converted to the model's
+ * continuum rigidities.
+ *
+ * Source: the measured database of H. Wang, R. Ramamoorthi and J. F. O'Brien,
+ * "Data-Driven Elastic Models for Cloth: Modeling and Measurement", ACM Trans.
+ * Graph. 30(4):71 (SIGGRAPH 2011), as distributed with the ARCSim simulator
+ * (materials/<name>.json and materials/README, e.g. in the public ARCSim 0.2.1
+ * sources). The numbers below are those files' zero-strain entries, copied
+ * verbatim; use and fibre content are the README's.
+ *
+ * What the file entries mean (ARCSim's src/dde.cpp and src/physics.cpp):
+ *   density        areal density, kg/m^2 (face mass = area x density).
+ *   stretching[0]  [s_uu, s_uv, s_vv, s_sh] at zero strain; the simulator doubles
+ *                  them, k = 2 s, in the membrane energy per area
+ *                  W = (k_uu G_uu^2 + k_vv G_vv^2 + 2 k_uv G_uu G_vv + k_sh G_uv^2) / 2
+ *                  with G the Green strain. At small strain G_uu = eps_u and
+ *                  G_uv = gamma/2 (gamma the shear angle), so the tensile
+ *                  rigidities are 2 s_uu and 2 s_vv (N/m) and the shear rigidity,
+ *                  W = S gamma^2 / 2, is S = 2 s_sh / 4 = s_sh / 2 (N/m).
+ *                  s_uv (Poisson coupling) has no counterpart in the particle
+ *                  model and is dropped.
+ *   bending[r][0]  k_e at zero curvature for hinge edges along u (r = 0) and
+ *                  along v (r = 2), in the hinge energy of Bridson et al. (2003)
+ *                  E = k_e l^2 / (2 (A_0 + A_1)) theta^2 / 4 (N m). On a mesh
+ *                  bent to curvature kappa this sums to an energy per area of
+ *                  (k_e / 4) kappa^2 / 2 (a square grid split into right
+ *                  triangles: per cell one hinge with l = a, A_0 + A_1 = a^2,
+ *                  theta = kappa a, E = k_e kappa^2 a^2 / 8; equilateral meshes
+ *                  give 0.244-0.248 k_e), so the continuum bending rigidity is
+ *                  D = k_e / 4. Hinges along v resist curvature along u.
+ * The model's warp is taken as the material's u axis (the files do not say which
+ * of u and v is the warp). Only the small-strain, small-curvature values are used:
+ * the particle model is linear in them (the measured stiffening at larger strain
+ * is not represented). Explicit -cloth_* options override single values. */
+#include "clothimpl.h"
+
+typedef struct {
+  const char *name, *alias, *use;
+  PetscReal   density;                /* kg/m^2                                   */
+  PetscReal   s_uu, s_uv, s_vv, s_sh; /* stretching[0] as in the file              */
+  PetscReal   ke_u, ke_v;             /* bending[0][0], bending[2][0]: hinges along u, v (N m) */
+} Fabric;
+
+static const Fabric fabrics[] = {
+  {"11oz-black-denim", "denim", "jeans, 99% cotton 1% spandex", 0.324, 205.352005, 10.234077, 1013.88629, 53.387184, 64.196457e-6, 96.951576e-6},
+  {"white-dots-on-blk", "polyester", "tablecloth, 100% polyester", 0.128, 2002.08618, 0.345588, 2027.48559, 19.189022, 51.713814e-6, 31.282822e-6},
+  {"royal-target", NULL, "pants, 65% cotton 35% polyester", 0.220, 2016.55456, 9.170511, 2034.97644, 104.759674, 125.409805e-6, 125.409805e-6},
+  {"gray-interlock", NULL, "t-shirt knit, 60% cotton 40% polyester", 0.187, 16.593832, -14.69599, 34.477123, 36.860302, 23.191698e-6, 14.267624e-6},
+  {"ivory-rib-knit", NULL, "underwear knit, 95% cotton 5% spandex", 0.276, 42.871021, -0.234556, 65.166023, 83.175644, 46.237591e-6, 32.243889e-6},
+  {"pink-ribbon-brown", NULL, "blanket, 100% polyester", 0.228, 151.503906, 106.02816, 244.830673, 30.250183, 117.070122e-6, 59.774277e-6},
+  {"tango-red-jet-set", NULL, "jacket, 100% polyester", 0.113, 43.067627, 54.373299, 171.424835, 14.3147, 14.293814e-6, 20.345654e-6},
+  {"camel-ponte-roma", NULL, "jacket knit, 60% polyester 40% rayon", 0.284, 31.146198, -12.802702, 44.028667, 31.896357, 36.348366e-6, 37.157593e-6},
+  {"navy-sparkle-sweat", NULL, "sweater, 96% polyester 4% spandex", 0.224, 12.486332, -19.875324, 3.272434, 17.616289, 59.469658e-6, 45.625023e-6},
+  {"white-swim-solid", NULL, "swimsuit, 87% nylon 13% spandex", 0.204, 47.971176, 6.834521, 104.615456, 60.773663, 60.237942e-6, 51.018833e-6},
+};
+#define NFABRICS ((PetscInt) (sizeof fabrics / sizeof fabrics[0]))
+
+/* "denim (11oz-black-denim), polyester (white-dots-on-blk), royal-target, ..." */
+PetscErrorCode ClothFabricList(char *buf, size_t len)
+{
+  PetscFunctionBeginUser;
+  buf[0] = 0;
+  for (PetscInt k = 0; k < NFABRICS; k++) {
+    char item[96];
+    if (fabrics[k].alias)
+      PetscCall(PetscSNPrintf(item, sizeof item, "%s%s (%s)", k ? ", " : "", fabrics[k].alias, fabrics[k].name));
+    else
+      PetscCall(PetscSNPrintf(item, sizeof item, "%s%s", k ? ", " : "", fabrics[k].name));
+    PetscCall(PetscStrlcat(buf, item, len));
+  }
+  PetscFunctionReturn(0);
+}
+
+/* Set density and rigidities of c from the named fabric. */
+PetscErrorCode ClothSetFabric(Cloth c, const char *name)
+{
+  PetscFunctionBeginUser;
+  for (PetscInt k = 0; k < NFABRICS; k++) {
+    const Fabric *f = &fabrics[k];
+    PetscBool     match, alias = PETSC_FALSE;
+    PetscCall(PetscStrcmp(name, f->name, &match));
+    if (f->alias) PetscCall(PetscStrcmp(name, f->alias, &alias));
+    if (!match && !alias) continue;
+    c->density    = f->density;
+    c->stretch[0] = 2 * f->s_uu;
+    c->stretch[1] = 2 * f->s_vv;
+    c->shear      = f->s_sh / 2;
+    c->bend[0]    = f->ke_v / 4; /* curvature along the warp (u): hinges along v */
+    c->bend[1]    = f->ke_u / 4;
+    PetscCall(PetscSNPrintf(c->fabric, sizeof c->fabric, "%s (%s; Wang, Ramamoorthi & O'Brien 2011)", f->name, f->use));
+    PetscFunctionReturn(0);
+  }
+  {
+    char list[1024];
+    PetscCall(ClothFabricList(list, sizeof list));
+    SETERRQ(c->comm, PETSC_ERR_USER_INPUT, "Unknown fabric \"%s\" for -cloth_fabric; drape's library holds the fabrics with published measurements: %s. For any other fabric give -cloth_density, -cloth_stretch, -cloth_shear and -cloth_bend", name,
+            list);
+  }
+}
