@@ -107,6 +107,13 @@ PetscErrorCode RestartInsertOptions(MPI_Comm comm, const char file[])
   PetscFunctionReturn(0);
 }
 
+/* an HDF5 call on the (already inspected) restart file; a negative return stops
+ * the run with the file's name (only rank 0 reads: main aborts the job) */
+#define H5Check(call)                                                                                                                                                                                                                                    \
+  do {                                                                                                                                                                                                                                                   \
+    if ((call) < 0) SETERRQ(PETSC_COMM_SELF, PETSC_ERR_FILE_READ, "Cannot read the restart file %s: %s failed", file, #call);                                                                                                                            \
+  } while (0)
+
 PetscErrorCode RestartLoad(MPI_Comm comm, const char file[], Cloth cloth, PetscScalar *x, PetscScalar *v, PetscReal *t, PetscInt *step, PetscInt *nframes, PetscReal **times)
 {
   PetscMPIInt rank;
@@ -127,45 +134,50 @@ PetscErrorCode RestartLoad(MPI_Comm comm, const char file[], Cloth cloth, PetscS
     PetscCall(RestartInspect(file, &n, &options, &why));
     PetscCall(PetscFree(options));
     PetscCall(PetscMalloc1(n, times));
-    fid = H5Fopen(file, H5F_ACC_RDONLY, H5P_DEFAULT);
-    did = H5Dopen2(fid, "position", H5P_DEFAULT);
-    sid = H5Dget_space(did);
+    H5Check(fid = H5Fopen(file, H5F_ACC_RDONLY, H5P_DEFAULT));
+    H5Check(did = H5Dopen2(fid, "position", H5P_DEFAULT));
+    H5Check(sid = H5Dget_space(did));
     {
       hsize_t d[4];
-      H5Sget_simple_extent_dims(sid, d, NULL);
+      PetscCheck(H5Sget_simple_extent_ndims(sid) == 4, PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED, "Cannot restart from %s: its /position dataset is not [frames][My][Mx][3]", file);
+      H5Check(H5Sget_simple_extent_dims(sid, d, NULL));
       dims[0] = (PetscInt) d[2];
       dims[1] = (PetscInt) d[1];
     }
-    H5Sclose(sid);
-    H5Dclose(did);
+    H5Check(H5Sclose(sid));
+    H5Check(H5Dclose(did));
     {
       /* /time and /step: [frames][1]; read all times, the last step */
       PetscReal *buf;
       PetscCall(PetscMalloc1(PetscMax(n, 1), &buf));
-      did = H5Dopen2(fid, "time", H5P_DEFAULT);
+      H5Check(did = H5Dopen2(fid, "time", H5P_DEFAULT));
       {
         hsize_t start[2] = {0, 0}, count[2] = {(hsize_t) n, 1};
-        hid_t   fs = H5Dget_space(did), ms = H5Screate_simple(2, count, NULL);
-        H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, NULL, count, NULL);
-        H5Dread(did, H5T_NATIVE_DOUBLE, ms, fs, H5P_DEFAULT, *times);
-        H5Sclose(ms);
-        H5Sclose(fs);
+        hid_t   fs, ms;
+        H5Check(fs = H5Dget_space(did));
+        H5Check(ms = H5Screate_simple(2, count, NULL));
+        H5Check(H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, NULL, count, NULL));
+        H5Check(H5Dread(did, H5T_NATIVE_DOUBLE, ms, fs, H5P_DEFAULT, *times));
+        H5Check(H5Sclose(ms));
+        H5Check(H5Sclose(fs));
       }
-      H5Dclose(did);
-      did = H5Dopen2(fid, "step", H5P_DEFAULT);
+      H5Check(H5Dclose(did));
+      H5Check(did = H5Dopen2(fid, "step", H5P_DEFAULT));
       {
         hsize_t start[2] = {(hsize_t) (n - 1), 0}, count[2] = {1, 1};
-        hid_t   fs = H5Dget_space(did), ms = H5Screate_simple(2, count, NULL);
-        H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, NULL, count, NULL);
-        H5Dread(did, H5T_NATIVE_DOUBLE, ms, fs, H5P_DEFAULT, buf);
+        hid_t   fs, ms;
+        H5Check(fs = H5Dget_space(did));
+        H5Check(ms = H5Screate_simple(2, count, NULL));
+        H5Check(H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, NULL, count, NULL));
+        H5Check(H5Dread(did, H5T_NATIVE_DOUBLE, ms, fs, H5P_DEFAULT, buf));
         stepv = buf[0];
-        H5Sclose(ms);
-        H5Sclose(fs);
+        H5Check(H5Sclose(ms));
+        H5Check(H5Sclose(fs));
       }
-      H5Dclose(did);
+      H5Check(H5Dclose(did));
       PetscCall(PetscFree(buf));
     }
-    H5Fclose(fid);
+    H5Check(H5Fclose(fid));
   }
   PetscCallMPI(MPI_Bcast(&n, 1, MPIU_INT, 0, comm));
   PetscCallMPI(MPI_Bcast(dims, 2, MPIU_INT, 0, comm));
