@@ -20,6 +20,13 @@ PETSC_EXTERN DrapeLog drape_log;
 PETSC_EXTERN PetscErrorCode DrapeInitialize(void);
 /* Undo DrapeInitialize() (the error handler). */
 PETSC_EXTERN PetscErrorCode DrapeFinalize(void);
+/* Run fn(ctx) on every rank of comm where each rank does the same local work
+ * (reading a small input file): a failure is raised once, collectively on comm,
+ * with the message of the lowest failing rank, not printed by every rank. */
+PETSC_EXTERN PetscErrorCode DrapeCollective(MPI_Comm, PetscErrorCode (*)(void *), void *);
+/* Was the last error a user error raised on a communicator of all ranks (so every
+ * rank returns it and the job can end without MPI_Abort)? */
+PETSC_EXTERN PetscBool DrapeErrorIsCollective(void);
 /* Refuse options in drape's own namespaces (-cloth_, -output_, -drape_, ...) that
  * no component read: a misspelt drape option is an error, not a silent default. */
 PETSC_EXTERN PetscErrorCode DrapeCheckUnusedOptions(MPI_Comm);

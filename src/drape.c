@@ -26,13 +26,19 @@ static PetscBool IsUserError(PetscErrorCode n)
   }
 }
 
-static PetscBool error_is_user = PETSC_FALSE;
+static PetscBool error_is_user = PETSC_FALSE, error_on_all = PETSC_FALSE;
 
 static PetscErrorCode DrapeErrorHandler(MPI_Comm comm, int line, const char *fun, const char *file, PetscErrorCode n, PetscErrorType p, const char *mess, void *ctx)
 {
   PetscMPIInt rank = 0;
 
-  if (p == PETSC_ERROR_INITIAL) error_is_user = IsUserError(n);
+  if (p == PETSC_ERROR_INITIAL) {
+    PetscMPIInt size = 0, world = 1;
+    error_is_user = IsUserError(n);
+    if (comm != MPI_COMM_NULL) MPI_Comm_size(comm, &size);
+    MPI_Comm_size(PETSC_COMM_WORLD, &world);
+    error_on_all = (PetscBool) (size == world);
+  }
   if (!error_is_user) return PetscTraceBackErrorHandler(comm, line, fun, file, n, p, mess, ctx);
   if (p == PETSC_ERROR_INITIAL) {
     if (comm != MPI_COMM_NULL) MPI_Comm_rank(comm, &rank);
@@ -40,6 +46,42 @@ static PetscErrorCode DrapeErrorHandler(MPI_Comm comm, int line, const char *fun
   }
   return n;
 }
+
+/* While DrapeCollective runs its function: keep the first error's message, print nothing. */
+static char           captured_message[1024];
+static PetscErrorCode captured_code;
+
+static PetscErrorCode CaptureErrorHandler(MPI_Comm comm, int line, const char *fun, const char *file, PetscErrorCode n, PetscErrorType p, const char *mess, void *ctx)
+{
+  if (p == PETSC_ERROR_INITIAL) {
+    captured_code = n;
+    (void) PetscStrncpy(captured_message, mess ? mess : "(no message)", sizeof captured_message);
+  }
+  return n;
+}
+
+PetscErrorCode DrapeCollective(MPI_Comm comm, PetscErrorCode (*fn)(void *), void *ctx)
+{
+  PetscErrorCode ierr;
+  PetscMPIInt    rank, size, failed, first;
+  PetscInt       code;
+
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  PetscCall(PetscPushErrorHandler(CaptureErrorHandler, NULL));
+  ierr = (*fn)(ctx);
+  PetscCall(PetscPopErrorHandler());
+  failed = ierr ? rank : size;
+  PetscCallMPI(MPI_Allreduce(&failed, &first, 1, MPI_INT, MPI_MIN, comm));
+  if (first == size) PetscFunctionReturn(0);
+  code = ierr ? (PetscInt) captured_code : 0;
+  PetscCallMPI(MPI_Bcast(&code, 1, MPIU_INT, first, comm));
+  PetscCallMPI(MPI_Bcast(captured_message, sizeof captured_message, MPI_CHAR, first, comm));
+  SETERRQ(comm, (PetscErrorCode) code, "%s", captured_message);
+}
+
+PetscBool DrapeErrorIsCollective(void) { return (PetscBool) (error_is_user && error_on_all); }
 
 PetscErrorCode DrapeInitialize(void)
 {

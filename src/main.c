@@ -34,10 +34,11 @@ int main(int argc, char **argv)
   PetscCall(DrapeFinalize());
   if (ierr) {
     /* an error that not every rank saw would leave the others waiting in a
-     * collective: end the whole job (the frames written so far are on disk) */
+     * collective: end the whole job (the frames written so far are on disk).
+     * A user error raised on all ranks together ends normally. */
     PetscMPIInt size;
     PetscCallMPI(MPI_Comm_size(PETSC_COMM_WORLD, &size));
-    if (size > 1) PETSCABORT(PETSC_COMM_WORLD, ierr);
+    if (size > 1 && !DrapeErrorIsCollective()) PETSCABORT(PETSC_COMM_WORLD, ierr);
   }
   PetscCall(PetscFinalize());
   return ierr ? 1 : (interrupted ? 75 : 0);

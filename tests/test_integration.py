@@ -6,7 +6,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import DRAPE, ROOT, Frames, run, wait_for_frames
+from conftest import DRAPE, ROOT, Frames, mpiexec, run, wait_for_frames
 
 SCENE = "-da_grid_x 13 -da_grid_y 11 -cloth_pin edge_corners -ts_max_time 0.05 -output_interval 0.01"
 
@@ -134,3 +134,19 @@ def test_small_lattices_on_many_ranks_and_solver_options(tmp):
     for part in ("dmda", "metis"):
         run(f"-da_grid_x 5 -da_grid_y 5 -cloth_partition {part} -ts_max_steps 5", np_=4)
     run("-ts_type beuler -ts_dt 1e-3 -ts_max_time 0.01 -drape_mat_type aij")
+
+
+@pytest.mark.parametrize("args,message", [
+    ("-cloth_shape polygon -cloth_outline missing.txt", "Cannot open the cloth outline file"),
+    ("-solid_type mesh -solid_file runs/outlines/panel.txt", "not a valid OFF, OBJ, STL or PLY"),
+    ("-ts_type theta", "-ts_type theta is not supported by drape"),
+    ("-cloth_fabric wool", "Unknown fabric \"wool\""),
+], ids=["outline", "mesh", "ts_type", "fabric"])
+def test_bad_input_on_two_ranks_is_one_sentence_without_abort(args, message):
+    """Every rank reads the input files; a problem is still reported once, and the
+    job ends normally with a non-zero exit, not through MPI_Abort."""
+    res = subprocess.run(mpiexec(2) + [str(DRAPE)] + args.split() + ["-ts_max_steps", "1"], capture_output=True, text=True, cwd=ROOT)
+    assert res.returncode != 0
+    errors = [l for l in (res.stdout + res.stderr).splitlines() if l.startswith("drape: error:")]
+    assert len(errors) == 1 and message in errors[0], res.stdout + res.stderr
+    assert "MPI_ABORT" not in res.stdout + res.stderr

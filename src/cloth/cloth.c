@@ -2,6 +2,7 @@
 #include "clothimpl.h"
 #include <petscdmda.h>
 #include <partition.h>
+#include <drape.h>
 
 static const char *const orientation_names[] = {"horizontal", "vertical", "ClothOrientation", "CLOTH_", NULL};
 static const char *const shape_names[]       = {"square", "circle", "polygon", "ClothShape", "CLOTH_", NULL};
@@ -53,8 +54,9 @@ static PetscErrorCode OptionsWarpWeft(PetscOptionItems *PetscOptionsObject, cons
 }
 
 /* Read the polygon rings of -cloth_outline (every rank reads the small file). */
-static PetscErrorCode ClothReadOutline(Cloth c)
+static PetscErrorCode ClothReadOutline(void *ctx)
 {
+  Cloth     c = (Cloth) ctx;
   FILE     *fp;
   char      line[512];
   PetscInt  n = 0, cap = 256, lineno = 0, inring = 0;
@@ -197,7 +199,7 @@ PetscErrorCode ClothSetFromOptions(Cloth c)
   c->exact_hessian = hess == 1 ? PETSC_TRUE : PETSC_FALSE;
 
   PetscCheck(c->shape != CLOTH_POLYGON || c->outline[0], c->comm, PETSC_ERR_USER_INPUT, "-cloth_shape polygon needs -cloth_outline FILE");
-  if (c->shape == CLOTH_POLYGON) PetscCall(ClothReadOutline(c));
+  if (c->shape == CLOTH_POLYGON) PetscCall(DrapeCollective(c->comm, ClothReadOutline, c));
   PetscCheck(c->Mx >= 2 && c->My >= 2, c->comm, PETSC_ERR_USER_INPUT, "The lattice must have at least 2 x 2 particles; got -da_grid_x %" PetscInt_FMT " -da_grid_y %" PetscInt_FMT, c->Mx, c->My);
   PetscCheck(c->size[0] > 0 && c->size[1] > 0, c->comm, PETSC_ERR_USER_INPUT, "-cloth_size must be positive (metres); got %g,%g", (double) c->size[0], (double) c->size[1]);
   PetscCheck(c->density > 0, c->comm, PETSC_ERR_USER_INPUT, "-cloth_density must be positive (kg/m^2); got %g", (double) c->density);

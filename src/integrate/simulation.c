@@ -262,8 +262,6 @@ PetscErrorCode SimulationSetUp(Simulation s)
   ClothInfo    info;
   PetscInt     rstart;
   PetscScalar *u;
-  TSType       type;
-  PetscBool    ok = PETSC_FALSE;
   PetscInt     nframes;
   PetscReal   *times;
 
@@ -330,19 +328,24 @@ PetscErrorCode SimulationSetUp(Simulation s)
   PetscCall(TSSetSolution(s->ts, s->U));
   PetscCall(TSSetPreStep(s->ts, PreStep));
   PetscCall(TSSetPostStep(s->ts, PostStep));
+  {
+    /* refuse an unsupported -ts_type before TS tries it (PETSc's own error is per rank) */
+    char      want[64];
+    PetscBool set, ok = PETSC_FALSE;
+    PetscCall(PetscOptionsGetString(NULL, NULL, "-ts_type", want, sizeof want, &set));
+    for (const char *const *t = supported_types; set && *t; t++) {
+      PetscBool match;
+      PetscCall(PetscStrcmp(want, *t, &match));
+      ok = (PetscBool) (ok || match);
+    }
+    PetscCheck(!set || ok, s->comm, PETSC_ERR_USER_INPUT, "-ts_type %s is not supported by drape; use euler (paper scheme 2), basicsymplectic (scheme 3), beuler (scheme 4), rk or ssp", want);
+  }
   PetscCall(TSSetFromOptions(s->ts));
   if (s->have_restart) {
     PetscCall(TSSetTime(s->ts, s->restart_time));
     s->impulse_t0 = s->restart_time;
     PetscCall(TSSetStepNumber(s->ts, s->restart_step));
   }
-  PetscCall(TSGetType(s->ts, &type));
-  for (const char *const *t = supported_types; *t; t++) {
-    PetscBool match;
-    PetscCall(PetscStrcmp(type, *t, &match));
-    ok = (PetscBool) (ok || match);
-  }
-  PetscCheck(ok, s->comm, PETSC_ERR_USER_INPUT, "-ts_type %s is not supported by drape; use euler (paper scheme 2), basicsymplectic (scheme 3), beuler (scheme 4), rk or ssp", type);
   {
     PetscReal dt;
     PetscCall(TSGetTimeStep(s->ts, &dt));

@@ -1,6 +1,7 @@
 /* The rigid solid: bodies from mesh files or generated primitives, and a plane. */
 #include <solid.h>
 #include <petscviewer.h>
+#include <drape.h>
 
 typedef enum {
   SOLID_NONE,
@@ -193,6 +194,20 @@ static PetscErrorCode SolidGenerate(Solid s, PetscInt *nv, PetscReal **v, PetscI
   PetscFunctionReturn(0);
 }
 
+typedef struct {
+  Solid     s;
+  PetscReal A[9];
+} SolidRead;
+
+static PetscErrorCode SolidReadFile(void *ctx)
+{
+  SolidRead *r = (SolidRead *) ctx;
+
+  PetscFunctionBeginUser;
+  PetscCall(SolidMeshCreateFromFile(r->s->file, r->A, r->s->translate, &r->s->mesh));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode SolidSetUp(Solid s)
 {
   PetscReal A[9];
@@ -201,8 +216,10 @@ PetscErrorCode SolidSetUp(Solid s)
   if (s->type == SOLID_NONE) PetscFunctionReturn(0);
   SolidTransform(s, A);
   if (s->type == SOLID_MESH) {
-    /* every rank reads the same file (the tree is replicated) and fails alike */
-    PetscCall(SolidMeshCreateFromFile(s->file, A, s->translate, &s->mesh));
+    /* every rank reads the same file (the tree is replicated) and fails alike: one message */
+    SolidRead r = {.s = s};
+    PetscCall(PetscArraycpy(r.A, A, 9));
+    PetscCall(DrapeCollective(s->comm, SolidReadFile, &r));
   } else {
     PetscInt   nv, nt;
     PetscReal *v;
