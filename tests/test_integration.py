@@ -1,5 +1,6 @@
 """Integration: whole runs on 1, 2 and 4 ranks, output files, bad input."""
 import hashlib
+import math
 import subprocess
 
 import h5py
@@ -150,3 +151,19 @@ def test_bad_input_on_two_ranks_is_one_sentence_without_abort(args, message):
     errors = [l for l in (res.stdout + res.stderr).splitlines() if l.startswith("drape: error:")]
     assert len(errors) == 1 and message in errors[0], res.stdout + res.stderr
     assert "MPI_ABORT" not in res.stdout + res.stderr
+
+
+def test_step_above_the_explicit_limits_is_said_at_start_up():
+    """Explicit Euler above c/Omega^2 grows too slowly for the energy check to see
+    in a short run: the start-up line gives the growth per step of the fastest mode,
+    sqrt(1 - h c + h^2 Omega^2), so the exit 0 of such a run is not mistaken for
+    stability."""
+    h = 1e-6
+    res = run(f"-ts_type euler -ts_dt {h} -ts_max_steps 3")
+    omega = res.value(r"Omega_max = (\S+) rad/s")
+    growth = res.value(r"fastest mode grows by (\S+) per step")
+    c = 0.2  # default damping
+    assert abs(growth - math.sqrt(1 - h * c + (h * omega) ** 2)) < 1e-5
+    assert "WARNING" not in run("-ts_type euler -ts_dt 1e-12 -ts_max_steps 3").stdout
+    res = run("-ts_dt 1e-3 -ts_max_steps 1 -drape_divergence_factor 1e9", checks=False)
+    assert "above the symplectic Euler limit" in res.stdout

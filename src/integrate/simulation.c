@@ -491,6 +491,44 @@ static PetscErrorCode Monitor(TS ts, PetscInt step, PetscReal t, Vec U, void *ct
   PetscFunctionReturn(0);
 }
 
+/* A step above an explicit scheme's limit is allowed (studies need it) but said
+ * plainly: explicit Euler's growth can be too slow for the energy check to see
+ * within the run, so the start-up line gives the growth per step. */
+static PetscErrorCode WarnStepLimit(Simulation s, PetscViewer viewer, TSType type, PetscReal dt, PetscReal tmax)
+{
+  const PetscReal Om = s->limits.omega;
+  PetscReal       t0, steps, c;
+  ClothInfo       info;
+  PetscBool       euler, symplectic;
+
+  PetscFunctionBeginUser;
+  PetscCall(ClothGetInfo(s->cloth, &info));
+  c = info.damping;
+  PetscCall(PetscStrcmp(type, TSEULER, &euler));
+  PetscCall(PetscStrcmp(type, TSBASICSYMPLECTIC, &symplectic));
+  PetscCall(TSGetTime(s->ts, &t0));
+  {
+    PetscInt maxsteps, step;
+    PetscCall(TSGetMaxSteps(s->ts, &maxsteps));
+    PetscCall(TSGetStepNumber(s->ts, &step));
+    steps = PetscMin(PetscCeilReal((tmax - t0) / dt), (PetscReal) (maxsteps - step));
+  }
+  if (euler && dt > s->limits.euler && 2 * Om > c) {
+    /* fastest mode, underdamped: |1 + h mu|^2 = 1 - h c + h^2 Omega^2 per step */
+    const PetscReal g = PetscSqrtReal(1 - dt * c + dt * dt * Om * Om);
+    PetscCall(PetscViewerASCIIPrintf(viewer,
+                                     "  WARNING: h is above the explicit Euler limit: the fastest mode grows by %.6g per step (a factor e every %.3g steps; up to %.3g steps in this run). drape stops the run when the growth shows in the energy, "
+                                     "which can be late or never for slow growth\n",
+                                     (double) g, (double) (1 / PetscLogReal(g)), (double) steps));
+  } else if (symplectic && dt > s->limits.symplectic) {
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  WARNING: h is above the symplectic Euler limit: the run will diverge (drape stops it with a message)\n"));
+  } else if (symplectic && dt > 0.8 * s->limits.symplectic) {
+    PetscCall(
+      PetscViewerASCIIPrintf(viewer, "  note: h is within 20%% of the symplectic limit estimated for the initial state; tension as the cloth deforms raises Omega_max, so a run this close can still diverge (0.5 x the limit is a safe choice)\n"));
+  }
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode SimulationViewStart(Simulation s)
 {
   PetscViewer viewer = PETSC_VIEWER_STDOUT_(s->comm);
@@ -531,6 +569,7 @@ static PetscErrorCode SimulationViewStart(Simulation s)
       PetscCall(PetscViewerASCIIPrintf(viewer, " (%.3g x the symplectic limit)", (double) (dt / s->limits.symplectic)));
   }
   PetscCall(PetscViewerASCIIPrintf(viewer, ", to t = %g s\n", (double) tmax));
+  if (s->stability_its > 0) PetscCall(WarnStepLimit(s, viewer, type, dt, tmax));
   if (!strcmp(type, TSBEULER)) {
     KSPType  kt;
     PCType   pt;
