@@ -8,8 +8,13 @@ BUILD   ?= build
 VENV    ?= .venv
 NP      ?= 2
 OUT     ?= out
-CFLAGS  ?= -O3 -g
+CFLAGS  ?= -O3 -g -fno-math-errno
 CXXFLAGS ?= -O3 -g
+# NATIVE=1 adds -march=native (faster on the build machine, may not run on others)
+ifeq ($(NATIVE),1)
+CFLAGS   += -march=native
+CXXFLAGS += -march=native
+endif
 
 CC  := mpicc
 CXX := mpicxx

@@ -24,33 +24,46 @@ PetscErrorCode ClothEndScatter(Cloth c, const PetscScalar **xl)
   PetscFunctionReturn(0);
 }
 
-/* fl (ghosted, zeroed by the caller) -= gradient of the internal energy at xl. */
-static void AccumulateInternalForce(Cloth c, const PetscReal *xl, PetscReal *fl)
+/* fl[p] -= g for the n particles of an element. */
+static inline void Scatter(PetscReal *restrict fl, PetscInt n, const PetscInt *restrict p, const PetscReal *restrict g)
 {
-  const ClothElements *st = &c->stretch_el, *sh = &c->shear_el, *be = &c->bend_el;
+  for (PetscInt k = 0; k < n; k++)
+    for (PetscInt d = 0; d < 3; d++) fl[3 * p[k] + d] -= g[3 * k + d];
+}
+
+/* Angle elements in chunks: first the coefficients of ANGLE_CHUNK elements (each
+ * a long chain of square roots, divisions and an asin, independent of the others,
+ * so the processor overlaps them), then their gradients in list order. The sums
+ * per particle are the same, in the same order, as element by element. */
+#define ANGLE_CHUNK 64
+
+static inline void AccumulateAngleForces(PetscBool bend, const ClothElements *el, const PetscReal *restrict xl, PetscReal *restrict fl)
+{
+  PetscReal w[3 * ANGLE_CHUNK], g[9];
+
+  for (PetscInt e0 = 0; e0 < el->n; e0 += ANGLE_CHUNK) {
+    const PetscInt  n = PetscMin(ANGLE_CHUNK, el->n - e0);
+    const PetscInt *p = el->p + 3 * e0;
+    for (PetscInt k = 0; k < n; k++) KernelAngleCoefficients(bend, xl + 3 * p[3 * k], xl + 3 * p[3 * k + 1], xl + 3 * p[3 * k + 2], el->coef[e0 + k], w + 3 * k);
+    for (PetscInt k = 0; k < n; k++) {
+      KernelAngleGradientFromCoefficients(w + 3 * k, xl + 3 * p[3 * k], xl + 3 * p[3 * k + 1], xl + 3 * p[3 * k + 2], g);
+      Scatter(fl, 3, p + 3 * k, g);
+    }
+  }
+}
+
+/* fl (ghosted, zeroed by the caller) -= gradient of the internal energy at xl. */
+static void AccumulateInternalForce(Cloth c, const PetscReal *restrict xl, PetscReal *restrict fl)
+{
+  const ClothElements *st = &c->stretch_el;
   PetscReal            g[9];
 
   for (PetscInt e = 0; e < st->n; e++) {
-    const PetscInt a = st->p[2 * e], b = st->p[2 * e + 1];
-    KernelStretchGradient(xl + 3 * a, xl + 3 * b, st->coef[e], st->rest[e], g);
-    for (PetscInt d = 0; d < 3; d++) {
-      fl[3 * a + d] -= g[d];
-      fl[3 * b + d] -= g[3 + d];
-    }
+    KernelStretchGradient(xl + 3 * st->p[2 * e], xl + 3 * st->p[2 * e + 1], st->coef[e], st->rest[e], g);
+    Scatter(fl, 2, st->p + 2 * e, g);
   }
-  for (PetscInt pass = 0; pass < 2; pass++) {
-    const ClothElements *el   = pass ? be : sh;
-    const PetscBool      bend = pass ? PETSC_TRUE : PETSC_FALSE;
-    for (PetscInt e = 0; e < el->n; e++) {
-      const PetscInt a = el->p[3 * e], b = el->p[3 * e + 1], v = el->p[3 * e + 2];
-      KernelAngleGradient(bend, xl + 3 * a, xl + 3 * b, xl + 3 * v, el->coef[e], g);
-      for (PetscInt d = 0; d < 3; d++) {
-        fl[3 * a + d] -= g[d];
-        fl[3 * b + d] -= g[3 + d];
-        fl[3 * v + d] -= g[6 + d];
-      }
-    }
-  }
+  AccumulateAngleForces(PETSC_FALSE, &c->shear_el, xl, fl);
+  AccumulateAngleForces(PETSC_TRUE, &c->bend_el, xl, fl);
 }
 
 PetscErrorCode ClothComputeInternalForce(Cloth c, const PetscScalar *x, PetscScalar *f)

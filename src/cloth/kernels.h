@@ -137,36 +137,52 @@ static inline void KernelStretchGradient(const PetscReal *xa, const PetscReal *x
   g[2] = -g[5];
 }
 
-/* 2 E_u, 2 E_w and E_s of the shear (bend = PETSC_FALSE) or bending energy, then
+/* The angle gradient in two halves, so that a loop can first compute the
+ * coefficients w = [2E_u, E_s, 2E_w] of many elements (independent of each other:
+ * their square roots, divisions and asin overlap) and then their gradients
  * g_a = 2E_u e1 + E_s e2, g_b = 2E_w e2 + E_s e1, g_c = -(g_a + g_b). */
-static inline void KernelAngleGradient(PetscBool bend, const PetscReal *xa, const PetscReal *xb, const PetscReal *xc, PetscReal kappa, PetscReal g[9])
+static inline void KernelAngleCoefficients(PetscBool bend, const PetscReal *restrict xa, const PetscReal *restrict xb, const PetscReal *restrict xc, PetscReal kappa, PetscReal w[3])
 {
   const PetscReal e1[3] = {xa[0] - xc[0], xa[1] - xc[1], xa[2] - xc[2]}, e2[3] = {xb[0] - xc[0], xb[1] - xc[1], xb[2] - xc[2]};
-  const PetscReal u = e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2], w = e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2];
+  const PetscReal u = e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2], v = e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2];
   const PetscReal s   = e1[0] * e2[0] + e1[1] * e2[1] + e1[2] * e2[2];
-  const PetscReal inv = 1 / (u * w), P = PetscSqrtReal(u * w), iP = P * inv;
-  PetscReal       c = s * iP, Eu2, Ew2, Es;
+  const PetscReal inv = 1 / (u * v), P = PetscSqrtReal(u * v), iP = P * inv;
+  PetscReal       c = s * iP;
 
   if (bend) {
-    Eu2 = -kappa * c * w * inv;
-    Ew2 = -kappa * c * u * inv;
-    Es  = kappa * iP;
+    w[0] = -kappa * c * v * inv;
+    w[2] = -kappa * c * u * inv;
+    w[1] = kappa * iP;
   } else {
     PetscReal a, r, g1, q;
-    c   = PetscMin(PetscMax(c, -1 + 1e-14), 1 - 1e-14);
-    a   = PetscAsinReal(c);
-    r   = PetscSqrtReal(1 - c * c);
-    g1  = 2 * a / r;
-    q   = kappa * P * inv * (a * a - g1 * c);
-    Eu2 = q * w;
-    Ew2 = q * u;
-    Es  = kappa * g1;
+    c    = PetscMin(PetscMax(c, -1 + 1e-14), 1 - 1e-14);
+    a    = PetscAsinReal(c);
+    r    = PetscSqrtReal(1 - c * c);
+    g1   = 2 * a / r;
+    q    = kappa * P * inv * (a * a - g1 * c);
+    w[0] = q * v;
+    w[2] = q * u;
+    w[1] = kappa * g1;
   }
+}
+
+static inline void KernelAngleGradientFromCoefficients(const PetscReal w[3], const PetscReal *restrict xa, const PetscReal *restrict xb, const PetscReal *restrict xc, PetscReal g[9])
+{
   for (PetscInt i = 0; i < 3; i++) {
-    g[i]     = Eu2 * e1[i] + Es * e2[i];
-    g[3 + i] = Ew2 * e2[i] + Es * e1[i];
+    const PetscReal e1 = xa[i] - xc[i], e2 = xb[i] - xc[i];
+    g[i]     = w[0] * e1 + w[1] * e2;
+    g[3 + i] = w[2] * e2 + w[1] * e1;
     g[6 + i] = -g[i] - g[3 + i];
   }
+}
+
+/* Shear (bend = PETSC_FALSE) or bending gradient g = [g_a, g_b, g_c]. */
+static inline void KernelAngleGradient(PetscBool bend, const PetscReal *xa, const PetscReal *xb, const PetscReal *xc, PetscReal kappa, PetscReal g[9])
+{
+  PetscReal w[3];
+
+  KernelAngleCoefficients(bend, xa, xb, xc, kappa, w);
+  KernelAngleGradientFromCoefficients(w, xa, xb, xc, g);
 }
 
 /* First and second partials of an angle energy E(u, w, s). */
