@@ -583,13 +583,17 @@ static PetscErrorCode SimulationViewStart(Simulation s)
     KSPType  kt;
     PCType   pt;
     SNESType st;
+    MatType  mt = NULL;
+    Mat      J;
     PetscCall(TSGetSNES(s->ts, &snes));
     PetscCall(SNESGetType(snes, &st));
     PetscCall(SNESGetKSP(snes, &ksp));
     PetscCall(KSPGetType(ksp, &kt));
     PetscCall(KSPGetPC(ksp, &pc));
     PetscCall(PCGetType(pc, &pt));
-    PetscCall(PetscViewerASCIIPrintf(viewer, "  solver: SNES %s, KSP %s, PC %s on an assembled %s matrix (block size 3)\n", st, kt, pt, MATAIJ));
+    PetscCall(SNESGetJacobian(snes, &J, NULL, NULL, NULL));
+    if (J) PetscCall(MatGetType(J, &mt));
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  solver: SNES %s, KSP %s, PC %s on an assembled %s matrix (block size 3)\n", st, kt, pt, mt ? mt : MATAIJ));
   }
   PetscFunctionReturn(0);
 }
