@@ -64,6 +64,25 @@ static inline void KernelProjectPSD3(PetscReal A[9])
     for (q = 0; q < 3; q++) A[3 * p + q] = lam[0] * V[3 * p] * V[3 * q] + lam[1] * V[3 * p + 1] * V[3 * q + 1] + lam[2] * V[3 * p + 2] * V[3 * q + 2];
 }
 
+/* Is the symmetric 3x3 A positive semi-definite? All seven principal minors
+ * nonnegative, up to round-off: each minor may be negative by 1e-14 times the
+ * matching power of max|A_ij| (so a "yes" allows an eigenvalue down to about
+ * -1e-7 max|A_ij|, far below what could make the implicit matrix indefinite). A
+ * cheap test that spares the Jacobi projection for the (most) elements that need
+ * none. */
+static inline PetscBool KernelIsPSD3(const PetscReal A[9])
+{
+  PetscReal s = 0, t1, t2, t3;
+
+  for (PetscInt i = 0; i < 9; i++) s = PetscMax(s, PetscAbsReal(A[i]));
+  t1 = -1e-14 * s;
+  t2 = t1 * s;
+  t3 = t2 * s;
+  if (A[0] < t1 || A[4] < t1 || A[8] < t1) return PETSC_FALSE;
+  if (A[0] * A[4] - A[1] * A[3] < t2 || A[0] * A[8] - A[2] * A[6] < t2 || A[4] * A[8] - A[5] * A[7] < t2) return PETSC_FALSE;
+  return (PetscBool) (A[0] * (A[4] * A[8] - A[5] * A[7]) - A[1] * (A[3] * A[8] - A[5] * A[6]) + A[2] * (A[3] * A[7] - A[4] * A[6]) >= t3);
+}
+
 /* PSD projection of the symmetric 2x2 [[a, b], [b, d]] in closed form. */
 static inline void KernelProjectPSD2(PetscReal *a, PetscReal *b, PetscReal *d)
 {
@@ -294,7 +313,7 @@ static inline PetscReal KernelAngle(KernelAngleKind kind, const PetscReal *xa, c
     PetscReal E2[9] = {d.Euu, d.Euw, d.Eus, d.Euw, d.Eww, d.Ews, d.Eus, d.Ews, d.Ess};
     PetscReal a = 2 * d.Eu, b = d.Es, c = 2 * d.Ew, Jm[3][6], H6[6][6];
     if (project) {
-      KernelProjectPSD3(E2);
+      if (!KernelIsPSD3(E2)) KernelProjectPSD3(E2);
       KernelProjectPSD2(&a, &b, &c);
     }
     for (PetscInt i = 0; i < 3; i++) {

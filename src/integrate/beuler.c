@@ -39,6 +39,7 @@ typedef struct {
   PetscBool          constrained;
   PetscReal          h, damping, friction;
   PetscReal          impulse[3]; /* of the last step, owned particles */
+  PetscInt           pc_lag;     /* rebuild the preconditioner every pc_lag steps (ksponly) */
   PetscInt           n;          /* 3 x owned particles */
 } TS_DrapeBE;
 
@@ -193,6 +194,14 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
       for (PetscInt d = 0; d < 3; d++) be->z[3 * k + d] = be->ctype[k] == 2 ? -v[d] : (be->ctype[k] == 1 ? -vn * nk[d] : 0);
     }
   }
+  {
+    /* the matrix changes little from step to step: with the single linearisation,
+     * CG keeps the last factorisation as its preconditioner for pc_lag - 1 steps
+     * (the matrix itself is new every step, so the answer is not affected) */
+    PetscBool ksponly;
+    PetscCall(PetscObjectTypeCompare((PetscObject) snes, SNESKSPONLY, &ksponly));
+    if (ksponly && be->pc_lag > 1) PetscCall(SNESSetLagPreconditioner(snes, ts->steps % be->pc_lag ? -1 : 1));
+  }
   PetscCall(VecSet(be->DV, 0.0));
   PetscCall(PetscLogEventBegin(drape_log.linear_solve, 0, 0, 0, 0));
   PetscCall(SNESSolve(snes, NULL, be->DV));
@@ -271,6 +280,18 @@ static PetscErrorCode TSDestroy_DrapeBE(TS ts)
   PetscFunctionReturn(0);
 }
 
+static PetscErrorCode TSSetFromOptions_DrapeBE(TS ts, PetscOptionItems *PetscOptionsObject)
+{
+  TS_DrapeBE *be = (TS_DrapeBE *) ts->data;
+
+  PetscFunctionBeginUser;
+  PetscOptionsHeadBegin(PetscOptionsObject, "drape backward Euler");
+  PetscCall(PetscOptionsInt("-drape_pc_lag", "Rebuild the preconditioner every this many steps (with -snes_type ksponly; 1: every step)", "TSStep_DrapeBE", be->pc_lag, &be->pc_lag, NULL));
+  PetscOptionsHeadEnd();
+  PetscCheck(be->pc_lag >= 1, PetscObjectComm((PetscObject) ts), PETSC_ERR_USER_INPUT, "-drape_pc_lag must be at least 1; got %" PetscInt_FMT, be->pc_lag);
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode TSView_DrapeBE(TS ts, PetscViewer viewer)
 {
   PetscBool isascii;
@@ -290,14 +311,16 @@ static PetscErrorCode TSCreate_DrapeBE(TS ts)
 
   PetscFunctionBeginUser;
   PetscCall(PetscNew(&be));
-  ts->data               = (void *) be;
-  ts->ops->setup         = TSSetUp_DrapeBE;
-  ts->ops->step          = TSStep_DrapeBE;
-  ts->ops->reset         = TSReset_DrapeBE;
-  ts->ops->destroy       = TSDestroy_DrapeBE;
-  ts->ops->view          = TSView_DrapeBE;
-  ts->usessnes           = PETSC_TRUE;
-  ts->default_adapt_type = TSADAPTNONE;
+  ts->data                = (void *) be;
+  ts->ops->setup          = TSSetUp_DrapeBE;
+  ts->ops->step           = TSStep_DrapeBE;
+  ts->ops->reset          = TSReset_DrapeBE;
+  ts->ops->destroy        = TSDestroy_DrapeBE;
+  ts->ops->view           = TSView_DrapeBE;
+  ts->ops->setfromoptions = TSSetFromOptions_DrapeBE;
+  be->pc_lag              = 1;
+  ts->usessnes            = PETSC_TRUE;
+  ts->default_adapt_type  = TSADAPTNONE;
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeGetContactImpulse_C", TSDrapeGetContactImpulse_DrapeBE));
   /* drape's defaults; -snes_type, -ksp_type, -pc_type ... override them */
   PetscCall(TSGetSNES(ts, &snes));

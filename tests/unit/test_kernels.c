@@ -677,6 +677,44 @@ static PetscErrorCode GroupGradientKernels(const Elem *sets[], const PetscInt ns
   PetscFunctionReturn(0);
 }
 
+/* KernelIsPSD3 on A = R diag(l) R^T: "yes" for every l_min >= 1e-9 max|l| and for
+ * rank-deficient PSD matrices (exact zeros blurred by round-off), "no" for every
+ * l_min <= -1e-6 max|l|; and the projection it spares is then the identity. */
+static PetscErrorCode GroupPSDTest(PetscRandom rnd)
+{
+  PetscInt yes = 0, no = 0;
+
+  PetscFunctionBeginUser;
+  for (PetscInt t = 0; t < 3000; t++) {
+    PetscReal R[9], l[3], A[9], P[9], scale, expo = 0, lmin, diff = 0;
+    PetscCall(RandomRotation(rnd, R));
+    PetscCall(Uniform(rnd, -6, 6, &expo));
+    scale = PetscPowReal(10, expo);
+    for (PetscInt i = 0; i < 3; i++) PetscCall(Uniform(rnd, -1, 1, &l[i]));
+    if (t % 3 == 0) l[0] = l[1] = 0, l[2] = 1; /* rank 1, PSD */
+    lmin = PetscMin(l[0], PetscMin(l[1], l[2]));
+    if (lmin > -1e-6 && lmin < 1e-9 && t % 3) continue; /* the undecided band */
+    for (PetscInt i = 0; i < 3; i++)
+      for (PetscInt j = 0; j < 3; j++) A[3 * i + j] = scale * (R[3 * i] * l[0] * R[3 * j] + R[3 * i + 1] * l[1] * R[3 * j + 1] + R[3 * i + 2] * l[2] * R[3 * j + 2]);
+    for (PetscInt i = 0; i < 3; i++)
+      for (PetscInt j = 0; j < i; j++) A[3 * i + j] = A[3 * j + i];
+    if (lmin >= 0 || t % 3 == 0) {
+      PetscCheck(KernelIsPSD3(A), PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED: KernelIsPSD3 rejects a PSD matrix with eigenvalues %g %g %g (x %g)", (double) l[0], (double) l[1], (double) l[2], (double) scale);
+      PetscCall(PetscArraycpy(P, A, 9));
+      KernelProjectPSD3(P);
+      for (PetscInt i = 0; i < 9; i++) diff = PetscMax(diff, PetscAbsReal(P[i] - A[i]));
+      PetscCheck(diff <= 1e-12 * scale, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED: the projection of a PSD matrix moved it by %g (x %g)", (double) (diff / scale), (double) scale);
+      yes++;
+    } else {
+      PetscCheck(!KernelIsPSD3(A), PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED: KernelIsPSD3 accepts a matrix with eigenvalues %g %g %g (x %g)", (double) l[0], (double) l[1], (double) l[2], (double) scale);
+      no++;
+    }
+  }
+  PetscCall(PetscPrintf(PETSC_COMM_WORLD, "PASS PSD test of 3x3 blocks: %" PetscInt_FMT " PSD (incl. rank 1) accepted, %" PetscInt_FMT " with lambda_min <= -1e-6 max|lambda| refused\n", yes, no));
+  npassed++;
+  PetscFunctionReturn(0);
+}
+
 /* E = 0.25 and g = (-u, +u) for l = 1.5, L = 1, k = 2 */
 static PetscErrorCode GroupKnownStretch(PetscRandom rnd)
 {
@@ -806,6 +844,7 @@ static PetscErrorCode Run(void)
     const PetscInt nset[3] = {nst, nsh, nbe};
     PetscCall(GroupGradientKernels(sets, nset));
   }
+  PetscCall(GroupPSDTest(rnd));
   PetscCall(GroupKnownStretch(rnd));
   PetscCall(GroupKnownShear(rnd));
   PetscCall(GroupKnownBend(rnd));
