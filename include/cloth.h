@@ -77,8 +77,8 @@ PETSC_EXTERN PetscErrorCode ClothComputeEnergies(Cloth, const PetscScalar *x, co
 /* y = H(x) z with H the exact Hessian of the internal energy; pinned rows and
  * columns removed. Matrix-free: used for the stability estimate. */
 PETSC_EXTERN PetscErrorCode ClothApplyHessian(Cloth, const PetscScalar *x, const PetscScalar *z, PetscScalar *y);
-/* A MATAIJ (block size 3) preallocated for the pattern of a*M + b*H. */
-PETSC_EXTERN PetscErrorCode ClothCreateMatrix(Cloth, Mat *);
+/* A matrix of the given type (block size 3) preallocated for the pattern of a*M + b*H. */
+PETSC_EXTERN PetscErrorCode ClothCreateMatrix(Cloth, MatType, Mat *);
 /* J = a M + b H(x); pinned particles get m*I on the diagonal and nothing else. */
 PETSC_EXTERN PetscErrorCode ClothAssembleMatrix(Cloth, const PetscScalar *x, PetscReal a, PetscReal b, Mat J);
 

@@ -5,10 +5,16 @@
 #include "kernels.h"
 #include <drape.h>
 
-/* Ghosted local copy of the owned positions x (owned-particle order). */
+/* Ghosted local copy of the owned positions x (owned-particle order; the owned
+ * particles come first in the local order, so without ghosts, on one rank, x itself
+ * is the local array and nothing is copied). */
 PetscErrorCode ClothScatterPositions(Cloth c, const PetscScalar *x, const PetscScalar **xl)
 {
   PetscFunctionBeginUser;
+  if (c->nlocal == c->nowned) {
+    *xl = x;
+    PetscFunctionReturn(0);
+  }
   PetscCall(VecPlaceArray(c->Xg, x));
   PetscCall(VecScatterBegin(c->ghost, c->Xg, c->Xl, INSERT_VALUES, SCATTER_FORWARD));
   PetscCall(VecScatterEnd(c->ghost, c->Xg, c->Xl, INSERT_VALUES, SCATTER_FORWARD));
@@ -20,7 +26,10 @@ PetscErrorCode ClothScatterPositions(Cloth c, const PetscScalar *x, const PetscS
 PetscErrorCode ClothEndScatter(Cloth c, const PetscScalar **xl)
 {
   PetscFunctionBeginUser;
-  PetscCall(VecRestoreArrayRead(c->Xl, xl));
+  if (c->nlocal == c->nowned)
+    *xl = NULL;
+  else
+    PetscCall(VecRestoreArrayRead(c->Xl, xl));
   PetscFunctionReturn(0);
 }
 
@@ -321,7 +330,9 @@ static PetscErrorCode ClothAddToMatrix(Cloth c, const PetscReal *xl, PetscReal a
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode ClothCreateMatrix(Cloth c, Mat *J)
+/* The implicit matrix, of type `type` unless -drape_mat_type says otherwise, with
+ * the exact nonzero pattern of the element lists. */
+PetscErrorCode ClothCreateMatrix(Cloth c, MatType type, Mat *J)
 {
   Mat      P;
   PetscInt n = 3 * c->nowned;
@@ -338,7 +349,7 @@ PetscErrorCode ClothCreateMatrix(Cloth c, Mat *J)
   PetscCall(MatCreate(c->comm, J));
   PetscCall(MatSetSizes(*J, n, n, PETSC_DETERMINE, PETSC_DETERMINE));
   PetscCall(MatSetBlockSize(*J, 3));
-  PetscCall(MatSetType(*J, MATAIJ));
+  PetscCall(MatSetType(*J, type));
   PetscCall(MatSetOptionsPrefix(*J, "drape_"));
   PetscCall(MatSetFromOptions(*J));
   PetscCall(MatPreallocatorPreallocate(P, PETSC_TRUE, *J));

@@ -6,7 +6,8 @@
  * are handed to SNES; its Jacobian
  *     A = M - h dF/dv - h^2 dF/dx = (1 + h c) M + h^2 H
  * (H the SPD-projected Hessian of the internal energy, c the mass-proportional
- * damping) is an assembled MATAIJ with block size 3, and KSP CG solves with it.
+ * damping) is assembled (MATSBAIJ, block size 3: only the upper half is stored;
+ * MATAIJ for preconditioners that need it) and KSP CG solves with it.
  * -snes_type ksponly (the default) takes the single Newton step from dv = 0: the
  * paper's linearised step; -snes_type newtonls iterates to the full backward-Euler
  * solution. Pinned particles keep dv = 0 (their rows and columns are removed).
@@ -157,7 +158,18 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
   be->n       = 3 * info.nowned;
   PetscCall(ClothCreateVector(be->cloth, &be->DV));
   PetscCall(VecDuplicate(be->DV, &be->R));
-  PetscCall(ClothCreateMatrix(be->cloth, &be->J));
+  {
+    /* symmetric block storage (half the matrix: faster products and factorisation)
+     * unless the preconditioner needs AIJ */
+    KSP       ksp;
+    PC        pc;
+    PetscBool aij;
+    PetscCall(TSGetSNES(ts, &snes));
+    PetscCall(SNESGetKSP(snes, &ksp));
+    PetscCall(KSPGetPC(ksp, &pc));
+    PetscCall(PetscObjectTypeCompareAny((PetscObject) pc, &aij, PCGAMG, PCSOR, PCEISENSTAT, PCML, PCHMG, ""));
+    PetscCall(ClothCreateMatrix(be->cloth, aij ? MATAIJ : MATSBAIJ, &be->J));
+  }
   PetscCall(PetscMalloc4(be->n, &be->xt, be->n, &be->vt, be->n, &be->at, be->n, &be->z));
   PetscCall(TSGetSNES(ts, &snes));
   PetscCall(SNESSetFunction(snes, be->R, BEFunction, be));
@@ -318,7 +330,7 @@ static PetscErrorCode TSCreate_DrapeBE(TS ts)
   ts->ops->destroy        = TSDestroy_DrapeBE;
   ts->ops->view           = TSView_DrapeBE;
   ts->ops->setfromoptions = TSSetFromOptions_DrapeBE;
-  be->pc_lag              = 1;
+  be->pc_lag              = 5;
   ts->usessnes            = PETSC_TRUE;
   ts->default_adapt_type  = TSADAPTNONE;
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeGetContactImpulse_C", TSDrapeGetContactImpulse_DrapeBE));
@@ -327,7 +339,7 @@ static PetscErrorCode TSCreate_DrapeBE(TS ts)
   PetscCall(SNESSetType(snes, SNESKSPONLY));
   PetscCall(SNESGetKSP(snes, &ksp));
   PetscCall(KSPSetType(ksp, KSPCG));
-  PetscCall(KSPSetTolerances(ksp, 1e-6, 1e-50, PETSC_DEFAULT, 1000));
+  PetscCall(KSPSetTolerances(ksp, 1e-4, 1e-50, PETSC_DEFAULT, 1000)); /* BENCHMARKS.md: tighter changes no error */
   PetscCall(KSPGetPC(ksp, &pc));
   PetscCall(PCSetType(pc, PCBJACOBI)); /* one block per rank, ILU(0) = ICC(0) on an SPD block */
   PetscFunctionReturn(0);
