@@ -14,7 +14,9 @@ if [ "${1:-}" = "--python" ]; then
   exit 0
 fi
 
-packages="petsc-dev libmetis-dev libhdf5-openmpi-dev libcgal-dev pkg-config make g++ clang-format"
+# libopenblas0-serial: PETSc's BLAS (vector updates, dense solves) through OpenBLAS
+# instead of the reference BLAS (single-threaded: MPI ranks own the cores)
+packages="petsc-dev libopenblas0-serial libmetis-dev libhdf5-openmpi-dev libcgal-dev pkg-config make g++ clang-format"
 missing=""
 for p in $packages; do
   dpkg -s "$p" >/dev/null 2>&1 || missing="$missing $p"
