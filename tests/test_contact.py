@@ -86,7 +86,9 @@ def test_sticky_contact_has_zero_velocity(tmp):
     assert speed[touching].max() == 0.0
 
 
-@pytest.mark.parametrize("scheme,sym_tol", [("symplectic", 1e-5), ("beuler", 2e-3)])
+# symplectic Euler: only round-off breaks the symmetry (OpenBLAS treats vector tails
+# apart from the vectorised body), grown by the buckling drape to about 2e-5 m
+@pytest.mark.parametrize("scheme,sym_tol", [("symplectic", 1e-4), ("beuler", 2e-3)])
 def test_sphere_drape_no_penetration_and_fourfold_symmetry(tmp, scheme, sym_tol):
     """A square cloth centred over a sphere: no particle inside the (tessellated)
     sphere beyond round-off at any frame, and the drape is four-fold symmetric."""

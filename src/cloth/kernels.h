@@ -83,6 +83,62 @@ static inline PetscBool KernelIsPSD3(const PetscReal A[9])
   return (PetscBool) (A[0] * (A[4] * A[8] - A[5] * A[7]) - A[1] * (A[3] * A[8] - A[5] * A[6]) + A[2] * (A[3] * A[7] - A[4] * A[6]) >= t3);
 }
 
+/* PSD projection of the symmetric 3x3 A in closed form: eigenvalues by the
+ * trigonometric method (Smith 1961), the eigenvector of the single negative (or
+ * single positive) one from the cross product of two rows of A - lambda I. Returns
+ * PETSC_FALSE, A untouched, when that eigenvector is ill-determined (eigenvalues
+ * too close); KernelProjectPSD3 (Jacobi) then does the work. Otherwise the result
+ * agrees with Jacobi's to 1e-8 max|A_ij| (tests/unit/test_kernels.c; the worst case
+ * is a double eigenvalue at zero, resolved to about sqrt(eps)). */
+static inline PetscBool KernelProjectPSD3Closed(PetscReal A[9])
+{
+  const PetscReal pi = 3.14159265358979323846;
+  const PetscReal q = (A[0] + A[4] + A[8]) / 3, b0 = A[0] - q, b1 = A[4] - q, b2 = A[8] - q;
+  const PetscReal off = A[1] * A[1] + A[2] * A[2] + A[5] * A[5];
+  PetscReal       p, r, phi, lmax, lmin, lmid, lam, v[3] = {0, 0, 0}, best = 0, nv;
+  PetscBool       keep_positive;
+
+  p = PetscSqrtReal((b0 * b0 + b1 * b1 + b2 * b2 + 2 * off) / 6);
+  if (p == 0) { /* A = q I */
+    if (q < 0)
+      for (PetscInt i = 0; i < 9; i++) A[i] = 0;
+    return PETSC_TRUE;
+  }
+  r    = (b0 * (b1 * b2 - A[5] * A[5]) - A[1] * (A[1] * b2 - A[5] * A[2]) + A[2] * (A[1] * A[5] - b1 * A[2])) / (2 * p * p * p);
+  r    = PetscMin(PetscMax(r, -1.0), 1.0);
+  phi  = PetscAcosReal(r) / 3;
+  lmax = q + 2 * p * PetscCosReal(phi);
+  lmin = q + 2 * p * PetscCosReal(phi + 2 * pi / 3);
+  lmid = 3 * q - lmax - lmin;
+  if (lmin >= 0) return PETSC_TRUE;
+  if (lmax <= 0) {
+    for (PetscInt i = 0; i < 9; i++) A[i] = 0;
+    return PETSC_TRUE;
+  }
+  /* one negative eigenvalue: remove it; two: keep the positive one */
+  keep_positive = (PetscBool) (lmid < 0);
+  lam           = keep_positive ? lmax : lmin;
+  {
+    const PetscReal rows[3][3] = {{A[0] - lam, A[1], A[2]}, {A[3], A[4] - lam, A[5]}, {A[6], A[7], A[8] - lam}};
+    for (PetscInt i = 0; i < 3; i++) {
+      const PetscReal *x = rows[i], *y = rows[(i + 1) % 3];
+      PetscReal        c[3] = {x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]}, n = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
+      if (n > best) {
+        best = n;
+        v[0] = c[0], v[1] = c[1], v[2] = c[2];
+      }
+    }
+  }
+  /* the smallest gap between eigenvalues sets how well they (acos near +-1: error
+   * about eps p^2/gap) and v (eps p^3/gap^3) are determined: below 1e-3 p, Jacobi */
+  if (best == 0 || PetscMin(lmax - lmid, lmid - lmin) < 1e-3 * p) return PETSC_FALSE;
+  nv = 1 / PetscSqrtReal(best);
+  for (PetscInt i = 0; i < 3; i++) v[i] *= nv;
+  for (PetscInt i = 0; i < 3; i++)
+    for (PetscInt j = 0; j < 3; j++) A[3 * i + j] = keep_positive ? lmax * v[i] * v[j] : A[3 * i + j] - lmin * v[i] * v[j];
+  return PETSC_TRUE;
+}
+
 /* PSD projection of the symmetric 2x2 [[a, b], [b, d]] in closed form. */
 static inline void KernelProjectPSD2(PetscReal *a, PetscReal *b, PetscReal *d)
 {
@@ -313,7 +369,7 @@ static inline PetscReal KernelAngle(KernelAngleKind kind, const PetscReal *xa, c
     PetscReal E2[9] = {d.Euu, d.Euw, d.Eus, d.Euw, d.Eww, d.Ews, d.Eus, d.Ews, d.Ess};
     PetscReal a = 2 * d.Eu, b = d.Es, c = 2 * d.Ew, Jm[3][6], H6[6][6];
     if (project) {
-      if (!KernelIsPSD3(E2)) KernelProjectPSD3(E2);
+      if (!KernelIsPSD3(E2) && !KernelProjectPSD3Closed(E2)) KernelProjectPSD3(E2);
       KernelProjectPSD2(&a, &b, &c);
     }
     for (PetscInt i = 0; i < 3; i++) {
