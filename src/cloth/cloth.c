@@ -581,6 +581,8 @@ PetscErrorCode ClothDestroy(Cloth *cloth)
     PetscCall(PetscFree4(c->ctype, c->ctype_owned, c->cnormal, c->cnormal_owned));
     PetscCall(PetscFree(c->map));
     PetscCall(PetscFree(c->map_diag));
+    PetscCall(PetscFree6(c->rb_start, c->rb_ncols, c->rb_colstart, c->rb_cols, c->rb_map, c->rb_diag));
+    PetscCall(PetscFree(c->rb_val));
   }
   PetscCall(VecDestroy(&c->Xg));
   PetscCall(VecDestroy(&c->Xl));

@@ -85,6 +85,12 @@ struct _p_Cloth {
   /* fast AIJ assembly (forces.c): CSR value positions for map_mat */
   Mat       map_mat;
   PetscInt *map, *map_diag, map_nnzA;
+  /* row-buffer assembly for block matrices (forces.c): per owned block row its sorted
+   * global block columns and a 3 x 3ncols row-major value buffer; per element block
+   * pair the position of its (0,0) entry, or -1 */
+  Mat        rb_mat;
+  PetscInt  *rb_start, *rb_ncols, *rb_colstart, *rb_cols, *rb_map, *rb_diag;
+  PetscReal *rb_val;
 };
 
 /* forces.c */

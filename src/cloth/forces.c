@@ -453,6 +453,123 @@ static PetscErrorCode ClothBuildAssemblyMap(Cloth c, Mat J)
   PetscFunctionReturn(0);
 }
 
+/* Row-buffer assembly for block matrices (SBAIJ, BAIJ): the element blocks are
+ * summed into drape's own buffer, then each block row goes to PETSc in one
+ * MatSetValuesBlocked call with sorted columns (per element and block, PETSc's
+ * MPISBAIJ insertion costs more than computing the Hessians). Symmetric storage
+ * keeps only the blocks with global column >= row. */
+static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
+{
+  const ClothElements *lists[3] = {&c->stretch_el, &c->shear_el, &c->bend_el};
+  PetscInt            *count, total = 0, npairs = 0;
+  PetscBool            sym;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectTypeCompareAny((PetscObject) J, &sym, MATSEQSBAIJ, MATMPISBAIJ, ""));
+  PetscCall(PetscFree6(c->rb_start, c->rb_ncols, c->rb_colstart, c->rb_cols, c->rb_map, c->rb_diag));
+  PetscCall(PetscFree(c->rb_val));
+  PetscCall(PetscCalloc1(c->nowned + 1, &count));
+  for (PetscInt k = 0; k < c->nowned; k++) count[k] = 1; /* the diagonal block */
+  for (PetscInt kind = 0; kind < 3; kind++) {
+    const PetscInt n = kind ? 3 : 2;
+    for (PetscInt e = 0; e < lists[kind]->n; e++) {
+      const PetscInt *p = lists[kind]->p + n * e;
+      for (PetscInt a = 0; a < n; a++)
+        if (p[a] < c->nowned)
+          for (PetscInt b = 0; b < n; b++) count[p[a]]++;
+      npairs += n * n;
+    }
+  }
+  for (PetscInt k = 0; k < c->nowned; k++) total += count[k];
+  PetscCall(PetscMalloc6(c->nowned + 1, &c->rb_start, c->nowned, &c->rb_ncols, c->nowned + 1, &c->rb_colstart, total, &c->rb_cols, npairs, &c->rb_map, c->nowned, &c->rb_diag));
+  c->rb_colstart[0] = 0;
+  for (PetscInt k = 0; k < c->nowned; k++) {
+    c->rb_colstart[k + 1]                            = c->rb_colstart[k] + count[k];
+    c->rb_ncols[k]                                   = 0;
+    c->rb_cols[c->rb_colstart[k] + c->rb_ncols[k]++] = c->global[k];
+  }
+  for (PetscInt kind = 0; kind < 3; kind++) {
+    const PetscInt n = kind ? 3 : 2;
+    for (PetscInt e = 0; e < lists[kind]->n; e++) {
+      const PetscInt *p = lists[kind]->p + n * e;
+      for (PetscInt a = 0; a < n; a++) {
+        if (p[a] >= c->nowned || c->row_map[p[a]] < 0) continue;
+        for (PetscInt b = 0; b < n; b++) {
+          const PetscInt col = c->col_map[p[b]];
+          if (col < 0 || (sym && col < c->row_map[p[a]])) continue;
+          c->rb_cols[c->rb_colstart[p[a]] + c->rb_ncols[p[a]]++] = col;
+        }
+      }
+    }
+  }
+  c->rb_start[0] = 0;
+  for (PetscInt k = 0; k < c->nowned; k++) {
+    PetscCall(PetscSortRemoveDupsInt(&c->rb_ncols[k], c->rb_cols + c->rb_colstart[k]));
+    c->rb_start[k + 1] = c->rb_start[k] + 9 * c->rb_ncols[k];
+    PetscCall(PetscFindInt(c->global[k], c->rb_ncols[k], c->rb_cols + c->rb_colstart[k], &c->rb_diag[k]));
+    c->rb_diag[k] = c->rb_start[k] + 3 * c->rb_diag[k];
+  }
+  npairs = 0;
+  for (PetscInt kind = 0; kind < 3; kind++) {
+    const PetscInt n = kind ? 3 : 2;
+    for (PetscInt e = 0; e < lists[kind]->n; e++) {
+      const PetscInt *p = lists[kind]->p + n * e;
+      for (PetscInt a = 0; a < n; a++) {
+        for (PetscInt b = 0; b < n; b++, npairs++) {
+          const PetscInt col = c->col_map[p[b]];
+          PetscInt       loc = -1;
+          c->rb_map[npairs]  = -1;
+          if (p[a] >= c->nowned || c->row_map[p[a]] < 0 || col < 0 || (sym && col < c->row_map[p[a]])) continue;
+          PetscCall(PetscFindInt(col, c->rb_ncols[p[a]], c->rb_cols + c->rb_colstart[p[a]], &loc));
+          PetscCheck(loc >= 0, PETSC_COMM_SELF, PETSC_ERR_PLIB, "Block column %" PetscInt_FMT " missing from the row buffer", col);
+          c->rb_map[npairs] = c->rb_start[p[a]] + 3 * loc;
+        }
+      }
+    }
+  }
+  PetscCall(PetscMalloc1(c->rb_start[c->nowned] + 1, &c->rb_val));
+  PetscCall(PetscFree(count));
+  c->rb_mat = J;
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode ClothAddToMatrixRows(Cloth c, const PetscReal *xl, PetscReal a, PetscReal b, Mat J)
+{
+  const ClothElements *lists[3] = {&c->stretch_el, &c->shear_el, &c->bend_el};
+  PetscReal            H[81], D[9];
+  PetscInt             pair = 0;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscArrayzero(c->rb_val, c->rb_start[c->nowned]));
+  for (PetscInt kind = 0; kind < 3; kind++) {
+    const ClothElements *el = lists[kind];
+    const PetscInt       n = kind ? 3 : 2, m = 3 * n;
+    for (PetscInt e = 0; e < el->n; e++) {
+      const PetscInt *p = el->p + n * e;
+      ElementHessian((PetscBool) !c->exact_hessian, kind, xl, p, el->coef[e], el->rest ? el->rest[e] : 0, H);
+      if (c->constrained) FilterElementHessian(c, n, p, H);
+      for (PetscInt pa = 0; pa < n; pa++) {
+        for (PetscInt pb = 0; pb < n; pb++, pair++) {
+          const PetscInt pos = c->rb_map[pair];
+          PetscInt       ld;
+          if (pos < 0) continue;
+          ld = 3 * c->rb_ncols[p[pa]];
+          for (PetscInt i = 0; i < 3; i++)
+            for (PetscInt j = 0; j < 3; j++) c->rb_val[pos + ld * i + j] += b * H[m * (3 * pa + i) + 3 * pb + j];
+        }
+      }
+    }
+  }
+  for (PetscInt k = 0; k < c->nowned; k++) {
+    const PetscInt ld = 3 * c->rb_ncols[k];
+    MassBlock(c, k, a, D);
+    for (PetscInt i = 0; i < 3; i++)
+      for (PetscInt j = 0; j < 3; j++) c->rb_val[c->rb_diag[k] + ld * i + j] += D[3 * i + j];
+    PetscCall(MatSetValuesBlocked(J, 1, &c->global[k], c->rb_ncols[k], c->rb_cols + c->rb_colstart[k], c->rb_val + c->rb_start[k], INSERT_VALUES));
+  }
+  PetscFunctionReturn(0);
+}
+
 /* J = a M + b H(xl) straight into the CSR value arrays through the map. */
 static PetscErrorCode ClothAddToMatrixFast(Cloth c, const PetscReal *xl, PetscReal a, PetscReal b, Mat J)
 {
@@ -518,10 +635,17 @@ PetscErrorCode ClothAssembleMatrix(Cloth c, const PetscScalar *x, PetscReal a, P
 
   PetscFunctionBeginUser;
   PetscCall(PetscLogEventBegin(drape_log.jacobian, 0, 0, 0, 0));
-  if (c->map_mat != J) PetscCall(ClothBuildAssemblyMap(c, J));
+  if (c->map_mat != J) {
+    PetscBool block;
+    PetscCall(ClothBuildAssemblyMap(c, J));
+    PetscCall(PetscObjectTypeCompareAny((PetscObject) J, &block, MATSEQSBAIJ, MATMPISBAIJ, MATSEQBAIJ, MATMPIBAIJ, ""));
+    if (!c->map && block) PetscCall(ClothBuildRowBuffer(c, J));
+  }
   PetscCall(ClothScatterPositions(c, x, &xl));
   if (c->map)
     PetscCall(ClothAddToMatrixFast(c, xl, a, b, J));
+  else if (c->rb_mat == J)
+    PetscCall(ClothAddToMatrixRows(c, xl, a, b, J));
   else {
     PetscCall(MatZeroEntries(J));
     PetscCall(ClothAddToMatrix(c, xl, a, b, J));
