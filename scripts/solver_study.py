@@ -5,12 +5,13 @@ Scene: the hanging cloth (1 m light cotton, two corners pinned, drape's defaults
 from rest, -ts_type beuler at 10 x the symplectic limit drape prints at start-up
 (the step of scripts/bench_core.py), one rank.
 
-Part 1, preconditioners for CG (-ksp_type cg, rtol 1e-6, drape's default
-tolerances) on N x N lattices, N in --sizes (128, 256):
+Part 1, preconditioners for CG (-ksp_type cg, rtol 1e-6: tighter than drape's
+default 1e-4, so that the preconditioners' differences show) on N x N lattices, N
+in --sizes (128, 256), on drape's default matrix (SBAIJ; AIJ for gamg):
 
   none      -pc_type none
   jacobi    -pc_type jacobi
-  bjacobi   -pc_type bjacobi (drape's default: one block per rank, ILU(0))
+  bjacobi   -pc_type bjacobi (drape's default: one block per rank, ICC(0))
   icc       -pc_type icc (ICC(0); on one rank the same factor as bjacobi's)
   gamg      -pc_type gamg (smoothed aggregation, PETSc's default smoother)
   hypre     -pc_type hypre -pc_hypre_type boomeramg
@@ -86,7 +87,7 @@ def part1(drape, a):
         lim = drape.limits(base(n))
         dt = 10 * lim["symplectic"]
         steps = a.steps.get(n, max(3, int(6.5e5 // (n * n))))
-        args = base(n) + ["-ts_dt", f"{dt:.6e}", "-ts_max_steps", str(steps), "-drape_stability_its", "0"]
+        args = base(n) + ["-ts_dt", f"{dt:.6e}", "-ts_max_steps", str(steps), "-drape_stability_its", "0", "-ksp_rtol", "1e-6"]
         for name, opts in PCS:
             st, wall, s, r = timed(drape, args + opts, a.repeat)
             row = {"N": n, "particles": n * n, "dt": f"{dt:.4e}", "steps": steps, "pc": name, "status": st,
@@ -206,9 +207,9 @@ def report(rows1, rows2, plain_status, a):
             else:
                 md.append(f"No swept rtol of drape's default PC is as inaccurate as the shortcut ({label} error {e:.2e}); the loosest one "
                           f"({rows2[1]['config']}) is more accurate and takes {rows2[1]['s_per_step']} s/step against {bl['s_per_step']}.")
-        d = next((r for r in rows2 if r["rtol"] == 1e-6), None)
+        d = next((r for r in rows2 if r["rtol"] == 1e-4), None)
         if d:
-            md.append(f"drape's default (rtol 1e-6) is {float(bl['err_max']) / max(float(d['err_max']), 1e-300):.3g}x more accurate than the "
+            md.append(f"drape's default (rtol 1e-4) is {float(bl['err_max']) / max(float(d['err_max']), 1e-300):.3g}x more accurate than the "
                       f"shortcut (max error {d['err_max']} against {bl['err_max']}) at {d['s_per_step']} s/step.")
         md += ["", "Flags: a solve stopped by -ksp_max_it (a cap of 5 iterations, 3 steps): "
                + "; ".join(f"{k}: {v}" for k, v in plain_status.items())
