@@ -18,12 +18,13 @@ with CG iterations per step for backward Euler.
 import argparse
 import csv
 import os
-import platform
 import re
 import statistics
 import subprocess
 import sys
 from pathlib import Path
+
+from bench_common import machine
 
 ROOT = Path(__file__).resolve().parent.parent
 # (name, options, step as a multiple of the limit, which printed limit)
@@ -44,18 +45,6 @@ def drape(exe, np_, args):
         return subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
     except OSError as e:
         sys.exit(f"bench_core: cannot run {exe}: {e}")
-
-
-def machine():
-    model = "unknown CPU"
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return f"{model}, {os.cpu_count()} cores, {platform.system()} {platform.release()}"
 
 
 def main():
