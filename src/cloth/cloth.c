@@ -259,21 +259,36 @@ static PetscBool IsPinned(Cloth c, PetscInt i, PetscInt j)
 /* Share of the lattice spacing that a boundary row/column carries (1/2). */
 static inline PetscReal EdgeWeight(PetscInt i, PetscInt M) { return (i == 0 || i == M - 1) ? 0.5 : 1.0; }
 
-static PetscErrorCode ElementsAllocate(ClothElements *el, PetscInt n, PetscInt nper, PetscBool rest)
+static PetscErrorCode ElementsAllocate(ClothElements *el, PetscInt n, PetscInt nper)
 {
   PetscFunctionBeginUser;
-  el->n = 0;
-  PetscCall(PetscMalloc3(nper * n + 1, &el->p, n + 1, &el->coef, n + 1, &el->own));
-  el->rest = NULL;
-  if (rest) PetscCall(PetscMalloc1(n + 1, &el->rest));
+  el->n      = 0;
+  el->nclass = 0;
+  PetscCall(PetscMalloc3(nper * n + 1, &el->p, n + 1, &el->cls, n + 1, &el->own));
+  PetscFunctionReturn(0);
+}
+
+/* Element e gets the class of (coef, rest), a new one if no class has these values. */
+static PetscErrorCode ElementsSetCoefficient(ClothElements *el, PetscInt e, PetscReal coef, PetscReal rest)
+{
+  PetscInt k = 0;
+
+  PetscFunctionBeginUser;
+  while (k < el->nclass && !(el->coef_tab[k] == coef && el->rest_tab[k] == rest)) k++;
+  if (k == el->nclass) {
+    PetscCheck(k < CLOTH_ELEMENT_CLASSES, PETSC_COMM_SELF, PETSC_ERR_SUP, "More than %d distinct element coefficients in one list", CLOTH_ELEMENT_CLASSES);
+    el->coef_tab[k] = coef;
+    el->rest_tab[k] = rest;
+    el->nclass++;
+  }
+  el->cls[e] = (unsigned char) k;
   PetscFunctionReturn(0);
 }
 
 static PetscErrorCode ElementsDestroy(ClothElements *el)
 {
   PetscFunctionBeginUser;
-  PetscCall(PetscFree3(el->p, el->coef, el->own));
-  PetscCall(PetscFree(el->rest));
+  PetscCall(PetscFree3(el->p, el->cls, el->own));
   PetscFunctionReturn(0);
 }
 
@@ -292,9 +307,9 @@ static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const P
 #define OWNED(i, j) (owner[NAT(i, j)] == rank)
 #define ACT(i, j)   ClothIsActive(c, i, j)
   PetscFunctionBeginUser;
-  PetscCall(ElementsAllocate(st, 2 * nl, 2, PETSC_TRUE));
-  PetscCall(ElementsAllocate(sh, 4 * nl, 3, PETSC_FALSE));
-  PetscCall(ElementsAllocate(be, 2 * nl, 3, PETSC_FALSE));
+  PetscCall(ElementsAllocate(st, 2 * nl, 2));
+  PetscCall(ElementsAllocate(sh, 4 * nl, 3));
+  PetscCall(ElementsAllocate(be, 2 * nl, 3));
   for (PetscInt j = 0; j < My; j++) {
     for (PetscInt i = 0; i < Mx; i++) {
       /* stretch along the warp (i) and the weft (j) */
@@ -302,17 +317,15 @@ static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const P
         PetscInt e       = st->n++;
         st->p[2 * e]     = LOCAL(i, j);
         st->p[2 * e + 1] = LOCAL(i + 1, j);
-        st->coef[e]      = c->stretch[0] * dy * EdgeWeight(j, My) / dx;
-        st->rest[e]      = dx;
-        st->own[e]       = (unsigned char) OWNED(i, j);
+        PetscCall(ElementsSetCoefficient(st, e, c->stretch[0] * dy * EdgeWeight(j, My) / dx, dx));
+        st->own[e] = (unsigned char) OWNED(i, j);
       }
       if (c->stretch[1] > 0 && j + 1 < My && (OWNED(i, j) || OWNED(i, j + 1)) && ACT(i, j) && ACT(i, j + 1)) {
         PetscInt e       = st->n++;
         st->p[2 * e]     = LOCAL(i, j);
         st->p[2 * e + 1] = LOCAL(i, j + 1);
-        st->coef[e]      = c->stretch[1] * dx * EdgeWeight(i, Mx) / dy;
-        st->rest[e]      = dy;
-        st->own[e]       = (unsigned char) OWNED(i, j);
+        PetscCall(ElementsSetCoefficient(st, e, c->stretch[1] * dx * EdgeWeight(i, Mx) / dy, dy));
+        st->own[e] = (unsigned char) OWNED(i, j);
       }
       /* shear: the four corners of cell (i, j) as (a: warp end, b: weft end, c: vertex) */
       if (c->shear > 0 && i + 1 < Mx && j + 1 < My && (OWNED(i, j) || OWNED(i + 1, j) || OWNED(i, j + 1) || OWNED(i + 1, j + 1)) && ACT(i, j) && ACT(i + 1, j) && ACT(i, j + 1) && ACT(i + 1, j + 1)) {
@@ -321,8 +334,8 @@ static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const P
         for (PetscInt k = 0; k < 4; k++) {
           PetscInt e = sh->n++;
           for (PetscInt q = 0; q < 3; q++) sh->p[3 * e + q] = corner[k][q];
-          sh->coef[e] = c->shear / 8;
-          sh->own[e]  = (unsigned char) OWNED(i, j);
+          PetscCall(ElementsSetCoefficient(sh, e, c->shear / 8, 0));
+          sh->own[e] = (unsigned char) OWNED(i, j);
         }
       }
       /* bending: triples along the warp and the weft centred on (i, j) */
@@ -331,16 +344,16 @@ static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const P
         be->p[3 * e]     = LOCAL(i - 1, j);
         be->p[3 * e + 1] = LOCAL(i + 1, j);
         be->p[3 * e + 2] = LOCAL(i, j);
-        be->coef[e]      = c->bend[0] * dy * EdgeWeight(j, My) / dx;
-        be->own[e]       = (unsigned char) OWNED(i, j);
+        PetscCall(ElementsSetCoefficient(be, e, c->bend[0] * dy * EdgeWeight(j, My) / dx, 0));
+        be->own[e] = (unsigned char) OWNED(i, j);
       }
       if (c->bend[1] > 0 && j >= 1 && j + 1 < My && (OWNED(i, j - 1) || OWNED(i, j) || OWNED(i, j + 1)) && ACT(i, j - 1) && ACT(i, j) && ACT(i, j + 1)) {
         PetscInt e       = be->n++;
         be->p[3 * e]     = LOCAL(i, j - 1);
         be->p[3 * e + 1] = LOCAL(i, j + 1);
         be->p[3 * e + 2] = LOCAL(i, j);
-        be->coef[e]      = c->bend[1] * dx * EdgeWeight(i, Mx) / dy;
-        be->own[e]       = (unsigned char) OWNED(i, j);
+        PetscCall(ElementsSetCoefficient(be, e, c->bend[1] * dx * EdgeWeight(i, Mx) / dy, 0));
+        be->own[e] = (unsigned char) OWNED(i, j);
       }
     }
   }

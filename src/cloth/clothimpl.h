@@ -7,13 +7,22 @@
 /* Elements as local particle indices (owned + ghost), each with its coefficient.
  * `own` marks elements whose energy this rank counts (exactly one rank each);
  * forces are computed by every rank that owns one of the element's particles. */
+#define CLOTH_ELEMENT_CLASSES 64
 typedef struct {
   PetscInt       n;
-  PetscInt      *p;    /* 2 (stretch) or 3 (angle: a, b, vertex c) per element */
-  PetscReal     *coef; /* k, or kappa                                           */
-  PetscReal     *rest; /* rest length (stretch only)                           */
+  PetscInt      *p;   /* 2 (stretch) or 3 (angle: a, b, vertex c) per element */
+  unsigned char *cls; /* coefficient class of each element                    */
   unsigned char *own;
+  /* the few distinct (coefficient, rest length) pairs of a lattice (boundary rows
+   * carry half): a byte per element instead of two doubles, a third of the memory
+   * the force loop streams */
+  PetscInt  nclass;
+  PetscReal coef_tab[CLOTH_ELEMENT_CLASSES]; /* k, or kappa                    */
+  PetscReal rest_tab[CLOTH_ELEMENT_CLASSES]; /* rest length (stretch), else 0 */
 } ClothElements;
+
+static inline PetscReal ElemCoef(const ClothElements *el, PetscInt e) { return el->coef_tab[el->cls[e]]; }
+static inline PetscReal ElemRest(const ClothElements *el, PetscInt e) { return el->rest_tab[el->cls[e]]; }
 
 typedef enum {
   CLOTH_HORIZONTAL,

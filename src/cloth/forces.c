@@ -53,7 +53,7 @@ static inline void AccumulateAngleForces(PetscBool bend, const ClothElements *el
   for (PetscInt e0 = 0; e0 < el->n; e0 += ANGLE_CHUNK) {
     const PetscInt  n = PetscMin(ANGLE_CHUNK, el->n - e0);
     const PetscInt *p = el->p + 3 * e0;
-    for (PetscInt k = 0; k < n; k++) KernelAngleCoefficients(bend, xl + 3 * p[3 * k], xl + 3 * p[3 * k + 1], xl + 3 * p[3 * k + 2], el->coef[e0 + k], w + 3 * k);
+    for (PetscInt k = 0; k < n; k++) KernelAngleCoefficients(bend, xl + 3 * p[3 * k], xl + 3 * p[3 * k + 1], xl + 3 * p[3 * k + 2], ElemCoef(el, e0 + k), w + 3 * k);
     for (PetscInt k = 0; k < n; k++) {
       KernelAngleGradientFromCoefficients(w + 3 * k, xl + 3 * p[3 * k], xl + 3 * p[3 * k + 1], xl + 3 * p[3 * k + 2], g);
       Scatter(fl, 3, p + 3 * k, g);
@@ -68,7 +68,7 @@ static void AccumulateInternalForce(Cloth c, const PetscReal *restrict xl, Petsc
   PetscReal            g[9];
 
   for (PetscInt e = 0; e < st->n; e++) {
-    KernelStretchGradient(xl + 3 * st->p[2 * e], xl + 3 * st->p[2 * e + 1], st->coef[e], st->rest[e], g);
+    KernelStretchGradient(xl + 3 * st->p[2 * e], xl + 3 * st->p[2 * e + 1], ElemCoef(st, e), ElemRest(st, e), g);
     Scatter(fl, 2, st->p + 2 * e, g);
   }
   AccumulateAngleForces(PETSC_FALSE, &c->shear_el, xl, fl);
@@ -137,11 +137,11 @@ PetscErrorCode ClothComputeEnergies(Cloth c, const PetscScalar *x, const PetscSc
   }
   PetscCall(ClothScatterPositions(c, x, &xl));
   for (PetscInt e = 0; e < st->n; e++)
-    if (st->own[e]) local[2] += KernelStretch(xl + 3 * st->p[2 * e], xl + 3 * st->p[2 * e + 1], st->coef[e], st->rest[e], NULL, NULL, PETSC_FALSE);
+    if (st->own[e]) local[2] += KernelStretch(xl + 3 * st->p[2 * e], xl + 3 * st->p[2 * e + 1], ElemCoef(st, e), ElemRest(st, e), NULL, NULL, PETSC_FALSE);
   for (PetscInt e = 0; e < sh->n; e++)
-    if (sh->own[e]) local[3] += KernelAngle(KERNEL_SHEAR, xl + 3 * sh->p[3 * e], xl + 3 * sh->p[3 * e + 1], xl + 3 * sh->p[3 * e + 2], sh->coef[e], NULL, NULL, PETSC_FALSE);
+    if (sh->own[e]) local[3] += KernelAngle(KERNEL_SHEAR, xl + 3 * sh->p[3 * e], xl + 3 * sh->p[3 * e + 1], xl + 3 * sh->p[3 * e + 2], ElemCoef(sh, e), NULL, NULL, PETSC_FALSE);
   for (PetscInt e = 0; e < be->n; e++)
-    if (be->own[e]) local[4] += KernelAngle(KERNEL_BEND, xl + 3 * be->p[3 * e], xl + 3 * be->p[3 * e + 1], xl + 3 * be->p[3 * e + 2], be->coef[e], NULL, NULL, PETSC_FALSE);
+    if (be->own[e]) local[4] += KernelAngle(KERNEL_BEND, xl + 3 * be->p[3 * e], xl + 3 * be->p[3 * e + 1], xl + 3 * be->p[3 * e + 2], ElemCoef(be, e), NULL, NULL, PETSC_FALSE);
   PetscCall(ClothEndScatter(c, &xl));
   PetscCall(MPIU_Allreduce(local, sum, 5, MPIU_REAL, MPI_SUM, c->comm));
   en->kinetic = sum[0];
@@ -280,7 +280,7 @@ PetscErrorCode ClothApplyHessian(Cloth c, const PetscScalar *x, const PetscScala
     const PetscInt       n = kind ? 3 : 2, m = 3 * n;
     for (PetscInt e = 0; e < el->n; e++) {
       const PetscInt *p = el->p + n * e;
-      ElementHessian(PETSC_FALSE, kind, xl, p, el->coef[e], el->rest ? el->rest[e] : 0, H);
+      ElementHessian(PETSC_FALSE, kind, xl, p, ElemCoef(el, e), ElemRest(el, e), H);
       for (PetscInt i = 0; i < m; i++) {
         PetscReal s = 0;
         for (PetscInt j = 0; j < m; j++) s += H[m * i + j] * zl[3 * p[j / 3] + j % 3];
@@ -315,7 +315,7 @@ static PetscErrorCode ClothAddToMatrix(Cloth c, const PetscReal *xl, PetscReal a
         cols[i] = c->col_map[p[i]];
       }
       if (xl) {
-        ElementHessian((PetscBool) !c->exact_hessian, kind, xl, p, el->coef[e], el->rest ? el->rest[e] : 0, H);
+        ElementHessian((PetscBool) !c->exact_hessian, kind, xl, p, ElemCoef(el, e), ElemRest(el, e), H);
         if (c->constrained) FilterElementHessian(c, n, p, H);
         for (PetscInt i = 0; i < 9 * n * n; i++) H[i] *= b;
       }
@@ -546,7 +546,7 @@ static PetscErrorCode ClothAddToMatrixRows(Cloth c, const PetscReal *xl, PetscRe
     const PetscInt       n = kind ? 3 : 2, m = 3 * n;
     for (PetscInt e = 0; e < el->n; e++) {
       const PetscInt *p = el->p + n * e;
-      ElementHessian((PetscBool) !c->exact_hessian, kind, xl, p, el->coef[e], el->rest ? el->rest[e] : 0, H);
+      ElementHessian((PetscBool) !c->exact_hessian, kind, xl, p, ElemCoef(el, e), ElemRest(el, e), H);
       if (c->constrained) FilterElementHessian(c, n, p, H);
       for (PetscInt pa = 0; pa < n; pa++) {
         for (PetscInt pb = 0; pb < n; pb++, pair++) {
@@ -600,7 +600,7 @@ static PetscErrorCode ClothAddToMatrixFast(Cloth c, const PetscReal *xl, PetscRe
     const PetscInt       n = kind ? 3 : 2, m = 3 * n;
     for (PetscInt e = 0; e < el->n; e++) {
       const PetscInt *p = el->p + n * e;
-      ElementHessian((PetscBool) !c->exact_hessian, kind, xl, p, el->coef[e], el->rest ? el->rest[e] : 0, H);
+      ElementHessian((PetscBool) !c->exact_hessian, kind, xl, p, ElemCoef(el, e), ElemRest(el, e), H);
       if (c->constrained) FilterElementHessian(c, n, p, H);
       for (PetscInt pa = 0; pa < n; pa++) {
         for (PetscInt pb = 0; pb < n; pb++) {
