@@ -1,4 +1,4 @@
-"""The benchmark scripts paper_tables.py, scaling.py and solver_study.py in --quick mode:
+"""The benchmark scripts paper_tables.py, scaling.py, solver_study.py and rtol_accuracy.py in --quick mode:
 their CSV columns and contents, and the claims they rest on (a dense implicit matrix
 gives the AIJ frames, the Blender shortcut is less accurate than drape's default,
 bytes per particle are plausible); plus -drape_mat_type dense on 1 and 2 ranks."""
@@ -152,3 +152,16 @@ def test_missing_build_is_one_sentence(tmp, script):
     assert proc.returncode != 0
     msg = proc.stderr.strip()
     assert msg.count("\n") == 0 and "drape is not built" in msg and "make all" in msg, msg
+
+
+def test_rtol_accuracy_quick(tmp_path):
+    """rtol_accuracy.py: every tolerance's error against the true motion is reported,
+    and a loose solve (rtol 1e-2) is no more accurate than the exact linearised step
+    by more than round-off (the tolerance can only add error, up to noise)."""
+    quick("rtol_accuracy.py", tmp_path)
+    r = rows(tmp_path / "rtol_accuracy.csv")
+    assert [x["rtol"] for x in r] == ["1e-12", "0.01", "0.001", "0.0001", "1e-06"]
+    err = {x["rtol"]: float(x["err_max"]) for x in r}
+    assert all(0 < e < 0.5 for e in err.values())
+    assert abs(err["1e-06"] - err["1e-12"]) <= 0.01 * err["1e-12"]
+    assert "vs rtol 1e-12" in (tmp_path / "rtol_accuracy.md").read_text()

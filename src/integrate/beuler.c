@@ -41,6 +41,8 @@ typedef struct {
   PetscReal          h, damping, friction;
   PetscReal          impulse[3]; /* of the last step, owned particles */
   PetscInt           pc_lag;     /* rebuild the preconditioner every pc_lag steps (ksponly) */
+  PetscBool          default_pc; /* drape's block Jacobi (no -pc_type given) */
+  PetscInt           nfallback;  /* steps solved again with Jacobi */
   PetscInt           n;          /* 3 x owned particles */
 } TS_DrapeBE;
 
@@ -111,6 +113,7 @@ static PetscErrorCode BEJacobian(SNES snes, Vec DV, Mat J, Mat P, void *ctx)
     PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
     PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
   }
+
   PetscFunctionReturn(0);
 }
 
@@ -169,6 +172,11 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
     PetscCall(KSPGetPC(ksp, &pc));
     PetscCall(PetscObjectTypeCompareAny((PetscObject) pc, &aij, PCGAMG, PCSOR, PCEISENSTAT, PCML, PCHMG, ""));
     PetscCall(ClothCreateMatrix(be->cloth, aij ? MATAIJ : MATSBAIJ, &be->J));
+    {
+      PetscBool set;
+      PetscCall(PetscOptionsHasName(NULL, ((PetscObject) pc)->prefix, "-pc_type", &set));
+      be->default_pc = (PetscBool) !set;
+    }
   }
   PetscCall(PetscMalloc4(be->n, &be->xt, be->n, &be->vt, be->n, &be->at, be->n, &be->z));
   PetscCall(TSGetSNES(ts, &snes));
@@ -225,6 +233,27 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
   PetscCall(KSPGetConvergedReason(ksp, &kreason));
   ts->snes_its += its;
   ts->ksp_its += lits;
+  if (kreason == KSP_DIVERGED_INDEFINITE_PC && be->default_pc) {
+    /* block Jacobi's incomplete (block) factorisation can lose definiteness at very
+     * large steps (h^2 H >> M); Jacobi (the positive diagonal of the SPD matrix)
+     * cannot: solve this step again with it */
+    PC pc;
+    PetscCall(KSPGetPC(ksp, &pc));
+    PetscCall(PCSetType(pc, PCJACOBI));
+    PetscCall(VecSet(be->DV, 0.0));
+    PetscCall(PetscLogEventBegin(drape_log.linear_solve, 0, 0, 0, 0));
+    PetscCall(SNESSolve(snes, NULL, be->DV));
+    PetscCall(PetscLogEventEnd(drape_log.linear_solve, 0, 0, 0, 0));
+    PetscCall(SNESGetConvergedReason(snes, &sreason));
+    PetscCall(SNESGetIterationNumber(snes, &its));
+    PetscCall(SNESGetLinearSolveIterations(snes, &lits));
+    PetscCall(KSPGetConvergedReason(ksp, &kreason));
+    ts->snes_its += its;
+    ts->ksp_its += lits;
+    PetscCall(PCSetType(pc, PCBJACOBI));
+    if (!be->nfallback++)
+      PetscCall(PetscPrintf(PetscObjectComm((PetscObject) ts), "note: at step %" PetscInt_FMT " (h = %g s) block Jacobi's ICC(0) lost definiteness; such steps are solved again with Jacobi (-pc_type jacobi)\n", ts->steps, (double) ts->time_step));
+  }
   if (sreason < 0 || kreason < 0) {
     PetscCall(VecRestoreArray(ts->vec_sol, &u));
     SETERRQ(PetscObjectComm((PetscObject) ts), PETSC_ERR_NOT_CONVERGED,
