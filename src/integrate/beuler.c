@@ -237,9 +237,12 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
     /* block Jacobi's incomplete (block) factorisation can lose definiteness at very
      * large steps (h^2 H >> M); Jacobi (the positive diagonal of the SPD matrix)
      * cannot: solve this step again with it */
-    PC pc;
+    PC       pc;
+    PetscInt maxit;
     PetscCall(KSPGetPC(ksp, &pc));
     PetscCall(PCSetType(pc, PCJACOBI));
+    PetscCall(KSPGetTolerances(ksp, NULL, NULL, NULL, &maxit));
+    PetscCall(KSPSetTolerances(ksp, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, PetscMax(maxit, 20000))); /* Jacobi needs many more */
     PetscCall(VecSet(be->DV, 0.0));
     PetscCall(PetscLogEventBegin(drape_log.linear_solve, 0, 0, 0, 0));
     PetscCall(SNESSolve(snes, NULL, be->DV));
@@ -251,6 +254,7 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
     ts->snes_its += its;
     ts->ksp_its += lits;
     PetscCall(PCSetType(pc, PCBJACOBI));
+    PetscCall(KSPSetTolerances(ksp, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, maxit));
     if (!be->nfallback++)
       PetscCall(PetscPrintf(PetscObjectComm((PetscObject) ts), "note: at step %" PetscInt_FMT " (h = %g s) block Jacobi's ICC(0) lost definiteness; such steps are solved again with Jacobi (-pc_type jacobi)\n", ts->steps, (double) ts->time_step));
   }
