@@ -185,6 +185,27 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
   PetscFunctionReturn(0);
 }
 
+/* One SNES solve for dv from 0; its reasons, and the iterations counted in ts. */
+static PetscErrorCode BESolve(TS ts, TS_DrapeBE *be, SNES snes, SNESConvergedReason *sreason, KSPConvergedReason *kreason, PetscInt *lits)
+{
+  KSP      ksp;
+  PetscInt its;
+
+  PetscFunctionBeginUser;
+  PetscCall(VecSet(be->DV, 0.0));
+  PetscCall(PetscLogEventBegin(drape_log.linear_solve, 0, 0, 0, 0));
+  PetscCall(SNESSolve(snes, NULL, be->DV));
+  PetscCall(PetscLogEventEnd(drape_log.linear_solve, 0, 0, 0, 0));
+  PetscCall(SNESGetConvergedReason(snes, sreason));
+  PetscCall(SNESGetIterationNumber(snes, &its));
+  PetscCall(SNESGetLinearSolveIterations(snes, lits));
+  PetscCall(SNESGetKSP(snes, &ksp));
+  PetscCall(KSPGetConvergedReason(ksp, kreason));
+  ts->snes_its += its;
+  ts->ksp_its += *lits;
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode TSStep_DrapeBE(TS ts)
 {
   TS_DrapeBE         *be = (TS_DrapeBE *) ts->data;
@@ -192,7 +213,7 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
   KSP                 ksp;
   SNESConvergedReason sreason;
   KSPConvergedReason  kreason;
-  PetscInt            its, lits;
+  PetscInt            lits;
   PetscScalar        *u;
 
   PetscFunctionBeginUser;
@@ -222,17 +243,8 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
     PetscCall(PetscObjectTypeCompare((PetscObject) snes, SNESKSPONLY, &ksponly));
     if (ksponly && be->pc_lag > 1) PetscCall(SNESSetLagPreconditioner(snes, ts->steps % be->pc_lag ? -1 : 1));
   }
-  PetscCall(VecSet(be->DV, 0.0));
-  PetscCall(PetscLogEventBegin(drape_log.linear_solve, 0, 0, 0, 0));
-  PetscCall(SNESSolve(snes, NULL, be->DV));
-  PetscCall(PetscLogEventEnd(drape_log.linear_solve, 0, 0, 0, 0));
-  PetscCall(SNESGetConvergedReason(snes, &sreason));
-  PetscCall(SNESGetIterationNumber(snes, &its));
-  PetscCall(SNESGetLinearSolveIterations(snes, &lits));
   PetscCall(SNESGetKSP(snes, &ksp));
-  PetscCall(KSPGetConvergedReason(ksp, &kreason));
-  ts->snes_its += its;
-  ts->ksp_its += lits;
+  PetscCall(BESolve(ts, be, snes, &sreason, &kreason, &lits));
   if (kreason == KSP_DIVERGED_INDEFINITE_PC && be->default_pc) {
     /* block Jacobi's incomplete (block) factorisation can lose definiteness at very
      * large steps (h^2 H >> M); Jacobi (the positive diagonal of the SPD matrix)
@@ -243,16 +255,7 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
     PetscCall(PCSetType(pc, PCJACOBI));
     PetscCall(KSPGetTolerances(ksp, NULL, NULL, NULL, &maxit));
     PetscCall(KSPSetTolerances(ksp, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, PetscMax(maxit, 20000))); /* Jacobi needs many more */
-    PetscCall(VecSet(be->DV, 0.0));
-    PetscCall(PetscLogEventBegin(drape_log.linear_solve, 0, 0, 0, 0));
-    PetscCall(SNESSolve(snes, NULL, be->DV));
-    PetscCall(PetscLogEventEnd(drape_log.linear_solve, 0, 0, 0, 0));
-    PetscCall(SNESGetConvergedReason(snes, &sreason));
-    PetscCall(SNESGetIterationNumber(snes, &its));
-    PetscCall(SNESGetLinearSolveIterations(snes, &lits));
-    PetscCall(KSPGetConvergedReason(ksp, &kreason));
-    ts->snes_its += its;
-    ts->ksp_its += lits;
+    PetscCall(BESolve(ts, be, snes, &sreason, &kreason, &lits));
     PetscCall(PCSetType(pc, PCBJACOBI));
     PetscCall(KSPSetTolerances(ksp, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, maxit));
     if (!be->nfallback++)
