@@ -1,5 +1,7 @@
 """Named fabrics (-cloth_fabric): the conversion of the measured data, overrides,
 refusals, and resolution independence of the converted material."""
+import re
+
 import numpy as np
 import pytest
 
@@ -13,7 +15,6 @@ MATERIAL = r"material: stretch (\S+),(\S+) N/m, shear (\S+) N/m, bend (\S+),(\S+
 
 
 def material(res):
-    import re
     m = re.search(MATERIAL, res.stdout)
     assert m, res.stdout
     return [float(v) for v in m.groups()]

@@ -255,6 +255,16 @@ static inline void ElementHessian(PetscBool project, PetscInt kind, const PetscR
     KernelAngle(kind == 1 ? KERNEL_SHEAR : KERNEL_BEND, xl + 3 * p[0], xl + 3 * p[1], xl + 3 * p[2], coef, NULL, H, project);
 }
 
+/* The implicit matrix's block of element e of list `kind`: the (projected unless
+ * -cloth_hessian exact) Hessian, filtered by the contact constraints. */
+static inline void MatrixElementHessian(Cloth c, PetscInt kind, const ClothElements *el, PetscInt e, const PetscReal *xl, PetscReal *H)
+{
+  const PetscInt n = kind ? 3 : 2;
+
+  ElementHessian((PetscBool) !c->exact_hessian, kind, xl, el->p + n * e, ElemCoef(el, e), ElemRest(el, e), H);
+  if (c->constrained) FilterElementHessian(c, n, el->p + n * e, H);
+}
+
 PetscErrorCode ClothApplyHessian(Cloth c, const PetscScalar *x, const PetscScalar *z, PetscScalar *y)
 {
   const ClothElements *lists[3] = {&c->stretch_el, &c->shear_el, &c->bend_el};
@@ -315,8 +325,7 @@ static PetscErrorCode ClothAddToMatrix(Cloth c, const PetscReal *xl, PetscReal a
         cols[i] = c->col_map[p[i]];
       }
       if (xl) {
-        ElementHessian((PetscBool) !c->exact_hessian, kind, xl, p, ElemCoef(el, e), ElemRest(el, e), H);
-        if (c->constrained) FilterElementHessian(c, n, p, H);
+        MatrixElementHessian(c, kind, el, e, xl, H);
         for (PetscInt i = 0; i < 9 * n * n; i++) H[i] *= b;
       }
       PetscCall(MatSetValuesBlocked(J, n, rows, n, cols, H, ADD_VALUES));
@@ -546,8 +555,7 @@ static PetscErrorCode ClothAddToMatrixRows(Cloth c, const PetscReal *xl, PetscRe
     const PetscInt       n = kind ? 3 : 2, m = 3 * n;
     for (PetscInt e = 0; e < el->n; e++) {
       const PetscInt *p = el->p + n * e;
-      ElementHessian((PetscBool) !c->exact_hessian, kind, xl, p, ElemCoef(el, e), ElemRest(el, e), H);
-      if (c->constrained) FilterElementHessian(c, n, p, H);
+      MatrixElementHessian(c, kind, el, e, xl, H);
       for (PetscInt pa = 0; pa < n; pa++) {
         for (PetscInt pb = 0; pb < n; pb++, pair++) {
           const PetscInt pos = c->rb_map[pair];
@@ -599,9 +607,7 @@ static PetscErrorCode ClothAddToMatrixFast(Cloth c, const PetscReal *xl, PetscRe
     const ClothElements *el = lists[kind];
     const PetscInt       n = kind ? 3 : 2, m = 3 * n;
     for (PetscInt e = 0; e < el->n; e++) {
-      const PetscInt *p = el->p + n * e;
-      ElementHessian((PetscBool) !c->exact_hessian, kind, xl, p, ElemCoef(el, e), ElemRest(el, e), H);
-      if (c->constrained) FilterElementHessian(c, n, p, H);
+      MatrixElementHessian(c, kind, el, e, xl, H);
       for (PetscInt pa = 0; pa < n; pa++) {
         for (PetscInt pb = 0; pb < n; pb++) {
           for (PetscInt d = 0; d < 3; d++, total++) {
