@@ -327,7 +327,8 @@ static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const P
         PetscCall(ElementsSetCoefficient(st, e, c->stretch[1] * dx * EdgeWeight(i, Mx) / dy, dy));
         st->own[e] = (unsigned char) OWNED(i, j);
       }
-      /* shear: the four corners of cell (i, j) as (a: warp end, b: weft end, c: vertex) */
+      /* shear: the four corners of cell (i, j) in a row as (a, b, vertex c), vertices
+       * (i,j), (i+1,j), (i,j+1), (i+1,j+1): the force loop reads them as one cell */
       if (c->shear > 0 && i + 1 < Mx && j + 1 < My && (OWNED(i, j) || OWNED(i + 1, j) || OWNED(i, j + 1) || OWNED(i + 1, j + 1)) && ACT(i, j) && ACT(i + 1, j) && ACT(i, j + 1) && ACT(i + 1, j + 1)) {
         const PetscInt corner[4][3] = {
           {LOCAL(i + 1, j), LOCAL(i, j + 1), LOCAL(i, j)}, {LOCAL(i, j), LOCAL(i + 1, j + 1), LOCAL(i + 1, j)}, {LOCAL(i + 1, j + 1), LOCAL(i, j), LOCAL(i, j + 1)}, {LOCAL(i, j + 1), LOCAL(i + 1, j), LOCAL(i + 1, j + 1)}};

@@ -61,6 +61,31 @@ static inline void AccumulateAngleForces(PetscBool bend, const ClothElements *el
   }
 }
 
+/* Shear by cells: the shear list holds each lattice cell as its four corners in a
+ * row, the vertex of corner q being cell particle q (clothimpl.h). The corners share
+ * the cell's four edges, so a cell computes four edge vectors and updates four
+ * particles, where corner by corner it would be twelve. Chunked like the angles. */
+static inline void AccumulateShearForces(const ClothElements *el, const PetscReal *restrict xl, PetscReal *restrict fl)
+{
+  const PetscInt ncell = el->n / 4;
+  PetscReal      w[8 * ANGLE_CHUNK], g[12];
+
+  for (PetscInt c0 = 0; c0 < ncell; c0 += ANGLE_CHUNK) {
+    const PetscInt  n = PetscMin(ANGLE_CHUNK, ncell - c0);
+    const PetscInt *p = el->p + 12 * c0;
+    for (PetscInt k = 0; k < n; k++) {
+      const PetscInt *q = p + 12 * k;
+      KernelShearCellCoefficients(xl + 3 * q[2], xl + 3 * q[5], xl + 3 * q[8], xl + 3 * q[11], ElemCoef(el, 4 * (c0 + k)), w + 8 * k);
+    }
+    for (PetscInt k = 0; k < n; k++) {
+      const PetscInt *q      = p + 12 * k;
+      const PetscInt  idx[4] = {q[2], q[5], q[8], q[11]};
+      KernelShearCellGradient(w + 8 * k, xl + 3 * idx[0], xl + 3 * idx[1], xl + 3 * idx[2], xl + 3 * idx[3], g);
+      Scatter(fl, 4, idx, g);
+    }
+  }
+}
+
 /* fl (ghosted, zeroed by the caller) -= gradient of the internal energy at xl. */
 static void AccumulateInternalForce(Cloth c, const PetscReal *restrict xl, PetscReal *restrict fl)
 {
@@ -71,7 +96,7 @@ static void AccumulateInternalForce(Cloth c, const PetscReal *restrict xl, Petsc
     KernelStretchGradient(xl + 3 * st->p[2 * e], xl + 3 * st->p[2 * e + 1], ElemCoef(st, e), ElemRest(st, e), g);
     Scatter(fl, 2, st->p + 2 * e, g);
   }
-  AccumulateAngleForces(PETSC_FALSE, &c->shear_el, xl, fl);
+  AccumulateShearForces(&c->shear_el, xl, fl);
   AccumulateAngleForces(PETSC_TRUE, &c->bend_el, xl, fl);
 }
 

@@ -251,6 +251,66 @@ static inline void KernelAngleGradientFromCoefficients(const PetscReal w[3], con
   }
 }
 
+/* One shear corner from u = |e1|^2, w = |e2|^2, s = e1.e2: its gradient is
+ * g_e1 = q w e1 + beta e2, g_e2 = q u e2 + beta e1 (KernelAngleCoefficients' w =
+ * [q w, beta, q u]). */
+static inline void KernelShearCorner(PetscReal u, PetscReal w, PetscReal s, PetscReal kappa, PetscReal *q, PetscReal *beta)
+{
+  const PetscReal inv = 1 / (u * w), iP = PetscSqrtReal(u * w) * inv;
+  const PetscReal c = PetscMin(PetscMax(s * iP, -1 + 1e-14), 1 - 1e-14), a = PetscAsinReal(c), g1 = 2 * a / PetscSqrtReal(1 - c * c);
+
+  *q    = kappa * iP * (a * a - g1 * c);
+  *beta = kappa * g1;
+}
+
+/* The four shear corners of a lattice cell together (each with rigidity kappa). The
+ * cell's particles are x0 = (i,j), x1 = (i+1,j), x2 = (i,j+1), x3 = (i+1,j+1); its
+ * edges A = x1 - x0, B = x2 - x0, C = x3 - x2, D = x3 - x1. The corner at x0 has
+ * e1 = A, e2 = B; at x1 -A, D; at x2 C, -B; at x3 -D, -C. Each edge is shared by two
+ * corners, so the energy's gradient with respect to the edges is
+ *   g_A = w0 A + w4 B - w5 D,   g_B = w1 B + w4 A - w6 C,
+ *   g_C = w2 C + w7 D - w6 B,   g_D = w3 D - w5 A + w7 C,
+ * with w0..w3 the summed length terms of the two corners at each edge and w4..w7
+ * the corners' cross terms beta (x0, x1, x2, x3). */
+static inline void KernelShearCellCoefficients(const PetscReal *restrict x0, const PetscReal *restrict x1, const PetscReal *restrict x2, const PetscReal *restrict x3, PetscReal kappa, PetscReal w[8])
+{
+  PetscReal uA = 0, uB = 0, uC = 0, uD = 0, sAB = 0, sAD = 0, sCB = 0, sDC = 0, q[4];
+
+  for (PetscInt i = 0; i < 3; i++) {
+    const PetscReal A = x1[i] - x0[i], B = x2[i] - x0[i], C = x3[i] - x2[i], D = x3[i] - x1[i];
+    uA += A * A;
+    uB += B * B;
+    uC += C * C;
+    uD += D * D;
+    sAB += A * B;
+    sAD += A * D;
+    sCB += C * B;
+    sDC += D * C;
+  }
+  KernelShearCorner(uA, uB, sAB, kappa, &q[0], &w[4]);
+  KernelShearCorner(uA, uD, -sAD, kappa, &q[1], &w[5]);
+  KernelShearCorner(uC, uB, -sCB, kappa, &q[2], &w[6]);
+  KernelShearCorner(uD, uC, sDC, kappa, &q[3], &w[7]);
+  w[0] = q[0] * uB + q[1] * uD;
+  w[1] = q[0] * uA + q[2] * uC;
+  w[2] = q[3] * uD + q[2] * uB;
+  w[3] = q[1] * uA + q[3] * uC;
+}
+
+/* The cell's shear gradient g = [g_0, g_1, g_2, g_3] from its coefficients w. */
+static inline void KernelShearCellGradient(const PetscReal w[8], const PetscReal *restrict x0, const PetscReal *restrict x1, const PetscReal *restrict x2, const PetscReal *restrict x3, PetscReal g[12])
+{
+  for (PetscInt i = 0; i < 3; i++) {
+    const PetscReal A = x1[i] - x0[i], B = x2[i] - x0[i], C = x3[i] - x2[i], D = x3[i] - x1[i];
+    const PetscReal gA = w[0] * A + w[4] * B - w[5] * D, gB = w[1] * B + w[4] * A - w[6] * C;
+    const PetscReal gC = w[2] * C + w[7] * D - w[6] * B, gD = w[3] * D - w[5] * A + w[7] * C;
+    g[i]     = -gA - gB;
+    g[3 + i] = gA - gD;
+    g[6 + i] = gB - gC;
+    g[9 + i] = gC + gD;
+  }
+}
+
 /* Shear (bend = PETSC_FALSE) or bending gradient g = [g_a, g_b, g_c]. */
 static inline void KernelAngleGradient(PetscBool bend, const PetscReal *xa, const PetscReal *xb, const PetscReal *xc, PetscReal kappa, PetscReal g[9])
 {

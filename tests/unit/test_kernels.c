@@ -677,6 +677,57 @@ static PetscErrorCode GroupGradientKernels(const Elem *sets[], const PetscInt ns
   PetscFunctionReturn(0);
 }
 
+/* The force loop's shear cell (four corners sharing four edges) gives the sum of
+ * its four corners' gradients, corner by corner as cloth.c lists them, to round-off:
+ * on random sheared, stretched, bent and folded cells (angles 1 to 179 degrees). */
+static PetscErrorCode GroupShearCell(PetscRandom rnd)
+{
+  PetscReal worst = 0;
+  PetscInt  count = 0;
+
+  PetscFunctionBeginUser;
+  for (PetscInt t = 0; t < 2000; t++) {
+    /* x0 at the origin, x1 along a, x2 at an angle th from a, x3 = x1 + x2 - x0 + noise */
+    PetscReal x[12], a[3], n[3], b[3], l1 = 0, l2 = 0, th = 0, kappa = 0, lam = 0, w[8], g[12], gs[12] = {0}, gc[9], m, diff = 0;
+    PetscCall(RandomUnit(rnd, a));
+    PetscCall(RandomUnitOrthogonal(rnd, a, n));
+    PetscCall(Cross(n, a, b));
+    PetscCall(Uniform(rnd, 0.5, 2.0, &l1));
+    PetscCall(Uniform(rnd, 0.5, 2.0, &l2));
+    PetscCall(Uniform(rnd, PETSC_PI / 180, PETSC_PI * 179 / 180, &th));
+    PetscCall(Uniform(rnd, 0.1, 10, &kappa));
+    for (PetscInt d = 0; d < 3; d++) {
+      x[d]     = 0;
+      x[3 + d] = l1 * a[d];
+      x[6 + d] = l2 * (PetscCosReal(th) * a[d] + PetscSinReal(th) * b[d]);
+    }
+    for (PetscInt d = 0; d < 3; d++) {
+      PetscCall(Uniform(rnd, -0.3, 0.3, &lam));
+      x[9 + d] = x[3 + d] + x[6 + d] + lam * PetscMin(l1, l2);
+    }
+    {
+      /* corners (a, b, vertex) as cloth.c builds them, particle numbers 0..3 */
+      const PetscInt corner[4][3] = {{1, 2, 0}, {0, 3, 1}, {3, 0, 2}, {2, 1, 3}};
+      for (PetscInt k = 0; k < 4; k++) {
+        KernelAngleGradient(PETSC_FALSE, x + 3 * corner[k][0], x + 3 * corner[k][1], x + 3 * corner[k][2], kappa, gc);
+        for (PetscInt q = 0; q < 3; q++)
+          for (PetscInt d = 0; d < 3; d++) gs[3 * corner[k][q] + d] += gc[3 * q + d];
+      }
+    }
+    KernelShearCellCoefficients(x, x + 3, x + 6, x + 9, kappa, w);
+    KernelShearCellGradient(w, x, x + 3, x + 6, x + 9, g);
+    PetscCall(MaxAbs(12, gs, &m));
+    for (PetscInt i = 0; i < 12; i++) diff = PetscMax(diff, PetscAbsReal(g[i] - gs[i]));
+    PetscCheck(diff <= 1e-12 * m, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED: shear cell gradient differs from its four corners' (cell %" PetscInt_FMT ", angle %g deg): max|g_cell - g| / max|g| = %g", t, (double) (th * 180 / PETSC_PI),
+               (double) (diff / m));
+    worst = PetscMax(worst, diff / m);
+    count++;
+  }
+  PetscCall(PetscPrintf(PETSC_COMM_WORLD, "PASS shear cell gradient == sum of its four corners on %" PetscInt_FMT " cells: max rel. difference %.2e (tol 1e-12)\n", count, (double) worst));
+  npassed++;
+  PetscFunctionReturn(0);
+}
+
 /* KernelIsPSD3 on A = R diag(l) R^T: "yes" for every l_min >= 1e-9 max|l| and for
  * rank-deficient PSD matrices (exact zeros blurred by round-off), "no" for every
  * l_min <= -1e-6 max|l|; and the projection it spares is then the identity. */
@@ -883,6 +934,7 @@ static PetscErrorCode Run(void)
     const PetscInt nset[3] = {nst, nsh, nbe};
     PetscCall(GroupGradientKernels(sets, nset));
   }
+  PetscCall(GroupShearCell(rnd));
   PetscCall(GroupPSDTest(rnd));
   PetscCall(GroupClosedProjection(rnd));
   PetscCall(GroupKnownStretch(rnd));
