@@ -21,9 +21,9 @@ CG iterations per step and wall time per step (drape's Summary line, median of
 KSP reason drape prints (e.g. DIVERGED_INDEFINITE_PC) and no time.
 
 Part 2, the Blender shortcut: unpreconditioned CG capped at 100 iterations with
-rtol 1e-2, accepted whatever the residual:
+rtol 1e-2, started from zero as Blender does, accepted whatever the residual:
 
-  -pc_type none -ksp_max_it 100 -ksp_rtol 1e-2 -ksp_converged_maxits
+  -pc_type none -ksp_max_it 100 -ksp_rtol 1e-2 -ksp_initial_guess_nonzero 0 -ksp_converged_maxits
 
 drape stops a run when KSPGetConvergedReason is negative (a solve that reaches
 -ksp_max_it is KSP_DIVERGED_ITS), whatever SNES says, so -snes_max_linear_solve_fail
@@ -58,7 +58,7 @@ from bench_common import ROOT, Drape, fail, machine, md_table, median, positions
 PROG = "solver_study"
 PCS = [("none", ["-pc_type", "none"]), ("jacobi", ["-pc_type", "jacobi"]), ("bjacobi", ["-pc_type", "bjacobi"]),
        ("icc", ["-pc_type", "icc"]), ("gamg", ["-pc_type", "gamg"]), ("hypre", ["-pc_type", "hypre", "-pc_hypre_type", "boomeramg"])]
-BLENDER = ["-pc_type", "none", "-ksp_max_it", "100", "-ksp_rtol", "1e-2"]
+BLENDER = ["-pc_type", "none", "-ksp_max_it", "100", "-ksp_rtol", "1e-2", "-ksp_initial_guess_nonzero", "0"]
 ACCEPT_MAXITS = ["-ksp_converged_maxits"]
 CLOTH_SIZE = 1.0
 
