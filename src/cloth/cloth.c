@@ -362,6 +362,7 @@ static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const P
 #undef LOCAL
 #undef OWNED
 #undef ACT
+  PetscCheck(sh->n % 4 == 0, PETSC_COMM_SELF, PETSC_ERR_PLIB, "The shear list must hold whole cells (four corners each); it has %" PetscInt_FMT " corners", sh->n);
   PetscFunctionReturn(0);
 }
 

@@ -6,13 +6,14 @@
 
 /* Elements as local particle indices (owned + ghost), each with its coefficient.
  * `own` marks elements whose energy this rank counts (exactly one rank each);
- * forces are computed by every rank that owns one of the element's particles. */
+ * forces are computed by every rank that owns one of the element's particles.
+ * The shear list holds the lattice cells, each as its four corners in a row with
+ * vertices (i,j), (i+1,j), (i,j+1), (i+1,j+1) and one class: the force loop reads
+ * it cell by cell. */
 #define CLOTH_ELEMENT_CLASSES 64
 typedef struct {
-  PetscInt  n;
-  PetscInt *p;        /* 2 (stretch) or 3 (angle: a, b, vertex c) per element;
-                       * shear: cell by cell, its four corners in a row, with
-                       * vertices (i,j), (i+1,j), (i,j+1), (i+1,j+1) and one class */
+  PetscInt       n;
+  PetscInt      *p;   /* 2 (stretch) or 3 (angle: a, b, vertex c) per element */
   unsigned char *cls; /* coefficient class of each element                    */
   unsigned char *own;
   /* the few distinct (coefficient, rest length) pairs of a lattice (boundary rows
