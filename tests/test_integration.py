@@ -169,6 +169,19 @@ def test_step_above_the_explicit_limits_is_said_at_start_up():
     assert "above the symplectic Euler limit" in res.stdout
 
 
+def test_backward_euler_direct_solve_matches_cg(tmp):
+    """A direct solve (-ksp_type preonly -pc_type cholesky: no start vector, which
+    PETSc refuses with one) runs, and gives CG's answer at a tight tolerance, which
+    starts from the last step's solution."""
+    base = "-da_grid_x 12 -da_grid_y 12 -cloth_pin edge_corners -ts_type beuler -ts_dt 5e-3 -ts_max_time 0.1 -output_interval 0.05"
+    direct, cg = tmp / "direct.h5", tmp / "cg.h5"
+    run(f"{base} -ksp_type preonly -pc_type cholesky -drape_mat_type aij -output_file {direct}")
+    run(f"{base} -ksp_rtol 1e-12 -output_file {cg}")
+    a, b = Frames(direct), Frames(cg)
+    assert len(a.time) == len(b.time) == 3
+    assert np.abs(a.x - b.x).max() < 1e-10
+
+
 def test_backward_euler_survives_a_huge_step_by_falling_back_to_jacobi(tmp):
     """At h = 0.1 s on the paper's falling cloth (230 x the explicit limit) block
     Jacobi's incomplete factorisation loses definiteness; drape solves such steps

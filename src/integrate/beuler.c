@@ -42,6 +42,7 @@ typedef struct {
   PetscReal          impulse[3]; /* of the last step, owned particles */
   PetscInt           pc_lag;     /* rebuild the preconditioner every pc_lag steps (ksponly) */
   PetscBool          default_pc; /* drape's block Jacobi (no -pc_type given) */
+  PetscBool          preonly;    /* -ksp_type preonly: the PC is the solve     */
   PetscInt           nfallback;  /* steps solved again with Jacobi */
   PetscInt           n;          /* 3 x owned particles */
 } TS_DrapeBE;
@@ -178,6 +179,12 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
       PetscCall(PetscOptionsHasName(NULL, ((PetscObject) pc)->prefix, "-pc_type", &set));
       be->default_pc = (PetscBool) !set;
     }
+    {
+      /* a direct solve (-ksp_type preonly) takes no start, and PETSc refuses one;
+       * nor may it lag its factorisation, which is then the solve itself */
+      PetscCall(PetscObjectTypeCompare((PetscObject) ksp, KSPPREONLY, &be->preonly));
+      if (be->preonly) PetscCall(KSPSetInitialGuessNonzero(ksp, PETSC_FALSE));
+    }
   }
   PetscCall(PetscMalloc4(be->n, &be->xt, be->n, &be->vt, be->n, &be->at, be->n, &be->z));
   PetscCall(TSGetSNES(ts, &snes));
@@ -266,7 +273,7 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
      * (the matrix itself is new every step, so the answer is not affected) */
     PetscBool ksponly;
     PetscCall(PetscObjectTypeCompare((PetscObject) snes, SNESKSPONLY, &ksponly));
-    if (ksponly && be->pc_lag > 1) PetscCall(SNESSetLagPreconditioner(snes, ts->steps % be->pc_lag ? -1 : 1));
+    if (ksponly && be->pc_lag > 1 && !be->preonly) PetscCall(SNESSetLagPreconditioner(snes, ts->steps % be->pc_lag ? -1 : 1));
   }
   PetscCall(SNESGetKSP(snes, &ksp));
   PetscCall(BESolve(ts, be, snes, &sreason, &kreason, &lits));
@@ -363,7 +370,7 @@ static PetscErrorCode TSSetFromOptions_DrapeBE(TS ts, PetscOptionItems *PetscOpt
 
   PetscFunctionBeginUser;
   PetscOptionsHeadBegin(PetscOptionsObject, "drape backward Euler");
-  PetscCall(PetscOptionsInt("-drape_pc_lag", "Rebuild the preconditioner every this many steps (with -snes_type ksponly; 1: every step)", "TSStep_DrapeBE", be->pc_lag, &be->pc_lag, NULL));
+  PetscCall(PetscOptionsInt("-drape_pc_lag", "Rebuild the preconditioner every this many steps (with -snes_type ksponly and an iterative KSP; 1: every step)", "TSStep_DrapeBE", be->pc_lag, &be->pc_lag, NULL));
   PetscOptionsHeadEnd();
   PetscCheck(be->pc_lag >= 1, PetscObjectComm((PetscObject) ts), PETSC_ERR_USER_INPUT, "-drape_pc_lag must be at least 1; got %" PetscInt_FMT, be->pc_lag);
   PetscFunctionReturn(0);
