@@ -89,6 +89,16 @@ class Frames:
         return sum(self.energy.values())
 
 
+def rest_shape(tmp, n, options):
+    """Final positions of the cloth of `options` on an n x n lattice, run (damping
+    5 1/s, at most 8 s) until drape stops it at rest."""
+    out = tmp / f"rest{n}.h5"
+    res = run(f"{options} -da_grid_x {n} -da_grid_y {n} -cloth_damping 5 -ts_max_time 8 -drape_rest_tol 1e-6 -output_interval 1 "
+              f"-output_file {out}", checks=False)
+    assert "At rest" in res.stdout
+    return Frames(out).x[-1]
+
+
 @pytest.fixture
 def tmp(tmp_path):
     return tmp_path

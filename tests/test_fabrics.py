@@ -5,7 +5,7 @@ import re
 import numpy as np
 import pytest
 
-from conftest import Frames, run
+from conftest import rest_shape, run
 
 # Zero-strain entries of ARCSim's materials/11oz-black-denim.json (Wang,
 # Ramamoorthi & O'Brien 2011): density, stretching[0], bending[0][0], bending[2][0].
@@ -51,13 +51,7 @@ def test_fabric_rest_shape_is_resolution_independent(tmp):
     """Denim hanging from two corners comes to rest in the same shape on a 41 x 41
     and an 81 x 81 lattice: matched particles within 2.5 mm (1.3 mm measured) and
     2 mm RMS (1.2 mm) on the 1 m cloth."""
-    shapes = {}
-    for n in (41, 81):
-        out = tmp / f"rest{n}.h5"
-        res = run(f"-options_file runs/hang.opts -cloth_fabric denim -cloth_orientation vertical -da_grid_x {n} -da_grid_y {n} "
-                  f"-cloth_damping 5 -ts_dt 4e-3 -ts_max_time 8 -drape_rest_tol 1e-6 -output_interval 1 -output_file {out}", checks=False)
-        assert "At rest" in res.stdout
-        shapes[n] = Frames(out).x[-1]
+    shapes = {n: rest_shape(tmp, n, "-options_file runs/hang.opts -cloth_fabric denim -cloth_orientation vertical -ts_dt 4e-3") for n in (41, 81)}
     d = shapes[41] - shapes[81][::2, ::2]
     assert np.abs(d).max() < 2.5e-3 and np.sqrt((d ** 2).sum(-1).mean()) < 2e-3, (np.abs(d).max(), np.sqrt((d ** 2).sum(-1).mean()))
     z = shapes[41][..., 2]

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from conftest import Frames, run
+from conftest import Frames, rest_shape, run
 
 SCHEMES = {
     "euler": "-ts_type euler",
@@ -125,13 +125,7 @@ def test_rest_shape_is_resolution_independent(tmp):
     the lattice spacing, so the same cloth hanging at rest on a 21 x 21 and a
     41 x 41 lattice takes nearly the same shape: matched particles within 2.5 cm
     (1.4 cm measured) and 1 cm RMS (0.6 cm) on a 1 m cloth."""
-    shapes = {}
-    for n in (21, 41):
-        out = tmp / f"rest{n}.h5"
-        res = run(f"-options_file runs/hang.opts -da_grid_x {n} -da_grid_y {n} -cloth_damping 5 -ts_max_time 8 "
-                  f"-drape_rest_tol 1e-6 -output_interval 1 -output_file {out}", checks=False)
-        assert "At rest" in res.stdout
-        shapes[n] = Frames(out).x[-1]
+    shapes = {n: rest_shape(tmp, n, "-options_file runs/hang.opts") for n in (21, 41)}
     d = shapes[21] - shapes[41][::2, ::2]
     assert np.abs(d).max() < 0.025 and np.sqrt((d ** 2).sum(-1).mean()) < 0.01
     assert shapes[21][..., 2].min() < 0.1  # it did hang

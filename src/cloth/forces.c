@@ -41,19 +41,19 @@ static inline void Scatter(PetscReal *restrict fl, PetscInt n, const PetscInt *r
 }
 
 /* Angle elements in chunks: first the coefficients of ANGLE_CHUNK elements (each
- * a long chain of square roots, divisions and an asin, independent of the others,
- * so the processor overlaps them), then their gradients in list order. The sums
- * per particle are the same, in the same order, as element by element. */
+ * a chain of square roots and divisions, and for shear an asin, independent of the
+ * others, so the processor overlaps them), then their gradients in list order. The
+ * sums per particle are the same, in the same order, as element by element. */
 #define ANGLE_CHUNK 64
 
-static inline void AccumulateAngleForces(PetscBool bend, const ClothElements *el, const PetscReal *restrict xl, PetscReal *restrict fl)
+static inline void AccumulateBendForces(const ClothElements *el, const PetscReal *restrict xl, PetscReal *restrict fl)
 {
   PetscReal w[3 * ANGLE_CHUNK], g[9];
 
   for (PetscInt e0 = 0; e0 < el->n; e0 += ANGLE_CHUNK) {
     const PetscInt  n = PetscMin(ANGLE_CHUNK, el->n - e0);
     const PetscInt *p = el->p + 3 * e0;
-    for (PetscInt k = 0; k < n; k++) KernelAngleCoefficients(bend, xl + 3 * p[3 * k], xl + 3 * p[3 * k + 1], xl + 3 * p[3 * k + 2], ElemCoef(el, e0 + k), w + 3 * k);
+    for (PetscInt k = 0; k < n; k++) KernelAngleCoefficients(PETSC_TRUE, xl + 3 * p[3 * k], xl + 3 * p[3 * k + 1], xl + 3 * p[3 * k + 2], ElemCoef(el, e0 + k), w + 3 * k);
     for (PetscInt k = 0; k < n; k++) {
       KernelAngleGradientFromCoefficients(w + 3 * k, xl + 3 * p[3 * k], xl + 3 * p[3 * k + 1], xl + 3 * p[3 * k + 2], g);
       Scatter(fl, 3, p + 3 * k, g);
@@ -64,7 +64,7 @@ static inline void AccumulateAngleForces(PetscBool bend, const ClothElements *el
 /* Shear by cells: the shear list holds each lattice cell as its four corners in a
  * row, the vertex of corner q being cell particle q (clothimpl.h). The corners share
  * the cell's four edges, so a cell computes four edge vectors and updates four
- * particles, where corner by corner it would be twelve. Chunked like the angles. */
+ * particles, where corner by corner it would be twelve. Chunked like the bending. */
 static inline void AccumulateShearForces(const ClothElements *el, const PetscReal *restrict xl, PetscReal *restrict fl)
 {
   const PetscInt ncell = el->n / 4;
@@ -97,7 +97,7 @@ static void AccumulateInternalForce(Cloth c, const PetscReal *restrict xl, Petsc
     Scatter(fl, 2, st->p + 2 * e, g);
   }
   AccumulateShearForces(&c->shear_el, xl, fl);
-  AccumulateAngleForces(PETSC_TRUE, &c->bend_el, xl, fl);
+  AccumulateBendForces(&c->bend_el, xl, fl);
 }
 
 PetscErrorCode ClothComputeInternalForce(Cloth c, const PetscScalar *x, PetscScalar *f)
@@ -492,6 +492,14 @@ static PetscErrorCode ClothBuildAssemblyMap(Cloth c, Mat J)
  * MatSetValuesBlocked call with sorted columns (per element and block, PETSc's
  * MPISBAIJ insertion costs more than computing the Hessians). Symmetric storage
  * keeps only the blocks with global column >= row. */
+/* Does the row buffer hold the block (a, b) of local particles a, b: a owned and
+ * free, b free, and in the upper half for symmetric storage? */
+static inline PetscBool RowBufferHolds(Cloth c, PetscBool sym, PetscInt a, PetscInt b)
+{
+  const PetscInt col = c->col_map[b];
+  return (PetscBool) (a < c->nowned && c->row_map[a] >= 0 && col >= 0 && !(sym && col < c->row_map[a]));
+}
+
 static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
 {
   const ClothElements *lists[3] = {&c->stretch_el, &c->shear_el, &c->bend_el};
@@ -526,14 +534,9 @@ static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
     const PetscInt n = kind ? 3 : 2;
     for (PetscInt e = 0; e < lists[kind]->n; e++) {
       const PetscInt *p = lists[kind]->p + n * e;
-      for (PetscInt a = 0; a < n; a++) {
-        if (p[a] >= c->nowned || c->row_map[p[a]] < 0) continue;
-        for (PetscInt b = 0; b < n; b++) {
-          const PetscInt col = c->col_map[p[b]];
-          if (col < 0 || (sym && col < c->row_map[p[a]])) continue;
-          c->rb_cols[c->rb_colstart[p[a]] + c->rb_ncols[p[a]]++] = col;
-        }
-      }
+      for (PetscInt a = 0; a < n; a++)
+        for (PetscInt b = 0; b < n; b++)
+          if (RowBufferHolds(c, sym, p[a], p[b])) c->rb_cols[c->rb_colstart[p[a]] + c->rb_ncols[p[a]]++] = c->col_map[p[b]];
     }
   }
   c->rb_start[0] = 0;
@@ -553,7 +556,7 @@ static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
           const PetscInt col = c->col_map[p[b]];
           PetscInt       loc = -1;
           c->rb_map[npairs]  = -1;
-          if (p[a] >= c->nowned || c->row_map[p[a]] < 0 || col < 0 || (sym && col < c->row_map[p[a]])) continue;
+          if (!RowBufferHolds(c, sym, p[a], p[b])) continue;
           PetscCall(PetscFindInt(col, c->rb_ncols[p[a]], c->rb_cols + c->rb_colstart[p[a]], &loc));
           PetscCheck(loc >= 0, PETSC_COMM_SELF, PETSC_ERR_PLIB, "Block column %" PetscInt_FMT " missing from the row buffer", col);
           c->rb_map[npairs] = c->rb_start[p[a]] + 3 * loc;

@@ -212,6 +212,18 @@ static inline void KernelStretchGradient(const PetscReal *xa, const PetscReal *x
   g[2] = -g[5];
 }
 
+/* One shear corner from u = |e1|^2, w = |e2|^2, s = e1.e2: its gradient is
+ * g_e1 = q w e1 + beta e2, g_e2 = q u e2 + beta e1 (KernelAngleCoefficients' w =
+ * [q w, beta, q u]). */
+static inline void KernelShearCorner(PetscReal u, PetscReal w, PetscReal s, PetscReal kappa, PetscReal *q, PetscReal *beta)
+{
+  const PetscReal inv = 1 / (u * w), iP = PetscSqrtReal(u * w) * inv;
+  const PetscReal c = PetscMin(PetscMax(s * iP, -1 + 1e-14), 1 - 1e-14), a = PetscAsinReal(c), g1 = 2 * a / PetscSqrtReal(1 - c * c);
+
+  *q    = kappa * iP * (a * a - g1 * c);
+  *beta = kappa * g1;
+}
+
 /* The angle gradient in two halves, so that a loop can first compute the
  * coefficients w = [2E_u, E_s, 2E_w] of many elements (independent of each other:
  * their square roots, divisions and asin overlap) and then their gradients
@@ -220,24 +232,18 @@ static inline void KernelAngleCoefficients(PetscBool bend, const PetscReal *rest
 {
   const PetscReal e1[3] = {xa[0] - xc[0], xa[1] - xc[1], xa[2] - xc[2]}, e2[3] = {xb[0] - xc[0], xb[1] - xc[1], xb[2] - xc[2]};
   const PetscReal u = e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2], v = e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2];
-  const PetscReal s   = e1[0] * e2[0] + e1[1] * e2[1] + e1[2] * e2[2];
-  const PetscReal inv = 1 / (u * v), P = PetscSqrtReal(u * v), iP = P * inv;
-  PetscReal       c = s * iP;
+  const PetscReal s = e1[0] * e2[0] + e1[1] * e2[1] + e1[2] * e2[2];
 
   if (bend) {
+    const PetscReal inv = 1 / (u * v), iP = PetscSqrtReal(u * v) * inv, c = s * iP;
     w[0] = -kappa * c * v * inv;
     w[2] = -kappa * c * u * inv;
     w[1] = kappa * iP;
   } else {
-    PetscReal a, r, g1, q;
-    c    = PetscMin(PetscMax(c, -1 + 1e-14), 1 - 1e-14);
-    a    = PetscAsinReal(c);
-    r    = PetscSqrtReal(1 - c * c);
-    g1   = 2 * a / r;
-    q    = kappa * P * inv * (a * a - g1 * c);
+    PetscReal q;
+    KernelShearCorner(u, v, s, kappa, &q, &w[1]);
     w[0] = q * v;
     w[2] = q * u;
-    w[1] = kappa * g1;
   }
 }
 
@@ -249,18 +255,6 @@ static inline void KernelAngleGradientFromCoefficients(const PetscReal w[3], con
     g[3 + i] = w[2] * e2 + w[1] * e1;
     g[6 + i] = -g[i] - g[3 + i];
   }
-}
-
-/* One shear corner from u = |e1|^2, w = |e2|^2, s = e1.e2: its gradient is
- * g_e1 = q w e1 + beta e2, g_e2 = q u e2 + beta e1 (KernelAngleCoefficients' w =
- * [q w, beta, q u]). */
-static inline void KernelShearCorner(PetscReal u, PetscReal w, PetscReal s, PetscReal kappa, PetscReal *q, PetscReal *beta)
-{
-  const PetscReal inv = 1 / (u * w), iP = PetscSqrtReal(u * w) * inv;
-  const PetscReal c = PetscMin(PetscMax(s * iP, -1 + 1e-14), 1 - 1e-14), a = PetscAsinReal(c), g1 = 2 * a / PetscSqrtReal(1 - c * c);
-
-  *q    = kappa * iP * (a * a - g1 * c);
-  *beta = kappa * g1;
 }
 
 /* The four shear corners of a lattice cell together (each with rigidity kappa). The

@@ -42,7 +42,7 @@ typedef struct {
   PetscReal          impulse[3]; /* of the last step, owned particles */
   PetscInt           pc_lag;     /* rebuild the preconditioner every pc_lag steps (ksponly) */
   PetscBool          default_pc; /* drape's block Jacobi (no -pc_type given) */
-  PetscBool          preonly;    /* -ksp_type preonly: the PC is the solve     */
+  PetscInt           lag;        /* pc_lag where it applies (set-up), else 1    */
   PetscInt           nfallback;  /* steps solved again with Jacobi */
   PetscInt           n;          /* 3 x owned particles */
 } TS_DrapeBE;
@@ -114,7 +114,6 @@ static PetscErrorCode BEJacobian(SNES snes, Vec DV, Mat J, Mat P, void *ctx)
     PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
     PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
   }
-
   PetscFunctionReturn(0);
 }
 
@@ -163,31 +162,28 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
   PetscCall(ClothCreateVector(be->cloth, &be->DV));
   PetscCall(VecDuplicate(be->DV, &be->R));
   PetscCall(VecDuplicate(be->DV, &be->W));
+  PetscCall(TSGetSNES(ts, &snes));
   {
-    /* symmetric block storage (half the matrix: faster products and factorisation)
-     * unless the preconditioner needs AIJ */
     KSP       ksp;
     PC        pc;
-    PetscBool aij;
-    PetscCall(TSGetSNES(ts, &snes));
+    PetscBool aij, set, ksponly, preonly;
     PetscCall(SNESGetKSP(snes, &ksp));
     PetscCall(KSPGetPC(ksp, &pc));
+    /* symmetric block storage (half the matrix: faster products and factorisation)
+     * unless the preconditioner needs AIJ */
     PetscCall(PetscObjectTypeCompareAny((PetscObject) pc, &aij, PCGAMG, PCSOR, PCEISENSTAT, PCML, PCHMG, ""));
     PetscCall(ClothCreateMatrix(be->cloth, aij ? MATAIJ : MATSBAIJ, &be->J));
-    {
-      PetscBool set;
-      PetscCall(PetscOptionsHasName(NULL, ((PetscObject) pc)->prefix, "-pc_type", &set));
-      be->default_pc = (PetscBool) !set;
-    }
-    {
-      /* a direct solve (-ksp_type preonly) takes no start, and PETSc refuses one;
-       * nor may it lag its factorisation, which is then the solve itself */
-      PetscCall(PetscObjectTypeCompare((PetscObject) ksp, KSPPREONLY, &be->preonly));
-      if (be->preonly) PetscCall(KSPSetInitialGuessNonzero(ksp, PETSC_FALSE));
-    }
+    PetscCall(PetscOptionsHasName(NULL, ((PetscObject) pc)->prefix, "-pc_type", &set));
+    be->default_pc = (PetscBool) !set;
+    /* the preconditioner lags with the single linearisation and an iterative KSP; a
+     * direct solve (-ksp_type preonly) may not lag its factorisation, which is then
+     * the solve itself, and takes no start (PETSc refuses one) */
+    PetscCall(PetscObjectTypeCompare((PetscObject) snes, SNESKSPONLY, &ksponly));
+    PetscCall(PetscObjectTypeCompare((PetscObject) ksp, KSPPREONLY, &preonly));
+    be->lag = ksponly && !preonly ? be->pc_lag : 1;
+    if (preonly) PetscCall(KSPSetInitialGuessNonzero(ksp, PETSC_FALSE));
   }
   PetscCall(PetscMalloc4(be->n, &be->xt, be->n, &be->vt, be->n, &be->at, be->n, &be->z));
-  PetscCall(TSGetSNES(ts, &snes));
   PetscCall(SNESSetFunction(snes, be->R, BEFunction, be));
   PetscCall(SNESSetJacobian(snes, be->J, be->J, BEJacobian, be));
   PetscFunctionReturn(0);
@@ -267,14 +263,10 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
       for (PetscInt d = 0; d < 3; d++) be->z[3 * k + d] = be->ctype[k] == 2 ? -v[d] : (be->ctype[k] == 1 ? -vn * nk[d] : 0);
     }
   }
-  {
-    /* the matrix changes little from step to step: with the single linearisation,
-     * CG keeps the last factorisation as its preconditioner for pc_lag - 1 steps
-     * (the matrix itself is new every step, so the answer is not affected) */
-    PetscBool ksponly;
-    PetscCall(PetscObjectTypeCompare((PetscObject) snes, SNESKSPONLY, &ksponly));
-    if (ksponly && be->pc_lag > 1 && !be->preonly) PetscCall(SNESSetLagPreconditioner(snes, ts->steps % be->pc_lag ? -1 : 1));
-  }
+  /* the matrix changes little from step to step: CG keeps the last factorisation as
+   * its preconditioner for lag - 1 steps (the matrix itself is new every step, so
+   * the answer is not affected) */
+  if (be->lag > 1) PetscCall(SNESSetLagPreconditioner(snes, ts->steps % be->lag ? -1 : 1));
   PetscCall(SNESGetKSP(snes, &ksp));
   PetscCall(BESolve(ts, be, snes, &sreason, &kreason, &lits));
   if (kreason == KSP_DIVERGED_INDEFINITE_PC && be->default_pc) {
