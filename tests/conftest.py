@@ -17,6 +17,18 @@ BUILD = ROOT / os.environ.get("DRAPE_BUILD", "build")
 DRAPE = BUILD / "drape"
 LEAK = re.compile(r"^\[\s*\d+\]\s*\d+ bytes", re.M)
 
+# How closely the explicit schemes agree across partitions (rank counts, DMDA or
+# METIS): to round-off, not bitwise, on an arbitrary x86-64 machine. PETSc's VecAXPY
+# (the symplectic update) goes through the BLAS, and OpenBLAS's AVX2 kernels
+# (Haswell, Zen) use fused multiply-adds for the first n & -16 entries of a vector and
+# separate ones for the rest, so the last bit of a particle's update depends on where
+# it sits in its rank's array. Measured with OPENBLAS_CORETYPE=Haswell or Zen:
+# 3.4e-14 m on a 0.3 m cloth (SkylakeX, Sandybridge, Nehalem, Prescott kernels:
+# bitwise). A ghost-exchange or partition bug shows at 1e-6 m or more. The same run
+# on the same ranks (a restart on as many ranks) is bitwise: the same lengths take
+# the same kernels.
+ROUNDOFF = 1e-10  # m
+
 
 def mpiexec(np_):
     cmd = ["mpiexec"]
