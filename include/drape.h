@@ -1,5 +1,6 @@
 /* drape: fabric simulation by the particle method (Landovsky), on PETSc.
- * Program-wide pieces: version, log events, the error handler and option checks. */
+ * Program-wide pieces: version, log events, the error handler, option checks, and
+ * the identity of the files a run reads and writes. */
 #pragma once
 
 #include <petscsys.h>
@@ -15,18 +16,56 @@ typedef struct {
 
 PETSC_EXTERN DrapeLog drape_log;
 
-/* Register log events and install drape's error handler (user errors print one
- * sentence; internal errors keep PETSc's traceback). */
+/* Register log events and install drape's error handler (user errors are kept for
+ * one sentence at the end, DrapeEndWithError(); internal errors keep PETSc's
+ * traceback). Collective on PETSC_COMM_WORLD. */
 PETSC_EXTERN PetscErrorCode DrapeInitialize(void);
-/* Undo DrapeInitialize() (the error handler). */
+/* Undo DrapeInitialize(). Collective on PETSC_COMM_WORLD. */
 PETSC_EXTERN PetscErrorCode DrapeFinalize(void);
+/* End a run that failed on this rank with error ierr. If every rank failed (a bad
+ * input all ranks find), rank 0 prints the one `drape: error:` sentence and the job
+ * ends normally; if some rank did not fail within a few seconds (it waits in a
+ * collective operation and would hang), this rank prints its sentence and ends the
+ * job with MPI_Abort. Collective on PETSC_COMM_WORLD when every rank failed. */
+PETSC_EXTERN PetscErrorCode DrapeEndWithError(PetscErrorCode ierr);
 /* Run fn(ctx) on every rank of comm where each rank does the same local work
- * (reading a small input file): a failure is raised once, collectively on comm,
- * with the message of the lowest failing rank, not printed by every rank. */
+ * (reading a small input file, testing a directory): a failure is raised once,
+ * collectively on comm, with the message of the lowest failing rank, not printed by
+ * every rank. Collective. */
 PETSC_EXTERN PetscErrorCode DrapeCollective(MPI_Comm, PetscErrorCode (*)(void *), void *);
-/* Was the last error a user error raised on a communicator of all ranks (so every
- * rank returns it and the job can end without MPI_Abort)? */
-PETSC_EXTERN PetscBool DrapeErrorIsCollective(void);
 /* Refuse options in drape's own namespaces (-cloth_, -output_, -drape_, ...) that
- * no component read: a misspelt drape option is an error, not a silent default. */
+ * no component read: a misspelt drape option is an error, not a silent default.
+ * Collective. */
 PETSC_EXTERN PetscErrorCode DrapeCheckUnusedOptions(MPI_Comm);
+
+/* Before PetscInitialize, after MPI_Init: read, with PETSc's rules, every options
+ * file PETSc is about to read (-options_file, the files they name, the petscrc files,
+ * PETSC_OPTIONS) on every rank, and record them as inputs. Returns 1 when all are
+ * sound; otherwise 0, and the caller starts PETSc without them so that
+ * DrapeReportOptionsFiles() says what is wrong in one sentence (PETSc's own reader
+ * would end with a traceback, a crash or a hang). Not a PETSc function (PETSc is not
+ * running yet). Collective on MPI_COMM_WORLD. */
+PETSC_EXTERN int DrapeCheckOptionsFiles(int argc, char **argv);
+/* Raise the problem DrapeCheckOptionsFiles() found, if any. Collective. */
+PETSC_EXTERN PetscErrorCode DrapeReportOptionsFiles(MPI_Comm);
+
+/* Values read from options, where they are read. DrapeCheckReal: n values finite
+ * and in [lo, hi] (unit for the message). DrapeCheckIntOption: the integer option
+ * `name` as typed fits PetscInt (PETSc keeps the low bits of a larger one:
+ * 4294967302 becomes 6). DrapeCheckInt: both, and v in [lo, hi].
+ * DrapeCheckPathLength: a file name option read into a buffer of `size` bytes was not
+ * cut short. Each ends with one sentence naming the option. Collective. */
+PETSC_EXTERN PetscErrorCode DrapeCheckReal(MPI_Comm, const char name[], PetscInt n, const PetscReal v[], PetscReal lo, PetscReal hi, const char unit[]);
+PETSC_EXTERN PetscErrorCode DrapeCheckIntOption(MPI_Comm, const char name[]);
+PETSC_EXTERN PetscErrorCode DrapeCheckInt(MPI_Comm, const char name[], PetscInt v, PetscInt lo, PetscInt hi);
+PETSC_EXTERN PetscErrorCode DrapeCheckPathLength(MPI_Comm, const char name[], const char value[], size_t size);
+
+/* Files by identity, not by name (device and inode; for a file that does not exist
+ * yet, its directory's and its own name): "run.h5", "./run.h5" and a link to it are
+ * one file. DrapeRegisterInput records a file this rank read (`what`: "cloth
+ * outline", ...); DrapeCheckNotInput refuses an output path that is one of them
+ * (except those registered as `except`, may be NULL), with one sentence naming
+ * `option`. Not collective (on the rank's own view of the file system). */
+PETSC_EXTERN PetscErrorCode DrapeSameFile(const char a[], const char b[], PetscBool *same);
+PETSC_EXTERN PetscErrorCode DrapeRegisterInput(const char path[], const char what[]);
+PETSC_EXTERN PetscErrorCode DrapeCheckNotInput(const char option[], const char path[], const char except[]);

@@ -1,5 +1,12 @@
-/* Program-wide set-up: log events and stages, the error handler, option checks. */
+/* Program-wide set-up: log events and stages, the error handler, option checks,
+ * options files, and the identity of the files drape reads and writes. */
 #include <drape.h>
+#include <ctype.h>
+#include <errno.h>
+#include <stdlib.h>
+#include <strings.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 DrapeLog drape_log;
 
@@ -20,31 +27,56 @@ static PetscBool IsUserError(PetscErrorCode n)
   case PETSC_ERR_FILE_UNEXPECTED:
   case PETSC_ERR_NOT_CONVERGED:
   case PETSC_ERR_SUP:
+  case PETSC_ERR_MEM:
     return PETSC_TRUE;
   default:
     return PETSC_FALSE;
   }
 }
 
-static PetscBool error_is_user = PETSC_FALSE, error_on_all = PETSC_FALSE;
+/* The last error raised on this rank: printed by DrapeEndWithError, once per job. */
+static PetscBool      error_is_user = PETSC_FALSE;
+static char           error_message[1024];
+static MPI_Comm       error_comm = MPI_COMM_NULL; /* the end-of-run agreement, apart from every other message */
+static const PetscReal error_wait = 5;            /* s: how long failed ranks wait for the others to fail too   */
 
 static PetscErrorCode DrapeErrorHandler(MPI_Comm comm, int line, const char *fun, const char *file, PetscErrorCode n, PetscErrorType p, const char *mess, void *ctx)
 {
-  PetscMPIInt rank = 0;
-
   if (p == PETSC_ERROR_INITIAL) {
-    PetscMPIInt size = 0, world = 1;
     error_is_user = IsUserError(n);
-    if (comm != MPI_COMM_NULL) MPI_Comm_size(comm, &size);
-    MPI_Comm_size(PETSC_COMM_WORLD, &world);
-    error_on_all = (PetscBool) (size == world);
+    if (n == PETSC_ERR_MEM)
+      (void) PetscSNPrintf(error_message, sizeof error_message, "Out of memory (%s bytes): this run needs more memory than the machine gives it; use a smaller lattice, or more nodes", mess && !strncmp(mess, "Memory requested ", 17) ? mess + 17 : "an allocation of unknown size");
+    else (void) PetscStrncpy(error_message, mess ? mess : "(no message)", sizeof error_message);
   }
   if (!error_is_user) return PetscTraceBackErrorHandler(comm, line, fun, file, n, p, mess, ctx);
-  if (p == PETSC_ERROR_INITIAL) {
-    if (comm != MPI_COMM_NULL) MPI_Comm_rank(comm, &rank);
-    if (!rank) (void) PetscFPrintf(PETSC_COMM_SELF, PETSC_STDERR, "drape: error: %s\n", mess ? mess : "(no message)");
-  }
   return n;
+}
+
+PetscErrorCode DrapeEndWithError(PetscErrorCode ierr)
+{
+  PetscMPIInt size, rank;
+  int         all = 1;
+
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_size(PETSC_COMM_WORLD, &size));
+  PetscCallMPI(MPI_Comm_rank(PETSC_COMM_WORLD, &rank));
+  if (size > 1 && error_comm != MPI_COMM_NULL) {
+    /* ranks that failed together (a bad input every rank finds) meet here at once;
+     * a rank that did not fail waits in some collective operation and never comes */
+    MPI_Request    request;
+    PetscLogDouble t0, t;
+    PetscCallMPI(MPI_Ibarrier(error_comm, &request));
+    PetscCall(PetscTime(&t0));
+    for (all = 0;;) {
+      PetscCallMPI(MPI_Test(&request, &all, MPI_STATUS_IGNORE));
+      PetscCall(PetscTime(&t));
+      if (all || t - t0 > error_wait) break;
+      PetscCall(PetscSleep(0.01));
+    }
+  }
+  if (error_is_user && (!all || !rank)) PetscCall(PetscFPrintf(PETSC_COMM_SELF, PETSC_STDERR, "drape: error: %s\n", error_message));
+  if (!all) PETSCABORT(PETSC_COMM_WORLD, ierr); /* the frames written so far stay readable */
+  PetscFunctionReturn(0);
 }
 
 /* While DrapeCollective runs its function: keep the first error's message, print nothing. */
@@ -81,12 +113,11 @@ PetscErrorCode DrapeCollective(MPI_Comm comm, PetscErrorCode (*fn)(void *), void
   SETERRQ(comm, (PetscErrorCode) code, "%s", captured_message);
 }
 
-PetscBool DrapeErrorIsCollective(void) { return (PetscBool) (error_is_user && error_on_all); }
-
 PetscErrorCode DrapeInitialize(void)
 {
   PetscFunctionBeginUser;
   PetscCall(PetscPushErrorHandler(DrapeErrorHandler, NULL));
+  PetscCallMPI(MPI_Comm_dup(PETSC_COMM_WORLD, &error_comm));
   PetscCall(PetscClassIdRegister("drape", &drape_log.classid));
   PetscCall(PetscLogEventRegister("DrapeForces", drape_log.classid, &drape_log.forces));
   PetscCall(PetscLogEventRegister("DrapeEnergies", drape_log.classid, &drape_log.energies));
@@ -104,6 +135,7 @@ PetscErrorCode DrapeFinalize(void)
 {
   PetscFunctionBeginUser;
   PetscCall(PetscPopErrorHandler());
+  if (error_comm != MPI_COMM_NULL) PetscCallMPI(MPI_Comm_free(&error_comm));
   PetscFunctionReturn(0);
 }
 
@@ -128,5 +160,355 @@ PetscErrorCode DrapeCheckUnusedOptions(MPI_Comm comm)
     }
   }
   PetscCall(PetscOptionsLeftRestore(NULL, &n, &names, &values));
+  PetscFunctionReturn(0);
+}
+
+/* ---- Values of options ---- */
+
+PetscErrorCode DrapeCheckReal(MPI_Comm comm, const char name[], PetscInt n, const PetscReal v[], PetscReal lo, PetscReal hi, const char unit[])
+{
+  PetscFunctionBeginUser;
+  for (PetscInt i = 0; i < n; i++) {
+    if (v[i] >= lo && v[i] <= hi) continue; /* false for NaN */
+    if (lo > 0) SETERRQ(comm, PETSC_ERR_USER_INPUT, "%s must be positive and finite, from %g to %g%s%s; got %g", name, (double) lo, (double) hi, unit[0] ? " " : "", unit, (double) v[i]);
+    if (lo == 0) SETERRQ(comm, PETSC_ERR_USER_INPUT, "%s must be zero or positive and finite, at most %g%s%s; got %g", name, (double) hi, unit[0] ? " " : "", unit, (double) v[i]);
+    SETERRQ(comm, PETSC_ERR_USER_INPUT, "%s must be finite, from %g to %g%s%s; got %g", name, (double) lo, (double) hi, unit[0] ? " " : "", unit, (double) v[i]);
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode DrapeCheckIntOption(MPI_Comm comm, const char name[])
+{
+  char      raw[256], *end;
+  PetscBool set;
+  long long value;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscOptionsGetString(NULL, NULL, name, raw, sizeof raw, &set));
+  if (!set || !raw[0] || !(isdigit((unsigned char) raw[0]) || ((raw[0] == '-' || raw[0] == '+') && isdigit((unsigned char) raw[1])))) PetscFunctionReturn(0); /* words, lists: PETSc's own parsing decides */
+  errno = 0;
+  value = strtoll(raw, &end, 10);
+  if (*end) PetscFunctionReturn(0);
+  PetscCheck(errno != ERANGE && value >= PETSC_MIN_INT && value <= PETSC_MAX_INT, comm, PETSC_ERR_USER_INPUT, "%s %s is beyond the integers this PETSc build holds (%d-bit PetscInt: at most %" PetscInt_FMT ")", name, raw, (int) (8 * sizeof(PetscInt)), PETSC_MAX_INT);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode DrapeCheckInt(MPI_Comm comm, const char name[], PetscInt v, PetscInt lo, PetscInt hi)
+{
+  PetscFunctionBeginUser;
+  PetscCall(DrapeCheckIntOption(comm, name));
+  if (v >= lo && v <= hi) PetscFunctionReturn(0);
+  if (lo == 0) SETERRQ(comm, PETSC_ERR_USER_INPUT, "%s must be zero or positive, an integer of at most %" PetscInt_FMT "; got %" PetscInt_FMT, name, hi, v);
+  SETERRQ(comm, PETSC_ERR_USER_INPUT, "%s must be an integer from %" PetscInt_FMT " to %" PetscInt_FMT "; got %" PetscInt_FMT, name, lo, hi, v);
+}
+
+PetscErrorCode DrapeCheckPathLength(MPI_Comm comm, const char name[], const char value[], size_t size)
+{
+  size_t len;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscStrlen(value, &len));
+  PetscCheck(len + 1 < size, comm, PETSC_ERR_USER_INPUT, "The file name of %s is too long: at most %d characters", name, (int) size - 2);
+  PetscFunctionReturn(0);
+}
+
+/* ---- Files by identity ---- */
+
+/* Identity of a path: device and inode of the file when it exists, else of its
+ * directory with the file's own name (two names of one file that does not exist yet
+ * are still the same: "run.h5" and "./run.h5"). */
+typedef struct {
+  int   exists;
+  dev_t dev;
+  ino_t ino;
+  char  base[256];
+} FileId;
+
+static int GetFileId(const char path[], FileId *id)
+{
+  struct stat st;
+  char        dir[PETSC_MAX_PATH_LEN];
+  const char *slash = strrchr(path, '/');
+
+  memset(id, 0, sizeof *id);
+  if (!stat(path, &st)) {
+    id->exists = 1;
+    id->dev    = st.st_dev;
+    id->ino    = st.st_ino;
+    return 0;
+  }
+  if (!slash) (void) snprintf(dir, sizeof dir, ".");
+  else if (slash == path) (void) snprintf(dir, sizeof dir, "/");
+  else (void) snprintf(dir, sizeof dir, "%.*s", (int) (slash - path), path);
+  (void) snprintf(id->base, sizeof id->base, "%s", slash ? slash + 1 : path);
+  if (stat(dir, &st)) return -1;
+  id->dev = st.st_dev;
+  id->ino = st.st_ino;
+  return 0;
+}
+
+static int SameFileId(const FileId *a, const FileId *b) { return a->exists == b->exists && a->dev == b->dev && a->ino == b->ino && !strcmp(a->base, b->base); }
+
+PetscErrorCode DrapeSameFile(const char a[], const char b[], PetscBool *same)
+{
+  FileId ia, ib;
+
+  PetscFunctionBeginUser;
+  *same = (PetscBool) (!GetFileId(a, &ia) && !GetFileId(b, &ib) && SameFileId(&ia, &ib));
+  PetscFunctionReturn(0);
+}
+
+/* Every file drape read (options files, outline, mesh, restart file) on this rank. */
+#define DRAPE_MAX_INPUTS 64
+typedef struct {
+  char   name[PETSC_MAX_PATH_LEN];
+  char   what[32];
+  FileId id;
+} Input;
+static Input inputs[DRAPE_MAX_INPUTS];
+static int   ninputs;
+
+static void RegisterInput(const char path[], const char what[])
+{
+  FileId id;
+
+  if (ninputs == DRAPE_MAX_INPUTS || GetFileId(path, &id) || !id.exists) return;
+  for (int i = 0; i < ninputs; i++)
+    if (SameFileId(&inputs[i].id, &id)) return;
+  (void) snprintf(inputs[ninputs].name, sizeof inputs[ninputs].name, "%s", path);
+  (void) snprintf(inputs[ninputs].what, sizeof inputs[ninputs].what, "%s", what);
+  inputs[ninputs++].id = id;
+}
+
+PetscErrorCode DrapeRegisterInput(const char path[], const char what[])
+{
+  PetscFunctionBeginUser;
+  RegisterInput(path, what);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode DrapeCheckNotInput(const char option[], const char path[], const char except[])
+{
+  FileId id;
+
+  PetscFunctionBeginUser;
+  if (GetFileId(path, &id)) PetscFunctionReturn(0);
+  for (int i = 0; i < ninputs; i++) {
+    if (except && !strcmp(inputs[i].what, except)) continue;
+    PetscCheck(!SameFileId(&inputs[i].id, &id), PETSC_COMM_SELF, PETSC_ERR_USER_INPUT, "%s would overwrite %s, the %s this run reads: choose another output name", option, path, inputs[i].what);
+  }
+  PetscFunctionReturn(0);
+}
+
+/* ---- Options files, checked before PETSc reads them ----
+ *
+ * PETSc reads the options files (-options_file on the command line, the files they
+ * name, the petscrc files, PETSC_OPTIONS) inside PetscInitialize, before drape can
+ * install its error handler: a missing, binary or malformed file ends there with a
+ * traceback, a file that includes itself with a crash, and a file only rank 0 fails
+ * to read with a hang. So drape reads them first, with PETSc's rules, on every rank. */
+#define OPTIONS_FILE_MAX_BYTES (1 << 20)
+#define OPTIONS_FILE_MAX_DEPTH 8
+#define OPTIONS_PREFIX_MAX     25
+
+typedef struct {
+  char name[PETSC_MAX_PATH_LEN];
+  int  depth;
+} QueuedFile;
+
+static QueuedFile options_queue[DRAPE_MAX_INPUTS];
+static int        options_nqueued;
+static int        options_prefix_depth;
+static char       options_text[OPTIONS_FILE_MAX_BYTES + 1];
+static char       options_problem[1024];
+
+/* PetscOptionsValidKey, without PETSc */
+static int ValidKey(const char *key)
+{
+  char *end;
+
+  if (!key || key[0] != '-') return 0;
+  if (key[1] == '-') key++;
+  if (!isalpha((unsigned char) key[1])) return 0;
+  (void) strtod(key, &end);
+  if (end != key && !(*end == '_' || isalnum((unsigned char) *end))) return 0;
+  return 1;
+}
+
+/* PetscTokenFind with blanks as separators and "quoted" tokens */
+static char *NextToken(char **s)
+{
+  char *p = *s, *token;
+  char  sep = ' ';
+
+  if (!p) return NULL;
+  while (*p == ' ') p++;
+  if (!*p) {
+    *s = NULL;
+    return NULL;
+  }
+  token = p;
+  if (*p == '"') {
+    sep = '"';
+    token++;
+    p++;
+  }
+  while (*p && *p != sep) p++;
+  if (*p) *p++ = 0;
+  *s = p;
+  return token;
+}
+
+static int Problem(const char *fmt, const char *a, const char *b, long line)
+{
+  if (line > 0) {
+    char where[PETSC_MAX_PATH_LEN + 64];
+    (void) snprintf(where, sizeof where, "Line %ld of the options file %s", line, a);
+    (void) snprintf(options_problem, sizeof options_problem, fmt, where, b);
+  } else (void) snprintf(options_problem, sizeof options_problem, fmt, a, b);
+  return 0;
+}
+
+static int QueueOptionsFile(const char *name, int depth, const char *from)
+{
+  if (!name || !name[0] || name[0] == '-') return Problem("-options_file needs a file name%s%s", from ? " in " : "", from ? from : "", 0);
+  if (depth > OPTIONS_FILE_MAX_DEPTH) return Problem("The options file %s is nested more than 8 deep (does an options file name itself?)%s", name, "", 0);
+  if (options_nqueued == DRAPE_MAX_INPUTS) return Problem("More than 64 options files are named (from %s)%s", from ? from : "the command line", "", 0);
+  if (strlen(name) >= sizeof options_queue[0].name) return Problem("An options file name is too long (%s...)%s", "", "", 0);
+  (void) snprintf(options_queue[options_nqueued].name, sizeof options_queue[0].name, "%s", name);
+  options_queue[options_nqueued++].depth = depth;
+  return 1;
+}
+
+/* One option of a file, the command line or PETSC_OPTIONS: the keys PETSc treats specially. */
+static int CheckSpecialKey(const char *key, const char *value, int depth, const char *from)
+{
+  if (!strcasecmp(key, "-options_file")) return QueueOptionsFile(value, depth + 1, from);
+  if (!strcasecmp(key, "-options_file_yaml") || !strcasecmp(key, "-options_string_yaml")) return Problem("%s: drape reads options files in PETSc's plain format (one -name value per line), not YAML%s", key, "", 0);
+  if (!strcasecmp(key, "-prefix_push")) {
+    if (!value || value[0] == '-') return Problem("-prefix_push needs a prefix%s%s", from ? " in " : "", from ? from : "", 0);
+    if (++options_prefix_depth > OPTIONS_PREFIX_MAX) return Problem("More than 25 nested -prefix_push%s%s", from ? " in " : "", from ? from : "", 0);
+  }
+  if (!strcasecmp(key, "-prefix_pop") && --options_prefix_depth < 0) return Problem("-prefix_pop without a -prefix_push%s%s", from ? " in " : "", from ? from : "", 0);
+  return 1;
+}
+
+/* Options as PetscOptionsInsertArgs reads them (command line, PETSC_OPTIONS). */
+static int CheckArgs(int argc, char **argv, const char *from)
+{
+  for (int i = 0; i < argc; i++) {
+    const char *value = i + 1 < argc ? argv[i + 1] : NULL;
+    if (!ValidKey(argv[i])) continue;
+    if (!strcasecmp(argv[i], "-options_file") || !strcasecmp(argv[i], "-prefix_push") || !strcasecmp(argv[i], "-options_file_yaml") || !strcasecmp(argv[i], "-options_string_yaml")) {
+      if (!CheckSpecialKey(argv[i], value, 0, from)) return 0;
+      i++;
+    } else if (!CheckSpecialKey(argv[i], NULL, 0, from)) return 0;
+    else if (value && !ValidKey(value)) i++;
+  }
+  return 1;
+}
+
+/* One options file, as PetscOptionsInsertFilePetsc and PetscOptionsInsertString read it. */
+static int CheckOptionsFile(const char *name, int depth, int required)
+{
+  struct stat st;
+  FILE       *fp;
+  size_t      len;
+  const char *dot = strrchr(name, '.');
+  char       *line, *next;
+  long        lineno = 0;
+
+  if (stat(name, &st)) return required ? Problem("Cannot read the options file %s: it does not exist%s", name, "", 0) : 1;
+  if (S_ISDIR(st.st_mode)) return required ? Problem("Cannot read the options file %s: it is a directory%s", name, "", 0) : 1;
+  if (!S_ISREG(st.st_mode)) return Problem("Cannot read the options file %s: it is not a regular file%s", name, "", 0);
+  if (st.st_size > OPTIONS_FILE_MAX_BYTES) return Problem("The options file %s is larger than 1 MB: not an options file%s", name, "", 0);
+  if ((len = strlen(name)) > 5 && (!strcmp(name + len - 5, ":yaml") || (dot && (!strcmp(dot, ".yaml") || !strcmp(dot, ".yml") || !strcmp(dot, ".json")))))
+    return Problem("The options file %s is YAML: drape reads options files in PETSc's plain format (one -name value per line)%s", name, "", 0);
+  fp = fopen(name, "rb");
+  if (!fp) return required ? Problem("Cannot read the options file %s: %s", name, strerror(errno), 0) : 1;
+  len = fread(options_text, 1, OPTIONS_FILE_MAX_BYTES, fp);
+  (void) fclose(fp);
+  options_text[len] = 0;
+  RegisterInput(name, "options file");
+  if (!strncmp(options_text, "%YAML ", 6) || !strncmp(options_text, "---", 3)) return Problem("The options file %s is YAML: drape reads options files in PETSc's plain format (one -name value per line)%s", name, "", 0);
+  for (size_t i = 0; i < len; i++) {
+    unsigned char ch = (unsigned char) options_text[i];
+    if (ch < 32 && ch != '\n' && ch != '\r' && ch != '\t' && ch != '\f' && ch != '\v') return Problem("The options file %s is not a text file (it holds control characters)%s", name, "", 0);
+  }
+  for (line = options_text; line; line = next) {
+    char *token[4], *hash, *cursor = line;
+    int   ntoken = 0;
+    lineno++;
+    next = strpbrk(line, "\n\r");
+    if (next) *next++ = 0;
+    if ((hash = strchr(line, '#'))) *hash = 0;
+    for (char *p = line; *p; p++)
+      if (*p == '\t' || *p == '\f' || *p == '\v') *p = ' ';
+    while (ntoken < 4 && (token[ntoken] = NextToken(&cursor))) ntoken++;
+    if (!ntoken) continue;
+    if (token[0][0] == '-') {
+      if (!ValidKey(token[0])) return Problem("%s: %s is not an option name", name, token[0], lineno);
+      if (ntoken > 1 && ValidKey(token[1])) return Problem("%s: two options on one line (%s ...); write one -name value per line", name, token[0], lineno);
+      if (ntoken > 2) return Problem("%s: more than one value after %s", name, token[0], lineno);
+      if (!CheckSpecialKey(token[0], ntoken > 1 ? token[1] : NULL, depth, name)) return 0;
+    } else if (!strcasecmp(token[0], "alias")) {
+      if (ntoken != 3 || !ValidKey(token[1]) || !ValidKey(token[2])) return Problem("%s: an alias line needs two option names%s", name, "", lineno);
+    } else return Problem("%s: '%s' is not an option (write one -name value per line; # starts a comment)", name, token[0], lineno);
+  }
+  return 1;
+}
+
+static int CheckAllOptionsFiles(int argc, char **argv)
+{
+  const char *env = getenv("PETSC_OPTIONS"), *home = getenv("HOME");
+  int         skip_petscrc = 0;
+
+  for (int i = 1; i < argc; i++)
+    if (!strcasecmp(argv[i], "-skip_petscrc")) skip_petscrc = !(i + 1 < argc && (!strcasecmp(argv[i + 1], "0") || !strcasecmp(argv[i + 1], "false") || !strcasecmp(argv[i + 1], "no")));
+  if (!skip_petscrc) {
+    char rc[PETSC_MAX_PATH_LEN];
+    if (home && home[0]) {
+      (void) snprintf(rc, sizeof rc, "%s/.petscrc", home);
+      if (!CheckOptionsFile(rc, 1, 0)) return 0;
+    }
+    if (!CheckOptionsFile(".petscrc", 1, 0) || !CheckOptionsFile("petscrc", 1, 0)) return 0;
+  }
+  if (env && env[0]) {
+    static char copy[16384];
+    char       *cursor = copy, *words[1024];
+    int         n      = 0;
+    if (strlen(env) >= sizeof copy) return Problem("The environment variable PETSC_OPTIONS is longer than 16 kB%s%s", "", "", 0);
+    (void) snprintf(copy, sizeof copy, "%s", env);
+    while (n < 1024 && (words[n] = NextToken(&cursor))) n++;
+    if (!CheckArgs(n, words, "PETSC_OPTIONS")) return 0;
+  }
+  if (!CheckArgs(argc - 1, argv + 1, NULL)) return 0;
+  for (int q = 0; q < options_nqueued; q++)
+    if (!CheckOptionsFile(options_queue[q].name, options_queue[q].depth, 1)) return 0;
+  return 1;
+}
+
+int DrapeCheckOptionsFiles(int argc, char **argv)
+{
+  int rank = 0, size = 1, ok, failed, first;
+
+  if (MPI_Comm_rank(MPI_COMM_WORLD, &rank) || MPI_Comm_size(MPI_COMM_WORLD, &size)) return 0;
+  ok     = CheckAllOptionsFiles(argc, argv);
+  failed = ok ? size : rank;
+  if (MPI_Allreduce(&failed, &first, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD)) return 0;
+  if (first == size) return 1;
+  if (rank == first && first > 0) {
+    char seen[sizeof options_problem + 32];
+    (void) snprintf(seen, sizeof seen, "%s (on rank %d)", options_problem, first);
+    (void) snprintf(options_problem, sizeof options_problem, "%.1000s", seen);
+  }
+  if (MPI_Bcast(options_problem, sizeof options_problem, MPI_CHAR, first, MPI_COMM_WORLD)) return 0;
+  return 0;
+}
+
+PetscErrorCode DrapeReportOptionsFiles(MPI_Comm comm)
+{
+  PetscFunctionBeginUser;
+  PetscCheck(!options_problem[0], comm, PETSC_ERR_FILE_READ, "%s", options_problem);
   PetscFunctionReturn(0);
 }

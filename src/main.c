@@ -1,9 +1,11 @@
+#define _POSIX_C_SOURCE 200809L /* unsetenv */
 static const char help[] = "drape: how a fabric falls, hangs and drapes, by the particle method (Landovsky).\n"
                            "Usage: mpirun -np N ./build/drape -options_file runs/hang.opts [options]\n"
                            "Integrators: -ts_type euler | basicsymplectic | beuler | rk | ssp. See README.md.\n\n";
 
 #include <drape.h>
 #include <simulation.h>
+#include <stdlib.h>
 
 /* Exit status: 0 done, 1 error, 75 (EX_TEMPFAIL) stopped by SIGTERM/SIGINT with a
  * checkpoint written: a batch script may requeue with -restart. */
@@ -12,6 +14,7 @@ static PetscErrorCode Run(PetscBool *interrupted)
   Simulation sim;
 
   PetscFunctionBeginUser;
+  PetscCall(DrapeReportOptionsFiles(PETSC_COMM_WORLD));
   PetscCall(PetscLogStagePush(drape_log.setup));
   PetscCall(SimulationCreate(PETSC_COMM_WORLD, &sim));
   PetscCall(SimulationSetFromOptions(sim));
@@ -27,19 +30,26 @@ int main(int argc, char **argv)
 {
   PetscErrorCode ierr;
   PetscBool      interrupted = PETSC_FALSE;
+  int            petsc_argc  = argc;
+  char         **petsc_argv  = argv, *without_files[] = {argv[0], (char *) "-skip_petscrc", NULL};
 
-  PetscCall(PetscInitialize(&argc, &argv, NULL, help));
+  /* MPI first: the options files are checked before PETSc reads them (PETSc's own
+   * reader cannot report a bad one in a sentence), and a bad one keeps them away from
+   * PetscInitialize, so that Run() can say what is wrong */
+  if (MPI_Init(&argc, &argv) != MPI_SUCCESS) return 1;
+  if (!DrapeCheckOptionsFiles(argc, argv)) {
+    petsc_argc = 2;
+    petsc_argv = without_files;
+    (void) unsetenv("PETSC_OPTIONS");
+  }
+  PetscCall(PetscInitialize(&petsc_argc, &petsc_argv, NULL, help));
   PetscCall(DrapeInitialize());
   ierr = Run(&interrupted);
+  /* a failure only some ranks saw would leave the others waiting: that ends the whole
+   * job (MPI_Abort; the frames written so far are on disk) */
+  if (ierr) PetscCall(DrapeEndWithError(ierr));
   PetscCall(DrapeFinalize());
-  if (ierr) {
-    /* an error that not every rank saw would leave the others waiting in a
-     * collective: end the whole job (the frames written so far are on disk).
-     * A user error raised on all ranks together ends normally. */
-    PetscMPIInt size;
-    PetscCallMPI(MPI_Comm_size(PETSC_COMM_WORLD, &size));
-    if (size > 1 && !DrapeErrorIsCollective()) PETSCABORT(PETSC_COMM_WORLD, ierr);
-  }
   PetscCall(PetscFinalize());
+  if (MPI_Finalize() != MPI_SUCCESS) return 1;
   return ierr ? 1 : (interrupted ? 75 : 0);
 }
