@@ -60,6 +60,10 @@ PETSC_EXTERN PetscErrorCode DrapeCheckIntOption(MPI_Comm, const char name[]);
 PETSC_EXTERN PetscErrorCode DrapeCheckInt(MPI_Comm, const char name[], PetscInt v, PetscInt lo, PetscInt hi);
 PETSC_EXTERN PetscErrorCode DrapeCheckPathLength(MPI_Comm, const char name[], const char value[], size_t size);
 
+/* Memory this rank's node has (physical, or a container's limit) and one process may
+ * use (RLIMIT_AS), bytes; PETSC_MAX_REAL when unknown. Not collective. */
+PETSC_EXTERN PetscErrorCode DrapeMemoryAvailable(PetscLogDouble *node, PetscLogDouble *process);
+
 /* Files by identity, not by name (device and inode; for a file that does not exist
  * yet, its directory's and its own name): "run.h5", "./run.h5" and a link to it are
  * one file. DrapeRegisterInput records a file this rank read (`what`: "cloth

@@ -5,6 +5,7 @@
 #include <errno.h>
 #include <stdlib.h>
 #include <strings.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -35,18 +36,20 @@ static PetscBool IsUserError(PetscErrorCode n)
 }
 
 /* The last error raised on this rank: printed by DrapeEndWithError, once per job. */
-static PetscBool      error_is_user = PETSC_FALSE;
-static char           error_message[1024];
-static MPI_Comm       error_comm = MPI_COMM_NULL; /* the end-of-run agreement, apart from every other message */
-static const PetscReal error_wait = 5;            /* s: how long failed ranks wait for the others to fail too   */
+static PetscBool       error_is_user = PETSC_FALSE;
+static char            error_message[1024];
+static MPI_Comm        error_comm = MPI_COMM_NULL; /* the end-of-run agreement, apart from every other message */
+static const PetscReal error_wait = 5;             /* s: how long failed ranks wait for the others to fail too   */
 
 static PetscErrorCode DrapeErrorHandler(MPI_Comm comm, int line, const char *fun, const char *file, PetscErrorCode n, PetscErrorType p, const char *mess, void *ctx)
 {
   if (p == PETSC_ERROR_INITIAL) {
     error_is_user = IsUserError(n);
     if (n == PETSC_ERR_MEM)
-      (void) PetscSNPrintf(error_message, sizeof error_message, "Out of memory (%s bytes): this run needs more memory than the machine gives it; use a smaller lattice, or more nodes", mess && !strncmp(mess, "Memory requested ", 17) ? mess + 17 : "an allocation of unknown size");
-    else (void) PetscStrncpy(error_message, mess ? mess : "(no message)", sizeof error_message);
+      (void) PetscSNPrintf(error_message, sizeof error_message, "Out of memory (%s bytes): this run needs more memory than the machine gives it; use a smaller lattice, or more nodes",
+                           mess && !strncmp(mess, "Memory requested ", 17) ? mess + 17 : "an allocation of unknown size");
+    else
+      (void) PetscStrncpy(error_message, mess ? mess : "(no message)", sizeof error_message);
   }
   if (!error_is_user) return PetscTraceBackErrorHandler(comm, line, fun, file, n, p, mess, ctx);
   return n;
@@ -169,27 +172,39 @@ PetscErrorCode DrapeCheckReal(MPI_Comm comm, const char name[], PetscInt n, cons
 {
   PetscFunctionBeginUser;
   for (PetscInt i = 0; i < n; i++) {
+    char slo[32], shi[32], got[32];
     if (v[i] >= lo && v[i] <= hi) continue; /* false for NaN */
-    if (lo > 0) SETERRQ(comm, PETSC_ERR_USER_INPUT, "%s must be positive and finite, from %g to %g%s%s; got %g", name, (double) lo, (double) hi, unit[0] ? " " : "", unit, (double) v[i]);
-    if (lo == 0) SETERRQ(comm, PETSC_ERR_USER_INPUT, "%s must be zero or positive and finite, at most %g%s%s; got %g", name, (double) hi, unit[0] ? " " : "", unit, (double) v[i]);
-    SETERRQ(comm, PETSC_ERR_USER_INPUT, "%s must be finite, from %g to %g%s%s; got %g", name, (double) lo, (double) hi, unit[0] ? " " : "", unit, (double) v[i]);
+    /* C's %g: PETSc's printf turns 100 into "100." and inf into "inf." */
+    (void) snprintf(slo, sizeof slo, "%g", (double) lo);
+    (void) snprintf(shi, sizeof shi, "%g", (double) hi);
+    (void) snprintf(got, sizeof got, "%g", (double) v[i]);
+    if (lo > 0) SETERRQ(comm, PETSC_ERR_USER_INPUT, "%s must be positive and finite, from %s to %s%s%s; got %s", name, slo, shi, unit[0] ? " " : "", unit, got);
+    if (lo == 0) SETERRQ(comm, PETSC_ERR_USER_INPUT, "%s must be zero or positive and finite, at most %s%s%s; got %s", name, shi, unit[0] ? " " : "", unit, got);
+    SETERRQ(comm, PETSC_ERR_USER_INPUT, "%s must be finite, from %s to %s%s%s; got %s", name, slo, shi, unit[0] ? " " : "", unit, got);
   }
   PetscFunctionReturn(0);
 }
 
 PetscErrorCode DrapeCheckIntOption(MPI_Comm comm, const char name[])
 {
-  char      raw[256], *end;
+  char      raw[4096];
   PetscBool set;
-  long long value;
 
   PetscFunctionBeginUser;
   PetscCall(PetscOptionsGetString(NULL, NULL, name, raw, sizeof raw, &set));
-  if (!set || !raw[0] || !(isdigit((unsigned char) raw[0]) || ((raw[0] == '-' || raw[0] == '+') && isdigit((unsigned char) raw[1])))) PetscFunctionReturn(0); /* words, lists: PETSc's own parsing decides */
-  errno = 0;
-  value = strtoll(raw, &end, 10);
-  if (*end) PetscFunctionReturn(0);
-  PetscCheck(errno != ERANGE && value >= PETSC_MIN_INT && value <= PETSC_MAX_INT, comm, PETSC_ERR_USER_INPUT, "%s %s is beyond the integers this PETSc build holds (%d-bit PetscInt: at most %" PetscInt_FMT ")", name, raw, (int) (8 * sizeof(PetscInt)), PETSC_MAX_INT);
+  /* every run of digits (one value, a list, a range a-b) */
+  for (char *p = raw; set && *p;) {
+    char     *end;
+    long long value;
+    if (!isdigit((unsigned char) *p)) {
+      p++;
+      continue;
+    }
+    errno = 0;
+    value = strtoll(p, &end, 10);
+    PetscCheck(errno != ERANGE && value <= PETSC_MAX_INT, comm, PETSC_ERR_USER_INPUT, "%s %s is beyond the integers this PETSc build holds (%d-bit PetscInt: at most %" PetscInt_FMT ")", name, raw, (int) (8 * sizeof(PetscInt)), PETSC_MAX_INT);
+    for (p = end; isdigit((unsigned char) *p);) p++;
+  }
   PetscFunctionReturn(0);
 }
 
@@ -209,6 +224,24 @@ PetscErrorCode DrapeCheckPathLength(MPI_Comm comm, const char name[], const char
   PetscFunctionBeginUser;
   PetscCall(PetscStrlen(value, &len));
   PetscCheck(len + 1 < size, comm, PETSC_ERR_USER_INPUT, "The file name of %s is too long: at most %d characters", name, (int) size - 2);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode DrapeMemoryAvailable(PetscLogDouble *node, PetscLogDouble *process)
+{
+  struct rlimit limit;
+  long          pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
+  FILE         *fp;
+
+  PetscFunctionBeginUser;
+  *node    = pages > 0 && page > 0 ? (PetscLogDouble) pages * (PetscLogDouble) page : PETSC_MAX_REAL;
+  *process = PETSC_MAX_REAL;
+  if ((fp = fopen("/sys/fs/cgroup/memory.max", "r"))) { /* a container's limit (cgroup v2) */
+    double bytes;
+    if (fscanf(fp, "%lf", &bytes) == 1 && bytes > 0) *node = PetscMin(*node, (PetscLogDouble) bytes);
+    (void) fclose(fp);
+  }
+  if (!getrlimit(RLIMIT_AS, &limit) && limit.rlim_cur != RLIM_INFINITY) *process = (PetscLogDouble) limit.rlim_cur;
   PetscFunctionReturn(0);
 }
 
@@ -237,9 +270,12 @@ static int GetFileId(const char path[], FileId *id)
     id->ino    = st.st_ino;
     return 0;
   }
-  if (!slash) (void) snprintf(dir, sizeof dir, ".");
-  else if (slash == path) (void) snprintf(dir, sizeof dir, "/");
-  else (void) snprintf(dir, sizeof dir, "%.*s", (int) (slash - path), path);
+  if (!slash)
+    (void) snprintf(dir, sizeof dir, ".");
+  else if (slash == path)
+    (void) snprintf(dir, sizeof dir, "/");
+  else
+    (void) snprintf(dir, sizeof dir, "%.*s", (int) (slash - path), path);
   (void) snprintf(id->base, sizeof id->base, "%s", slash ? slash + 1 : path);
   if (stat(dir, &st)) return -1;
   id->dev = st.st_dev;
@@ -338,7 +374,7 @@ static int ValidKey(const char *key)
 /* PetscTokenFind with blanks as separators and "quoted" tokens */
 static char *NextToken(char **s)
 {
-  char *p = *s, *token;
+  char *p   = *s, *token;
   char  sep = ' ';
 
   if (!p) return NULL;
@@ -365,7 +401,8 @@ static int Problem(const char *fmt, const char *a, const char *b, long line)
     char where[PETSC_MAX_PATH_LEN + 64];
     (void) snprintf(where, sizeof where, "Line %ld of the options file %s", line, a);
     (void) snprintf(options_problem, sizeof options_problem, fmt, where, b);
-  } else (void) snprintf(options_problem, sizeof options_problem, fmt, a, b);
+  } else
+    (void) snprintf(options_problem, sizeof options_problem, fmt, a, b);
   return 0;
 }
 
@@ -402,8 +439,10 @@ static int CheckArgs(int argc, char **argv, const char *from)
     if (!strcasecmp(argv[i], "-options_file") || !strcasecmp(argv[i], "-prefix_push") || !strcasecmp(argv[i], "-options_file_yaml") || !strcasecmp(argv[i], "-options_string_yaml")) {
       if (!CheckSpecialKey(argv[i], value, 0, from)) return 0;
       i++;
-    } else if (!CheckSpecialKey(argv[i], NULL, 0, from)) return 0;
-    else if (value && !ValidKey(value)) i++;
+    } else if (!CheckSpecialKey(argv[i], NULL, 0, from))
+      return 0;
+    else if (value && !ValidKey(value))
+      i++;
   }
   return 1;
 }
@@ -453,7 +492,8 @@ static int CheckOptionsFile(const char *name, int depth, int required)
       if (!CheckSpecialKey(token[0], ntoken > 1 ? token[1] : NULL, depth, name)) return 0;
     } else if (!strcasecmp(token[0], "alias")) {
       if (ntoken != 3 || !ValidKey(token[1]) || !ValidKey(token[2])) return Problem("%s: an alias line needs two option names%s", name, "", lineno);
-    } else return Problem("%s: '%s' is not an option (write one -name value per line; # starts a comment)", name, token[0], lineno);
+    } else
+      return Problem("%s: '%s' is not an option (write one -name value per line; # starts a comment)", name, token[0], lineno);
   }
   return 1;
 }

@@ -31,7 +31,7 @@ int main(int argc, char **argv)
   PetscErrorCode ierr;
   PetscBool      interrupted = PETSC_FALSE;
   int            petsc_argc  = argc;
-  char         **petsc_argv  = argv, *without_files[] = {argv[0], (char *) "-skip_petscrc", NULL};
+  char         **petsc_argv = argv, *without_files[] = {argv[0], (char *) "-skip_petscrc", NULL};
 
   /* MPI first: the options files are checked before PETSc reads them (PETSc's own
    * reader cannot report a bad one in a sentence), and a bad one keeps them away from

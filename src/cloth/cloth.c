@@ -53,40 +53,55 @@ static PetscErrorCode OptionsWarpWeft(PetscOptionItems *PetscOptionsObject, cons
   PetscFunctionReturn(0);
 }
 
-/* Read the polygon rings of -cloth_outline (every rank reads the small file). */
-static PetscErrorCode ClothReadOutline(void *ctx)
+/* Bounds of the outline file: its size, and its vertices (every lattice particle is
+ * tested against every edge). */
+#define OUTLINE_MAX_BYTES    (16 << 20)
+#define OUTLINE_MAX_VERTICES 10000
+
+/* The rings of an outline file's text: lines of any length, 'x y' in metres (a
+ * trailing # comment allowed), a blank line between rings. */
+static PetscErrorCode ClothParseOutline(Cloth c, char *text)
 {
-  Cloth     c = (Cloth) ctx;
-  FILE     *fp;
-  char      line[512];
   PetscInt  n = 0, cap = 256, lineno = 0, inring = 0;
   PetscBool open_ring = PETSC_FALSE;
+  char     *line, *next;
 
   PetscFunctionBeginUser;
-  fp = fopen(c->outline, "r");
-  PetscCheck(fp, PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "Cannot open the cloth outline file %s", c->outline);
   PetscCall(PetscMalloc1(2 * cap, &c->ring_xy));
   PetscCall(PetscMalloc1(cap + 1, &c->ring_start));
   c->nring = 0;
-  while (fgets(line, sizeof line, fp)) {
-    double x, y;
-    char  *p = line;
+  for (line = text; line; line = next) {
+    char  *p = line, *end;
+    double x = 0, y = 0;
     lineno++;
+    next = strchr(line, '\n');
+    if (next) *next++ = 0;
+    p[strcspn(p, "\r")] = 0;
     while (*p == ' ' || *p == '\t') p++;
     if (*p == '#') continue;
-    if (*p == '\n' || *p == '\r' || *p == 0) { /* a blank line ends a ring */
+    if (!*p) { /* a blank line ends a ring */
       if (open_ring) {
-        if (inring < 3) fclose(fp);
         PetscCheck(inring >= 3, PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED, "Ring %" PetscInt_FMT " of the outline %s has %" PetscInt_FMT " vertices; a ring needs at least 3", c->nring, c->outline, inring);
         open_ring = PETSC_FALSE;
       }
       continue;
     }
-    p[strcspn(p, "\r\n")] = 0;
-    if (sscanf(p, "%lf %lf", &x, &y) != 2) {
-      fclose(fp);
-      SETERRQ(PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED, "Line %" PetscInt_FMT " of the outline %s is not 'x y' in metres: '%s'", lineno, c->outline, p);
+    {
+      const char *text = p;
+      PetscBool   ok   = PETSC_FALSE;
+      x                = strtod(p, &end);
+      if (end != p && (*end == ' ' || *end == '\t')) {
+        p = end;
+        y = strtod(p, &end);
+        if (end != p) {
+          for (p = end; *p == ' ' || *p == '\t';) p++;
+          ok = (PetscBool) (!*p || *p == '#');
+        }
+      }
+      PetscCheck(ok, PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED, "Line %" PetscInt_FMT " of the outline %s is not 'x y' in metres: '%.80s'", lineno, c->outline, text);
     }
+    PetscCheck(PetscAbsReal(x) <= 1e4 && PetscAbsReal(y) <= 1e4, PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED, "Line %" PetscInt_FMT " of the outline %s has a coordinate that is not finite or beyond 1e4 m", lineno, c->outline);
+    PetscCheck(n < OUTLINE_MAX_VERTICES, PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED, "The outline %s has more than %d vertices; simplify it", c->outline, OUTLINE_MAX_VERTICES);
     if (!open_ring) {
       c->ring_start[c->nring++] = n;
       open_ring                 = PETSC_TRUE;
@@ -110,10 +125,37 @@ static PetscErrorCode ClothReadOutline(void *ctx)
     n++;
     inring++;
   }
-  fclose(fp);
   PetscCheck(!open_ring || inring >= 3, PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED, "The last ring of the outline %s has %" PetscInt_FMT " vertices; a ring needs at least 3", c->outline, inring);
   PetscCheck(c->nring > 0, PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED, "The outline %s has no polygon: write lines 'x y' (m), a blank line between rings", c->outline);
   c->ring_start[c->nring] = n;
+  PetscFunctionReturn(0);
+}
+
+/* Read the polygon rings of -cloth_outline (every rank reads the small file). */
+static PetscErrorCode ClothReadOutline(void *ctx)
+{
+  Cloth          c = (Cloth) ctx;
+  FILE          *fp;
+  char          *text;
+  size_t         len = 0, got;
+  PetscBool      isdir;
+  PetscErrorCode ierr;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscTestDirectory(c->outline, 'r', &isdir));
+  PetscCheck(!isdir, PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "Cannot read the cloth outline file %s: it is a directory", c->outline);
+  fp = fopen(c->outline, "rb");
+  PetscCheck(fp, PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "Cannot open the cloth outline file %s", c->outline);
+  PetscCall(PetscMalloc1(OUTLINE_MAX_BYTES + 1, &text));
+  while (len <= OUTLINE_MAX_BYTES && (got = fread(text + len, 1, OUTLINE_MAX_BYTES + 1 - len, fp)) > 0) len += got;
+  (void) fclose(fp);
+  if (len > OUTLINE_MAX_BYTES || memchr(text, 0, len)) PetscCall(PetscFree(text));
+  PetscCheck(text, PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED, "The cloth outline file %s is %s", c->outline, len > OUTLINE_MAX_BYTES ? "larger than 16 MB" : "not a text file");
+  text[len] = 0;
+  PetscCall(DrapeRegisterInput(c->outline, "cloth outline"));
+  ierr = ClothParseOutline(c, text);
+  PetscCall(PetscFree(text));
+  PetscCall(ierr);
   PetscFunctionReturn(0);
 }
 
@@ -129,6 +171,40 @@ static PetscBool InsideOutline(Cloth c, PetscReal x, PetscReal y)
     }
   }
   return in;
+}
+
+/* A lattice must fit in PetscInt (drape forms indices up to about 128 per particle:
+ * matrix entries, element lists, the METIS graph) and, at least roughly, in memory:
+ * refused before anything is allocated, with the limit named. Memory: a lower bound
+ * (about 400 bytes per particle for the explicit schemes, 3 PetscInt per particle of
+ * the whole lattice on every rank, the METIS graph on rank 0) against what a node
+ * has. */
+static PetscErrorCode ClothCheckLatticeSize(Cloth c, PetscInt Mx, PetscInt My)
+{
+  const PetscInt64 N = (PetscInt64) Mx * (PetscInt64) My, most = PETSC_MAX_INT / 128;
+  PetscMPIInt      size, rank, local;
+  MPI_Comm         node;
+  PetscLogDouble   need, node_bytes, process_bytes;
+  PetscBool        fits;
+
+  PetscFunctionBeginUser;
+  PetscCheck(N <= most, c->comm, PETSC_ERR_USER_INPUT, "A %" PetscInt_FMT " x %" PetscInt_FMT " lattice (%.4g particles) is larger than drape can index with this PETSc build (%d-bit PetscInt): at most %" PetscInt64_FMT " particles (e.g. %d x %d)%s",
+             Mx, My, (double) N, (int) (8 * sizeof(PetscInt)), most, (int) PetscFloorReal(PetscSqrtReal((PetscReal) most)), (int) PetscFloorReal(PetscSqrtReal((PetscReal) most)),
+             sizeof(PetscInt) < 8 ? "; build PETSc with --with-64-bit-indices for larger lattices" : "");
+  PetscCallMPI(MPI_Comm_size(c->comm, &size));
+  PetscCallMPI(MPI_Comm_rank(c->comm, &rank));
+  PetscCallMPI(MPI_Comm_split_type(c->comm, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node));
+  PetscCallMPI(MPI_Comm_size(node, &local));
+  PetscCallMPI(MPI_Comm_free(&node));
+  PetscCall(DrapeMemoryAvailable(&node_bytes, &process_bytes));
+  need = (PetscLogDouble) N * (3 * sizeof(PetscInt) + 1) + 400.0 * (PetscLogDouble) N / size;
+  if (!rank && c->partition == PARTITION_METIS) need += 17.0 * sizeof(PetscInt) * (PetscLogDouble) N;
+  fits = (PetscBool) (need * local <= node_bytes && need <= process_bytes);
+  PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &fits, 1, MPIU_BOOL, MPI_LAND, c->comm));
+  PetscCheck(fits, c->comm, PETSC_ERR_USER_INPUT,
+             "A %" PetscInt_FMT " x %" PetscInt_FMT " lattice needs at least %.3g GB per rank (%.3g GB for the %d ranks of a node), more than this machine gives a run (%.3g GB per node%s): use a smaller lattice, or more nodes", Mx, My, need / 1e9,
+             need * local / 1e9, (int) local, node_bytes / 1e9, process_bytes < node_bytes ? ", less per process" : "");
+  PetscFunctionReturn(0);
 }
 
 PetscErrorCode ClothSetFromOptions(Cloth c)
@@ -198,13 +274,23 @@ PetscErrorCode ClothSetFromOptions(Cloth c)
   c->orientation   = (ClothOrientation) iorient;
   c->exact_hessian = hess == 1 ? PETSC_TRUE : PETSC_FALSE;
 
+  PetscCall(DrapeCheckIntOption(c->comm, "-da_grid_x"));
+  PetscCall(DrapeCheckIntOption(c->comm, "-da_grid_y"));
+  PetscCheck(c->Mx >= 2 && c->My >= 2, c->comm, PETSC_ERR_USER_INPUT, "The lattice must have at least 2 x 2 particles; got -da_grid_x %" PetscInt_FMT " -da_grid_y %" PetscInt_FMT, c->Mx, c->My);
+  PetscCall(ClothCheckLatticeSize(c, c->Mx, c->My));
+  /* ranges no real cloth or scene approaches: a typo or a hostile value, not a fabric */
+  PetscCall(DrapeCheckReal(c->comm, "-cloth_size", 2, c->size, 1e-3, 1e3, "m"));
+  PetscCall(DrapeCheckReal(c->comm, "-cloth_density", 1, &c->density, 1e-4, 1e2, "kg/m^2"));
+  PetscCall(DrapeCheckReal(c->comm, "-cloth_damping", 1, &c->damping, 0, 1e4, "1/s"));
+  PetscCall(DrapeCheckReal(c->comm, "-cloth_stretch", 2, c->stretch, 0, 1e7, "N/m"));
+  PetscCall(DrapeCheckReal(c->comm, "-cloth_shear", 1, &c->shear, 0, 1e6, "N/m"));
+  PetscCall(DrapeCheckReal(c->comm, "-cloth_bend", 2, c->bend, 0, 1, "N m"));
+  PetscCall(DrapeCheckReal(c->comm, "-gravity", 3, c->gravity, -1e3, 1e3, "m/s^2 (each component)"));
+  PetscCall(DrapeCheckReal(c->comm, "-cloth_center", 3, c->origin, -1e4, 1e4, "m"));
+  PetscCall(DrapeCheckIntOption(c->comm, "-cloth_pin_list"));
+  PetscCall(DrapeCheckPathLength(c->comm, "-cloth_outline", c->outline, sizeof c->outline));
   PetscCheck(c->shape != CLOTH_POLYGON || c->outline[0], c->comm, PETSC_ERR_USER_INPUT, "-cloth_shape polygon needs -cloth_outline FILE");
   if (c->shape == CLOTH_POLYGON) PetscCall(DrapeCollective(c->comm, ClothReadOutline, c));
-  PetscCheck(c->Mx >= 2 && c->My >= 2, c->comm, PETSC_ERR_USER_INPUT, "The lattice must have at least 2 x 2 particles; got -da_grid_x %" PetscInt_FMT " -da_grid_y %" PetscInt_FMT, c->Mx, c->My);
-  PetscCheck(c->size[0] > 0 && c->size[1] > 0, c->comm, PETSC_ERR_USER_INPUT, "-cloth_size must be positive (metres); got %g,%g", (double) c->size[0], (double) c->size[1]);
-  PetscCheck(c->density > 0, c->comm, PETSC_ERR_USER_INPUT, "-cloth_density must be positive (kg/m^2); got %g", (double) c->density);
-  PetscCheck(c->damping >= 0, c->comm, PETSC_ERR_USER_INPUT, "-cloth_damping must be zero or positive (1/s); got %g", (double) c->damping);
-  PetscCheck(c->stretch[0] >= 0 && c->stretch[1] >= 0 && c->shear >= 0 && c->bend[0] >= 0 && c->bend[1] >= 0, c->comm, PETSC_ERR_USER_INPUT, "Material rigidities (-cloth_stretch, -cloth_shear, -cloth_bend) must be zero or positive");
   PetscCheck(c->pin != CLOTH_PIN_LIST || c->npin_list > 0, c->comm, PETSC_ERR_USER_INPUT, "-cloth_pin list needs -cloth_pin_list i0,j0,i1,j1,...");
   PetscCheck(c->npin_list == 0 || c->pin == CLOTH_PIN_LIST, c->comm, PETSC_ERR_USER_INPUT, "-cloth_pin_list is used only with -cloth_pin list");
   PetscCheck(npin % 2 == 0, c->comm, PETSC_ERR_USER_INPUT, "-cloth_pin_list needs pairs i,j; got %" PetscInt_FMT " numbers", npin);
@@ -494,6 +580,11 @@ PetscErrorCode ClothSetUp(Cloth c)
   PetscCallMPI(MPI_Comm_rank(c->comm, &rank));
   PetscCall(DMDACreate2d(c->comm, DM_BOUNDARY_NONE, DM_BOUNDARY_NONE, DMDA_STENCIL_BOX, c->Mx, c->My, PETSC_DECIDE, PETSC_DECIDE, 3, 0, NULL, NULL, &c->da)); /* for I/O only: no ghosts */
   PetscCall(DMSetFromOptions(c->da));
+  {
+    PetscInt Mx, My; /* -da_refine and -da_grid_* reach the DMDA here */
+    PetscCall(DMDAGetInfo(c->da, NULL, &Mx, &My, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL));
+    if (Mx != c->Mx || My != c->My) PetscCall(ClothCheckLatticeSize(c, Mx, My));
+  }
   PetscCall(DMSetUp(c->da));
   PetscCall(DMDASetFieldName(c->da, 0, "x"));
   PetscCall(DMDASetFieldName(c->da, 1, "y"));
