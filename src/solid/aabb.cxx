@@ -9,6 +9,7 @@
 #include <CGAL/boost/graph/IO/polygon_mesh_io.h>
 #include <CGAL/boost/graph/helpers.h>
 
+#include <cmath>
 #include <memory>
 #include <sstream>
 #include <string>
@@ -37,6 +38,11 @@ static PetscErrorCode SolidMeshFinish(SolidMesh m, const char *what)
   PetscCheck(m->mesh.number_of_faces() > 0, PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED, "The solid %s has no faces; drape needs a closed triangle mesh", what);
   PetscCheck(CGAL::is_triangle_mesh(m->mesh), PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED, "The solid %s has faces that are not triangles; drape needs a closed triangle mesh (triangulate it first)", what);
   PetscCheck(CGAL::is_closed(m->mesh), PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED, "The solid %s is not closed (it has border edges); drape needs a closed triangle mesh to tell inside from outside", what);
+  for (auto v : m->mesh.vertices()) { /* CGAL's exact predicates trap (SIGFPE) on infinities */
+    const Point &p = m->mesh.point(v);
+    PetscCheck(std::fabs(p.x()) <= 1e6 && std::fabs(p.y()) <= 1e6 && std::fabs(p.z()) <= 1e6, PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED,
+               "The solid %s, as placed by -solid_scale, -solid_rotate and -solid_translate, has vertex coordinates that are not finite or beyond 1e6 m", what);
+  }
   try {
     m->tree.reset(new Tree(faces(m->mesh).first, faces(m->mesh).second, m->mesh));
     m->tree->accelerate_distance_queries();

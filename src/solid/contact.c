@@ -80,8 +80,8 @@ PetscErrorCode ContactSetFromOptions(Contact c)
   PetscCall(PetscOptionsReal("-contact_friction", "Coulomb friction coefficient mu (static = kinetic)", "ContactSetFromOptions", c->mu, &c->mu, NULL));
   PetscOptionsEnd();
   c->mode = (ContactMode) imode;
-  PetscCheck(c->thickness >= 0, c->comm, PETSC_ERR_USER_INPUT, "-contact_thickness must be zero or positive (m); got %g", (double) c->thickness);
-  PetscCheck(c->mu >= 0, c->comm, PETSC_ERR_USER_INPUT, "-contact_friction must be zero or positive; got %g", (double) c->mu);
+  PetscCall(DrapeCheckReal(c->comm, "-contact_thickness", 1, &c->thickness, 0, 1, "m"));
+  PetscCall(DrapeCheckReal(c->comm, "-contact_friction", 1, &c->mu, 0, 10, ""));
   PetscFunctionReturn(0);
 }
 

@@ -74,10 +74,17 @@ PetscErrorCode SolidSetFromOptions(Solid s)
   if (fileset && s->type == SOLID_NONE) s->type = SOLID_MESH;
   PetscCheck(s->type != SOLID_MESH || s->file[0], s->comm, PETSC_ERR_USER_INPUT, "-solid_type mesh needs -solid_file FILE (OFF, OBJ, STL or PLY)");
   PetscCheck(!fileset || s->type == SOLID_MESH, s->comm, PETSC_ERR_USER_INPUT, "-solid_file is used only with -solid_type mesh");
-  PetscCheck(s->scale > 0, s->comm, PETSC_ERR_USER_INPUT, "-solid_scale must be positive; got %g", (double) s->scale);
-  PetscCheck(s->size[0] > 0 && s->size[1] > 0 && s->size[2] > 0, s->comm, PETSC_ERR_USER_INPUT, "-solid_size lengths must be positive");
-  PetscCheck(s->radius > 0 && s->height > 0, s->comm, PETSC_ERR_USER_INPUT, "-solid_radius and -solid_height must be positive");
-  PetscCheck(s->resolution >= 3 && s->resolution <= 4096, s->comm, PETSC_ERR_USER_INPUT, "-solid_resolution must be between 3 and 4096; got %" PetscInt_FMT, s->resolution);
+  PetscCall(DrapeCheckPathLength(s->comm, "-solid_file", s->file, sizeof s->file));
+  /* placements and sizes no real scene approaches: CGAL's exact arithmetic traps on overflow */
+  PetscCall(DrapeCheckReal(s->comm, "-solid_scale", 1, &s->scale, 1e-6, 1e6, ""));
+  PetscCall(DrapeCheckReal(s->comm, "-solid_rotate", 3, s->rotate, -360, 360, "degrees"));
+  PetscCall(DrapeCheckReal(s->comm, "-solid_translate", 3, s->translate, -1e4, 1e4, "m"));
+  PetscCall(DrapeCheckReal(s->comm, "-solid_size", 3, s->size, 1e-6, 1e3, "m"));
+  PetscCall(DrapeCheckReal(s->comm, "-solid_radius", 1, &s->radius, 1e-6, 1e3, "m"));
+  PetscCall(DrapeCheckReal(s->comm, "-solid_height", 1, &s->height, 1e-6, 1e3, "m"));
+  PetscCall(DrapeCheckInt(s->comm, "-solid_resolution", s->resolution, 3, 4096));
+  if (s->has_plane) PetscCall(DrapeCheckReal(s->comm, "-solid_plane", 4, s->plane, -1e4, 1e4, "(normal components and offset, m)"));
+  if (floorset) PetscCall(DrapeCheckReal(s->comm, "-solid_floor", 1, &floor_z, -1e4, 1e4, "m"));
   PetscCheck(!(floorset && s->has_plane), s->comm, PETSC_ERR_USER_INPUT, "Give either -solid_plane or -solid_floor, not both");
   if (floorset) {
     s->has_plane = PETSC_TRUE;
@@ -90,6 +97,7 @@ PetscErrorCode SolidSetFromOptions(Solid s)
     PetscReal nn = PetscSqrtReal(s->plane[0] * s->plane[0] + s->plane[1] * s->plane[1] + s->plane[2] * s->plane[2]);
     PetscCheck(nn > 0, s->comm, PETSC_ERR_USER_INPUT, "-solid_plane normal must not be zero");
     for (PetscInt i = 0; i < 4; i++) s->plane[i] /= nn;
+    PetscCheck(PetscAbsReal(s->plane[3]) <= 1e4, s->comm, PETSC_ERR_USER_INPUT, "-solid_plane puts the plane %g m from the origin (its offset over the normal's length); at most 1e4 m", (double) s->plane[3]);
   }
   PetscFunctionReturn(0);
 }
@@ -205,6 +213,7 @@ static PetscErrorCode SolidReadFile(void *ctx)
 
   PetscFunctionBeginUser;
   PetscCall(SolidMeshCreateFromFile(r->s->file, r->A, r->s->translate, &r->s->mesh));
+  PetscCall(DrapeRegisterInput(r->s->file, "solid mesh"));
   PetscFunctionReturn(0);
 }
 
