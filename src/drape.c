@@ -55,6 +55,22 @@ static PetscErrorCode DrapeErrorHandler(MPI_Comm comm, int line, const char *fun
   return n;
 }
 
+/* Wait for a request, at most error_wait seconds; done says whether it completed. */
+static PetscErrorCode WaitFor(MPI_Request *request, int *done)
+{
+  PetscLogDouble t0, t;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscTime(&t0));
+  for (*done = 0;;) {
+    PetscCallMPI(MPI_Test(request, done, MPI_STATUS_IGNORE));
+    PetscCall(PetscTime(&t));
+    if (*done || t - t0 > error_wait) break;
+    PetscCall(PetscSleep(0.01));
+  }
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode DrapeEndWithError(PetscErrorCode ierr)
 {
   PetscMPIInt size, rank;
@@ -66,16 +82,9 @@ PetscErrorCode DrapeEndWithError(PetscErrorCode ierr)
   if (size > 1 && error_comm != MPI_COMM_NULL) {
     /* ranks that failed together (a bad input every rank finds) meet here at once;
      * a rank that did not fail waits in some collective operation and never comes */
-    MPI_Request    request;
-    PetscLogDouble t0, t;
+    MPI_Request request;
     PetscCallMPI(MPI_Ibarrier(error_comm, &request));
-    PetscCall(PetscTime(&t0));
-    for (all = 0;;) {
-      PetscCallMPI(MPI_Test(&request, &all, MPI_STATUS_IGNORE));
-      PetscCall(PetscTime(&t));
-      if (all || t - t0 > error_wait) break;
-      PetscCall(PetscSleep(0.01));
-    }
+    PetscCall(WaitFor(&request, &all));
   }
   if (error_is_user && (!all || !rank)) PetscCall(PetscFPrintf(PETSC_COMM_SELF, PETSC_STDERR, "drape: error: %s\n", error_message));
   if (!all) PETSCABORT(PETSC_COMM_WORLD, ierr); /* the frames written so far stay readable */
@@ -95,11 +104,13 @@ static PetscErrorCode CaptureErrorHandler(MPI_Comm comm, int line, const char *f
   return n;
 }
 
-PetscErrorCode DrapeCollective(MPI_Comm comm, PetscErrorCode (*fn)(void *), void *ctx)
+/* DrapeCollective, raising the error as `code` with `prefix` when code is not 0 */
+static PetscErrorCode Collective(MPI_Comm comm, PetscErrorCode (*fn)(void *), void *ctx, PetscErrorCode as, const char prefix[])
 {
   PetscErrorCode ierr;
   PetscMPIInt    rank, size, failed, first;
   PetscInt       code;
+  char           where[32] = "";
 
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_rank(comm, &rank));
@@ -108,12 +119,42 @@ PetscErrorCode DrapeCollective(MPI_Comm comm, PetscErrorCode (*fn)(void *), void
   ierr = (*fn)(ctx);
   PetscCall(PetscPopErrorHandler());
   failed = ierr ? rank : size;
-  PetscCallMPI(MPI_Allreduce(&failed, &first, 1, MPI_INT, MPI_MIN, comm));
+  {
+    /* a rank that failed inside a collective library call (MPI-IO on a full disk) can
+     * leave the others inside it: this rank then ends the job rather than wait */
+    MPI_Request request;
+    int         done = 0;
+    PetscCallMPI(MPI_Iallreduce(&failed, &first, 1, MPI_INT, MPI_MIN, comm, &request));
+    if (ierr)
+      PetscCall(WaitFor(&request, &done));
+    else
+      PetscCallMPI(MPI_Wait(&request, MPI_STATUS_IGNORE));
+    if (ierr && !done) {
+      PetscCall(PetscFPrintf(PETSC_COMM_SELF, PETSC_STDERR, "drape: error: %s%s%s\n", prefix ? prefix : "", prefix ? ": " : "", captured_message));
+      PETSCABORT(PETSC_COMM_WORLD, ierr);
+    }
+  }
   if (first == size) PetscFunctionReturn(0);
   code = ierr ? (PetscInt) captured_code : 0;
   PetscCallMPI(MPI_Bcast(&code, 1, MPIU_INT, first, comm));
   PetscCallMPI(MPI_Bcast(captured_message, sizeof captured_message, MPI_CHAR, first, comm));
-  SETERRQ(comm, (PetscErrorCode) code, "%s", captured_message);
+  if (first > 0) PetscCall(PetscSNPrintf(where, sizeof where, " (on rank %d)", first)); /* a rank-local file system */
+  if (as) SETERRQ(comm, as, "%s: %s%s", prefix, captured_message, where);
+  SETERRQ(comm, (PetscErrorCode) code, "%s%s", captured_message, where);
+}
+
+PetscErrorCode DrapeCollective(MPI_Comm comm, PetscErrorCode (*fn)(void *), void *ctx)
+{
+  PetscFunctionBeginUser;
+  PetscCall(Collective(comm, fn, ctx, 0, NULL));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode DrapeCollectiveWrite(MPI_Comm comm, PetscErrorCode (*fn)(void *), void *ctx, const char what[])
+{
+  PetscFunctionBeginUser;
+  PetscCall(Collective(comm, fn, ctx, PETSC_ERR_FILE_WRITE, what));
+  PetscFunctionReturn(0);
 }
 
 PetscErrorCode DrapeInitialize(void)

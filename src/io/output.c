@@ -15,6 +15,9 @@
 #include <output.h>
 #include <drape.h>
 #include <petscviewerhdf5.h>
+#include <errno.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #define NSCALARS 10
 static const char *const scalar_names[NSCALARS] = {"step", "energy_kinetic", "energy_gravity", "energy_stretch", "energy_shear", "energy_bend", "contact_depth", "contact_count", "contact_force", "time"};
@@ -42,6 +45,64 @@ PetscErrorCode OutputCreate(MPI_Comm comm, Output *out)
   o->interval  = 1.0 / 30;
   o->last_step = -1;
   *out         = o;
+  H5Eset_auto2(H5E_DEFAULT, NULL, NULL); /* a failed call is reported in one sentence, not HDF5's error stack */
+  PetscFunctionReturn(0);
+}
+
+/* Can this rank write -output_file and its XDMF index, without overwriting anything
+ * the run reads? A directory that exists and takes a new file (a probe file is made
+ * and removed: read-only and pseudo file systems refuse it), an output that is a
+ * regular file if it exists, a name MPI-IO can extend, files compared by identity. */
+static PetscErrorCode OutputCheckFile(void *ctx)
+{
+  Output      o = (Output) ctx;
+  char        dir[PETSC_MAX_PATH_LEN], probe[PETSC_MAX_PATH_LEN + 64], tmp[PETSC_MAX_PATH_LEN + 8];
+  const char *base = strrchr(o->file, '/') ? strrchr(o->file, '/') + 1 : o->file;
+  size_t      len;
+  PetscBool   isdir, same;
+  PetscMPIInt rank;
+  FILE       *fp;
+
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(o->comm, &rank));
+  PetscCall(PetscStrlen(base, &len));
+  PetscCheck(len > 0, PETSC_COMM_SELF, PETSC_ERR_USER_INPUT, "-output_file %s names a directory, not a file", o->file);
+  PetscCheck(len <= 200, PETSC_COMM_SELF, PETSC_ERR_USER_INPUT, "The name of -output_file, %s, is longer than 200 characters (not counting its directory): MPI-IO names files after it and would go beyond the 255 a file system takes", base);
+  PetscCall(PetscStrncpy(dir, o->file, sizeof dir));
+  if (base == o->file)
+    PetscCall(PetscStrcpy(dir, "."));
+  else
+    dir[base - o->file - 1] = 0;
+  if (!dir[0]) PetscCall(PetscStrcpy(dir, "/"));
+  PetscCall(PetscTestDirectory(dir, 'x', &isdir));
+  PetscCheck(isdir, PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "Cannot write -output_file %s: directory %s does not exist or is not writable", o->file, dir);
+  PetscCall(PetscTestDirectory(o->file, 'r', &isdir));
+  PetscCheck(!isdir, PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "Cannot write -output_file %s: it is a directory", o->file);
+  {
+    struct stat st;
+    if (!stat(o->file, &st)) {
+      PetscCheck(S_ISREG(st.st_mode), PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "Cannot write -output_file %s: it exists and is not a regular file (a device, pipe or socket)", o->file);
+      PetscCheck(!access(o->file, W_OK), PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "Cannot write -output_file %s: it exists and is not writable", o->file);
+    }
+  }
+  PetscCall(PetscSNPrintf(probe, sizeof probe, "%s/.drape-probe-%d-%d", dir, (int) getpid(), (int) rank));
+  fp = fopen(probe, "wbx");
+  PetscCheck(fp, PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "Cannot write -output_file %s: directory %s does not exist or is not writable (%s)", o->file, dir, strerror(errno));
+  {
+    int failed = fputc('\n', fp) == EOF;
+    failed     = fclose(fp) || failed;
+    (void) remove(probe);
+    PetscCheck(!failed, PETSC_COMM_SELF, PETSC_ERR_FILE_WRITE, "Cannot write -output_file %s: the file system of %s takes no data (full?)", o->file, dir);
+  }
+  /* nothing the run reads may be overwritten (a restart continues its own file) */
+  PetscCall(PetscSNPrintf(tmp, sizeof tmp, "%s.tmp", o->xdmf));
+  PetscCall(DrapeSameFile(o->file, o->xdmf, &same));
+  PetscCheck(!same, PETSC_COMM_SELF, PETSC_ERR_USER_INPUT, "-output_file %s would be overwritten by its own XDMF index %s: give the HDF5 file another extension, e.g. .h5", o->file, o->xdmf);
+  PetscCall(DrapeSameFile(o->file, tmp, &same));
+  PetscCheck(!same, PETSC_COMM_SELF, PETSC_ERR_USER_INPUT, "-output_file %s would be overwritten by the temporary file of its XDMF index: give the HDF5 file another name, e.g. run.h5", o->file);
+  PetscCall(DrapeCheckNotInput("-output_file", o->file, "restart file"));
+  PetscCall(DrapeCheckNotInput("The XDMF index of -output_file", o->xdmf, NULL));
+  PetscCall(DrapeCheckNotInput("The XDMF index of -output_file", tmp, NULL));
   PetscFunctionReturn(0);
 }
 
@@ -56,29 +117,30 @@ PetscErrorCode OutputSetFromOptions(Output o)
   PetscCall(PetscOptionsInt("-output_steps", "Steps between frames (0: use -output_interval)", "OutputSetFromOptions", o->every, &o->every, &flg));
   PetscOptionsEnd();
   if (flg && o->every > 0) o->interval = 0;
-  PetscCheck(o->interval >= 0, o->comm, PETSC_ERR_USER_INPUT, "-output_interval must be zero or positive (seconds); got %g", (double) o->interval);
-  PetscCheck(o->every >= 0, o->comm, PETSC_ERR_USER_INPUT, "-output_steps must be zero or positive; got %" PetscInt_FMT, o->every);
+  PetscCall(DrapeCheckReal(o->comm, "-output_interval", 1, &o->interval, 0, 1e6, "s"));
+  PetscCall(DrapeCheckInt(o->comm, "-output_steps", o->every, 0, PETSC_MAX_INT));
   if (o->enabled) {
-    char     *slash, *dot, dir[PETSC_MAX_PATH_LEN];
-    PetscBool ok, isdir;
+    char *slash, *dot;
     PetscCheck(o->file[0], o->comm, PETSC_ERR_USER_INPUT, "-output_file needs a file name, e.g. -output_file run.h5");
-    PetscCall(PetscStrncpy(dir, o->file, sizeof dir));
-    slash = strrchr(dir, '/');
-    if (slash)
-      *slash = 0;
-    else
-      PetscCall(PetscStrcpy(dir, "."));
-    if (!dir[0]) PetscCall(PetscStrcpy(dir, "/"));
-    PetscCall(PetscTestDirectory(dir, 'w', &ok));
-    PetscCheck(ok, o->comm, PETSC_ERR_FILE_OPEN, "Cannot write -output_file %s: directory %s does not exist or is not writable", o->file, dir);
-    PetscCall(PetscTestDirectory(o->file, 'r', &isdir));
-    PetscCheck(!isdir, o->comm, PETSC_ERR_FILE_OPEN, "Cannot write -output_file %s: it is a directory", o->file);
+    PetscCall(DrapeCheckPathLength(o->comm, "-output_file", o->file, sizeof o->file - 16));
     PetscCall(PetscStrncpy(o->xdmf, o->file, sizeof o->xdmf));
     dot   = strrchr(o->xdmf, '.');
     slash = strrchr(o->xdmf, '/');
     if (dot && (!slash || dot > slash)) *dot = 0;
     PetscCall(PetscStrlcat(o->xdmf, ".xmf", sizeof o->xdmf));
+    /* on every rank: a node-local directory missing on one rank would hang MPI-IO */
+    PetscCall(DrapeCollective(o->comm, OutputCheckFile, o));
   }
+  PetscFunctionReturn(0);
+}
+
+/* The next frame time after a frame at t: the first multiple of the interval beyond
+ * it, computed, not counted up to (a tiny interval or a huge t would never end). */
+static PetscErrorCode OutputScheduleAfter(Output o, PetscReal t)
+{
+  PetscFunctionBeginUser;
+  o->next_time = 0;
+  if (o->interval > 0) o->next_time = (PetscFloorReal(t / o->interval + 1e-9) + 1) * o->interval;
   PetscFunctionReturn(0);
 }
 
@@ -87,17 +149,16 @@ PetscErrorCode OutputSetAppend(Output o, const char file[], PetscInt nframes, co
   PetscBool same;
 
   PetscFunctionBeginUser;
-  PetscCall(PetscStrcmp(file, o->file, &same));
-  if (!o->enabled || !same) PetscFunctionReturn(0);
+  if (!o->enabled) PetscFunctionReturn(0);
+  PetscCall(DrapeSameFile(file, o->file, &same)); /* by identity: ./r.h5 is r.h5 */
+  if (!same) PetscFunctionReturn(0);
   o->append  = PETSC_TRUE;
   o->nalloc  = nframes + 64;
   o->nframes = nframes;
   PetscCall(PetscFree(o->times));
   PetscCall(PetscMalloc1(o->nalloc, &o->times));
   PetscCall(PetscArraycpy(o->times, times, nframes));
-  o->next_time = 0;
-  if (o->interval > 0)
-    while (o->next_time <= times[nframes - 1] + 1e-9 * o->interval) o->next_time += o->interval;
+  PetscCall(OutputScheduleAfter(o, times[nframes - 1]));
   PetscFunctionReturn(0);
 }
 
@@ -115,30 +176,25 @@ PetscErrorCode OutputLastStep(Output o, PetscInt *step)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode OutputOpen(Output o, Cloth cloth, Solid solid, const char *description)
-{
-  DM          da;
+typedef struct {
+  Output      o;
   ClothInfo   info;
-  char       *given;
-  PetscMPIInt rank;
-  PetscInt    lattice[2];
-  PetscReal   material[9];
+  Solid       solid;
+  const char *description;
+} OutputOpenContext;
+
+/* Create (or, for a restart, reopen) the file and write the run's description. */
+static PetscErrorCode OutputCreateFile(void *ctx)
+{
+  OutputOpenContext *c = (OutputOpenContext *) ctx;
+  Output             o = c->o;
+  char              *given;
+  PetscMPIInt        rank;
+  PetscInt           lattice[2];
+  PetscReal          material[9];
 
   PetscFunctionBeginUser;
-  if (!o->enabled) PetscFunctionReturn(0);
-  PetscCall(ClothGetDM(cloth, &da));
-  PetscCall(ClothGetInfo(cloth, &info));
-  o->Mx = info.Mx;
-  o->My = info.My;
-  PetscCall(DMCreateGlobalVector(da, &o->X));
-  PetscCall(DMCreateGlobalVector(da, &o->V));
-  PetscCall(PetscObjectSetName((PetscObject) o->X, "position"));
-  PetscCall(PetscObjectSetName((PetscObject) o->V, "velocity"));
   PetscCallMPI(MPI_Comm_rank(o->comm, &rank));
-  for (PetscInt k = 0; k < NSCALARS; k++) {
-    PetscCall(VecCreateMPI(o->comm, rank ? 0 : scalar_sizes[k], scalar_sizes[k], &o->scalars[k]));
-    PetscCall(PetscObjectSetName((PetscObject) o->scalars[k], scalar_names[k]));
-  }
   if (o->append) {
     /* a restart continues its own file: frames and attributes are already there */
     PetscCall(PetscViewerHDF5Open(o->comm, o->file, FILE_MODE_APPEND, &o->viewer));
@@ -151,21 +207,21 @@ PetscErrorCode OutputOpen(Output o, Cloth cloth, Solid solid, const char *descri
   PetscCall(PetscOptionsGetAll(NULL, &given));
   PetscCall(PetscViewerHDF5WriteAttribute(o->viewer, "/", "drape_version", PETSC_STRING, DRAPE_VERSION));
   PetscCall(PetscViewerHDF5WriteAttribute(o->viewer, "/", "options", PETSC_STRING, given));
-  PetscCall(PetscViewerHDF5WriteAttribute(o->viewer, "/", "description", PETSC_STRING, description));
+  PetscCall(PetscViewerHDF5WriteAttribute(o->viewer, "/", "description", PETSC_STRING, c->description));
   PetscCall(PetscFree(given));
-  lattice[0] = info.Mx;
-  lattice[1] = info.My;
+  lattice[0] = c->info.Mx;
+  lattice[1] = c->info.My;
   PetscCall(PetscViewerHDF5WriteAttribute(o->viewer, "/", "lattice_Mx", PETSC_INT, &lattice[0]));
   PetscCall(PetscViewerHDF5WriteAttribute(o->viewer, "/", "lattice_My", PETSC_INT, &lattice[1]));
-  material[0] = info.size[0];
-  material[1] = info.size[1];
-  material[2] = info.mass;
-  material[3] = info.damping;
-  material[4] = info.stretch[0];
-  material[5] = info.stretch[1];
-  material[6] = info.shear;
-  material[7] = info.bend[0];
-  material[8] = info.bend[1];
+  material[0] = c->info.size[0];
+  material[1] = c->info.size[1];
+  material[2] = c->info.mass;
+  material[3] = c->info.damping;
+  material[4] = c->info.stretch[0];
+  material[5] = c->info.stretch[1];
+  material[6] = c->info.shear;
+  material[7] = c->info.bend[0];
+  material[8] = c->info.bend[1];
   {
     const char *names[9] = {"size_warp", "size_weft", "mass", "damping", "stretch_warp", "stretch_weft", "shear", "bend_warp", "bend_weft"};
     for (PetscInt k = 0; k < 9; k++) PetscCall(PetscViewerHDF5WriteAttribute(o->viewer, "/", names[k], PETSC_REAL, &material[k]));
@@ -173,7 +229,7 @@ PetscErrorCode OutputOpen(Output o, Cloth cloth, Solid solid, const char *descri
   {
     PetscInt   ntri;
     PetscReal *xyz;
-    PetscCall(SolidGetTriangles(solid, &ntri, &xyz));
+    PetscCall(SolidGetTriangles(c->solid, &ntri, &xyz));
     if (ntri) {
       Vec          T;
       PetscScalar *a;
@@ -188,6 +244,33 @@ PetscErrorCode OutputOpen(Output o, Cloth cloth, Solid solid, const char *descri
     PetscCall(PetscFree(xyz));
   }
   PetscCall(PetscViewerHDF5PushTimestepping(o->viewer));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode OutputOpen(Output o, Cloth cloth, Solid solid, const char *description)
+{
+  DM                da;
+  PetscMPIInt       rank;
+  OutputOpenContext ctx = {.o = o, .solid = solid, .description = description};
+  char              what[PETSC_MAX_PATH_LEN + 64];
+
+  PetscFunctionBeginUser;
+  if (!o->enabled) PetscFunctionReturn(0);
+  PetscCall(ClothGetDM(cloth, &da));
+  PetscCall(ClothGetInfo(cloth, &ctx.info));
+  o->Mx = ctx.info.Mx;
+  o->My = ctx.info.My;
+  PetscCall(DMCreateGlobalVector(da, &o->X));
+  PetscCall(DMCreateGlobalVector(da, &o->V));
+  PetscCall(PetscObjectSetName((PetscObject) o->X, "position"));
+  PetscCall(PetscObjectSetName((PetscObject) o->V, "velocity"));
+  PetscCallMPI(MPI_Comm_rank(o->comm, &rank));
+  for (PetscInt k = 0; k < NSCALARS; k++) {
+    PetscCall(VecCreateMPI(o->comm, rank ? 0 : scalar_sizes[k], scalar_sizes[k], &o->scalars[k]));
+    PetscCall(PetscObjectSetName((PetscObject) o->scalars[k], scalar_names[k]));
+  }
+  PetscCall(PetscSNPrintf(what, sizeof what, "Cannot %s -output_file %s", o->append ? "reopen" : "create", o->file));
+  PetscCall(DrapeCollectiveWrite(o->comm, OutputCreateFile, &ctx, what));
   PetscFunctionReturn(0);
 }
 
@@ -239,26 +322,21 @@ static PetscErrorCode OutputWriteXDMF(Output o)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode OutputWriteFrame(Output o, Cloth cloth, PetscInt step, PetscReal t, const PetscScalar *x, const PetscScalar *v, const ClothEnergies *en)
+typedef struct {
+  Output    o;
+  PetscInt  step;
+  PetscReal t, values[NSCALARS][3];
+} OutputFrameContext;
+
+/* One frame into the file, flushed, and the XDMF index that lists it. */
+static PetscErrorCode OutputWriteFrameFile(void *ctx)
 {
-  PetscScalar *a;
-  PetscReal    values[NSCALARS][3];
-  hid_t        fid;
+  OutputFrameContext *c = (OutputFrameContext *) ctx;
+  Output              o = c->o;
+  PetscScalar        *a;
+  hid_t               fid;
 
   PetscFunctionBeginUser;
-  if (!o->enabled) PetscFunctionReturn(0);
-  values[0][0] = (PetscReal) step;
-  values[1][0] = en->kinetic;
-  values[2][0] = en->gravity;
-  values[3][0] = en->stretch;
-  values[4][0] = en->shear;
-  values[5][0] = en->bend;
-  values[6][0] = en->contact_depth;
-  values[7][0] = (PetscReal) en->contact_count;
-  for (PetscInt d = 0; d < 3; d++) values[8][d] = en->contact_force[d];
-  values[9][0] = t;
-  PetscCall(ClothToDMDA(cloth, x, o->X));
-  PetscCall(ClothToDMDA(cloth, v, o->V));
   PetscCall(PetscViewerHDF5SetTimestep(o->viewer, o->nframes));
   PetscCall(VecView(o->X, o->viewer));
   PetscCall(VecView(o->V, o->viewer));
@@ -267,13 +345,13 @@ PetscErrorCode OutputWriteFrame(Output o, Cloth cloth, PetscInt step, PetscReal 
     PetscCall(VecGetLocalSize(o->scalars[k], &nl));
     if (nl) {
       PetscCall(VecGetArray(o->scalars[k], &a));
-      for (PetscInt d = 0; d < nl; d++) a[d] = values[k][d];
+      for (PetscInt d = 0; d < nl; d++) a[d] = c->values[k][d];
       PetscCall(VecRestoreArray(o->scalars[k], &a));
     }
     PetscCall(VecView(o->scalars[k], o->viewer));
   }
   PetscCall(PetscViewerHDF5GetFileId(o->viewer, &fid));
-  PetscCheck(H5Fflush(fid, H5F_SCOPE_GLOBAL) >= 0, o->comm, PETSC_ERR_FILE_WRITE, "Cannot flush frame %" PetscInt_FMT " to %s", o->nframes, o->file);
+  PetscCheck(H5Fflush(fid, H5F_SCOPE_GLOBAL) >= 0, PETSC_COMM_SELF, PETSC_ERR_FILE_WRITE, "HDF5 cannot flush the frame to the file");
   if (o->nframes >= o->nalloc) {
     PetscReal *times;
     o->nalloc = 2 * o->nalloc + 64;
@@ -282,23 +360,64 @@ PetscErrorCode OutputWriteFrame(Output o, Cloth cloth, PetscInt step, PetscReal 
     PetscCall(PetscFree(o->times));
     o->times = times;
   }
-  o->times[o->nframes++] = t;
-  o->last_step           = step;
-  if (o->interval > 0)
-    while (o->next_time <= t + 1e-9 * o->interval) o->next_time += o->interval;
+  o->times[o->nframes++] = c->t;
+  o->last_step           = c->step;
+  PetscCall(OutputScheduleAfter(o, c->t));
   PetscCall(OutputWriteXDMF(o));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode OutputWriteFrame(Output o, Cloth cloth, PetscInt step, PetscReal t, const PetscScalar *x, const PetscScalar *v, const ClothEnergies *en)
+{
+  OutputFrameContext ctx = {.o = o, .step = step, .t = t};
+  char               what[PETSC_MAX_PATH_LEN + 64];
+
+  PetscFunctionBeginUser;
+  if (!o->enabled) PetscFunctionReturn(0);
+  ctx.values[0][0] = (PetscReal) step;
+  ctx.values[1][0] = en->kinetic;
+  ctx.values[2][0] = en->gravity;
+  ctx.values[3][0] = en->stretch;
+  ctx.values[4][0] = en->shear;
+  ctx.values[5][0] = en->bend;
+  ctx.values[6][0] = en->contact_depth;
+  ctx.values[7][0] = (PetscReal) en->contact_count;
+  for (PetscInt d = 0; d < 3; d++) ctx.values[8][d] = en->contact_force[d];
+  ctx.values[9][0] = t;
+  PetscCall(ClothToDMDA(cloth, x, o->X));
+  PetscCall(ClothToDMDA(cloth, v, o->V));
+  PetscCall(PetscSNPrintf(what, sizeof what, "Cannot write frame %" PetscInt_FMT " to -output_file %s (is the disk full?)", o->nframes, o->file));
+  PetscCall(DrapeCollectiveWrite(o->comm, OutputWriteFrameFile, &ctx, what));
+  PetscFunctionReturn(0);
+}
+
+typedef struct {
+  Output      o;
+  const char *name;
+  PetscReal   value;
+} OutputResultContext;
+
+static PetscErrorCode OutputWriteResultFile(void *ctx)
+{
+  OutputResultContext *c = (OutputResultContext *) ctx;
+  hid_t                fid;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscViewerHDF5WriteAttribute(c->o->viewer, "/", c->name, PETSC_REAL, &c->value));
+  PetscCall(PetscViewerHDF5GetFileId(c->o->viewer, &fid));
+  PetscCheck(H5Fflush(fid, H5F_SCOPE_GLOBAL) >= 0, PETSC_COMM_SELF, PETSC_ERR_FILE_WRITE, "HDF5 cannot flush the file");
   PetscFunctionReturn(0);
 }
 
 PetscErrorCode OutputWriteResult(Output o, const char *name, PetscReal value)
 {
-  hid_t fid;
+  OutputResultContext ctx = {.o = o, .name = name, .value = value};
+  char                what[PETSC_MAX_PATH_LEN + 64];
 
   PetscFunctionBeginUser;
   if (!o->enabled) PetscFunctionReturn(0);
-  PetscCall(PetscViewerHDF5WriteAttribute(o->viewer, "/", name, PETSC_REAL, &value));
-  PetscCall(PetscViewerHDF5GetFileId(o->viewer, &fid));
-  PetscCheck(H5Fflush(fid, H5F_SCOPE_GLOBAL) >= 0, o->comm, PETSC_ERR_FILE_WRITE, "Cannot flush %s", o->file);
+  PetscCall(PetscSNPrintf(what, sizeof what, "Cannot write %s to -output_file %s", name, o->file));
+  PetscCall(DrapeCollectiveWrite(o->comm, OutputWriteResultFile, &ctx, what));
   PetscFunctionReturn(0);
 }
 
