@@ -33,9 +33,12 @@ PETSC_EXTERN PetscErrorCode DrapeEndWithError(PetscErrorCode ierr);
  * collectively on comm, with the message of the lowest failing rank, not printed by
  * every rank. Collective. */
 PETSC_EXTERN PetscErrorCode DrapeCollective(MPI_Comm, PetscErrorCode (*)(void *), void *);
-/* DrapeCollective for writing a file: a failure (a full disk, a file system gone; HDF5
- * says so in its own words) is raised as one sentence "what: HDF5's words". Collective. */
+/* DrapeCollective for writing or reading a file: a failure (a full disk, a file system
+ * gone, a damaged file; HDF5 says so in its own words) is raised as one sentence
+ * "what: HDF5's words". A rank whose peers stay inside a collective library call
+ * (MPI-IO) ends the job with MPI_Abort after a few seconds. Collective. */
 PETSC_EXTERN PetscErrorCode DrapeCollectiveWrite(MPI_Comm, PetscErrorCode (*)(void *), void *, const char what[]);
+PETSC_EXTERN PetscErrorCode DrapeCollectiveRead(MPI_Comm, PetscErrorCode (*)(void *), void *, const char what[]);
 /* Refuse options in drape's own namespaces (-cloth_, -output_, -drape_, ...) that
  * no component read: a misspelt drape option is an error, not a silent default.
  * Collective. */

@@ -157,6 +157,13 @@ PetscErrorCode DrapeCollectiveWrite(MPI_Comm comm, PetscErrorCode (*fn)(void *),
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode DrapeCollectiveRead(MPI_Comm comm, PetscErrorCode (*fn)(void *), void *ctx, const char what[])
+{
+  PetscFunctionBeginUser;
+  PetscCall(Collective(comm, fn, ctx, PETSC_ERR_FILE_READ, what));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode DrapeInitialize(void)
 {
   PetscFunctionBeginUser;

@@ -1,207 +1,292 @@
 /* Restart from the last complete frame of a drape HDF5 file.
  *
  * The file is checked on rank 0 with plain HDF5 calls first (so that a missing,
- * truncated or foreign file gets one clear sentence instead of an HDF5 error
- * stack), then the frame is read collectively through PetscViewerHDF5, in natural
- * lattice order, so the restart may use any number of ranks. */
+ * truncated, foreign or damaged file gets one clear sentence naming it instead of an
+ * HDF5 error stack): datasets, shapes, the stored options, and the times and step of
+ * the frames (finite, in order). Then the frame is read collectively through
+ * PetscViewerHDF5, in natural lattice order, so the restart may use any number of
+ * ranks, and checked to be finite. */
 #include <output.h>
 #include <drape.h>
 #include <petscviewerhdf5.h>
 
-/* Number of complete frames (the shortest of the per-frame datasets) and the
- * stored options; rank 0 only. *why is set when the file is unusable. */
-static PetscErrorCode RestartInspect(const char file[], PetscInt *nframes, char **options, const char **why)
+/* What rank 0 found in the file; why is set when it is unusable. */
+typedef struct {
+  PetscInt    nframes, Mx, My;
+  PetscReal   step;  /* of the last complete frame          */
+  PetscReal  *times; /* of the complete frames (caller frees) */
+  char       *options;
+  const char *why;
+} RestartInfo;
+
+/* Rank of dataset `name` and its dimensions (at most 4); -1 if it is missing or not
+ * a dataset of floating-point numbers. */
+static int DatasetShape(hid_t fid, const char *name, hsize_t dims[4])
+{
+  hid_t did, sid, tid;
+  int   ndims = -1;
+
+  if (H5Lexists(fid, name, H5P_DEFAULT) <= 0 || (did = H5Dopen2(fid, name, H5P_DEFAULT)) < 0) return -1;
+  if ((tid = H5Dget_type(did)) >= 0) {
+    if (H5Tget_class(tid) == H5T_FLOAT && (sid = H5Dget_space(did)) >= 0) {
+      ndims = H5Sget_simple_extent_ndims(sid);
+      if (ndims < 0 || ndims > 4 || H5Sget_simple_extent_dims(sid, dims, NULL) < 0) ndims = -1;
+      H5Sclose(sid);
+    }
+    H5Tclose(tid);
+  }
+  H5Dclose(did);
+  return ndims;
+}
+
+/* Read rows [first, first + n) of a [frames][1] dataset. */
+static herr_t ReadColumn(hid_t fid, const char *name, hsize_t first, hsize_t n, double *buf)
+{
+  hsize_t start[2] = {first, 0}, count[2] = {n, 1};
+  hid_t   did, fs, ms;
+  herr_t  status = -1;
+
+  if ((did = H5Dopen2(fid, name, H5P_DEFAULT)) < 0) return -1;
+  if ((fs = H5Dget_space(did)) >= 0) {
+    if ((ms = H5Screate_simple(2, count, NULL)) >= 0) {
+      if (H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, NULL, count, NULL) >= 0) status = H5Dread(did, H5T_NATIVE_DOUBLE, ms, fs, H5P_DEFAULT, buf);
+      H5Sclose(ms);
+    }
+    H5Sclose(fs);
+  }
+  H5Dclose(did);
+  return status;
+}
+
+static PetscErrorCode RestartInspectFile(hid_t fid, RestartInfo *r)
 {
   const char *const sets[] = {"time", "step", "position", "velocity"};
-  hid_t             fid, aid, tid;
-  htri_t            ok;
+  hsize_t           dims[4][4];
+  hid_t             aid, tid;
 
   PetscFunctionBeginUser;
-  *nframes = 0;
-  *options = NULL;
-  *why     = NULL;
+  if (H5Aexists(fid, "drape_version") <= 0 || H5Aexists(fid, "options") <= 0) {
+    r->why = "it was not written by drape (no drape_version or options attribute)";
+    PetscFunctionReturn(0);
+  }
+  r->nframes = PETSC_MAX_INT;
+  for (PetscInt k = 0; k < 4; k++) {
+    int ndims = DatasetShape(fid, sets[k], dims[k]);
+    if (ndims < 0) {
+      r->why     = "it has no frames (a dataset is missing or not numbers)";
+      r->nframes = 0;
+      PetscFunctionReturn(0);
+    }
+    if (ndims != (k < 2 ? 2 : 4) || (k < 2 && dims[k][1] != 1) || (k >= 2 && (dims[k][3] != 3 || dims[k][1] < 2 || dims[k][2] < 2 || dims[k][1] > PETSC_MAX_INT || dims[k][2] > PETSC_MAX_INT))) {
+      r->why = k < 2 ? "its /time or /step dataset is not [frames][1]" : "its /position or /velocity dataset is not [frames][My][Mx][3]";
+      PetscFunctionReturn(0);
+    }
+    r->nframes = PetscMin(r->nframes, (PetscInt) PetscMin(dims[k][0], (hsize_t) PETSC_MAX_INT));
+  }
+  if (dims[2][1] != dims[3][1] || dims[2][2] != dims[3][2]) {
+    r->why = "its /position and /velocity datasets differ in shape";
+    PetscFunctionReturn(0);
+  }
+  r->My = (PetscInt) dims[2][1];
+  r->Mx = (PetscInt) dims[2][2];
+  if (r->nframes < 1) {
+    r->why = "it holds no complete frame";
+    PetscFunctionReturn(0);
+  }
+  /* the options the run was made with: a fixed-length string, read into the buffer */
+  if ((aid = H5Aopen(fid, "options", H5P_DEFAULT)) < 0 || (tid = H5Aget_type(aid)) < 0) {
+    r->why = "its options attribute cannot be read";
+    if (aid >= 0) H5Aclose(aid);
+    PetscFunctionReturn(0);
+  }
+  if (H5Tget_class(tid) != H5T_STRING || H5Tis_variable_str(tid) != 0 || H5Tget_size(tid) > (1 << 20))
+    r->why = "its options attribute is not a string of drape's options";
+  else {
+    PetscCall(PetscCalloc1(H5Tget_size(tid) + 1, &r->options));
+    if (H5Aread(aid, tid, r->options) < 0)
+      r->why = "its options attribute cannot be read";
+    else if (strstr(r->options, "-options_file") || strstr(r->options, "_yaml"))
+      r->why = "its stored options name an options file, which drape does not follow";
+  }
+  H5Tclose(tid);
+  H5Aclose(aid);
+  if (r->why) PetscFunctionReturn(0);
+  /* times and step of the frames: finite, in order (a restart from t = inf never ends) */
+  PetscCall(PetscMalloc1(r->nframes, &r->times));
+  if (ReadColumn(fid, "time", 0, (hsize_t) r->nframes, r->times) < 0 || ReadColumn(fid, "step", (hsize_t) r->nframes - 1, 1, &r->step) < 0) {
+    r->why = "its /time or /step dataset cannot be read (the file is damaged)";
+    PetscFunctionReturn(0);
+  }
+  for (PetscInt k = 0; k < r->nframes; k++) {
+    if (!(r->times[k] >= 0 && r->times[k] <= 1e12) || (k && r->times[k] < r->times[k - 1])) {
+      r->why = "the times of its frames are not finite, in order, from 0 to 1e12 s (the file is damaged or not drape's)";
+      PetscFunctionReturn(0);
+    }
+  }
+  if (!(r->step >= 0 && r->step <= PETSC_MAX_INT && r->step == PetscFloorReal(r->step))) r->why = "the step of its last frame is not a whole number from 0 to the largest PetscInt (the file is damaged or not drape's)";
+  PetscFunctionReturn(0);
+}
+
+/* Rank 0 only. */
+static PetscErrorCode RestartInspect(const char file[], RestartInfo *r)
+{
+  hid_t          fid;
+  PetscBool      isdir;
+  PetscErrorCode ierr;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscMemzero(r, sizeof *r));
   H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+  PetscCall(PetscTestDirectory(file, 'r', &isdir));
+  if (isdir) {
+    r->why = "it is a directory";
+    PetscFunctionReturn(0);
+  }
   {
     FILE *fp = fopen(file, "rb");
     if (!fp) {
-      *why = "it does not exist or cannot be read";
+      r->why = "it does not exist or cannot be read";
       PetscFunctionReturn(0);
     }
     fclose(fp);
   }
-  ok = H5Fis_hdf5(file);
-  if (ok <= 0) {
-    *why = "it is not an HDF5 file";
+  if (H5Fis_hdf5(file) <= 0) {
+    r->why = "it is not an HDF5 file";
     PetscFunctionReturn(0);
   }
   fid = H5Fopen(file, H5F_ACC_RDONLY, H5P_DEFAULT);
   if (fid < 0) {
-    *why = "it is damaged or truncated (HDF5 cannot open it)";
+    r->why = "it is damaged or truncated (HDF5 cannot open it)";
     PetscFunctionReturn(0);
   }
-  if (H5Aexists(fid, "drape_version") <= 0 || H5Aexists(fid, "options") <= 0) {
-    *why = "it was not written by drape (no drape_version or options attribute)";
-    H5Fclose(fid);
-    PetscFunctionReturn(0);
-  }
-  *nframes = PETSC_MAX_INT;
-  for (PetscInt k = 0; k < 4; k++) {
-    hid_t   did, sid;
-    hsize_t dims[4];
-    if (H5Lexists(fid, sets[k], H5P_DEFAULT) <= 0 || (did = H5Dopen2(fid, sets[k], H5P_DEFAULT)) < 0) {
-      *why     = "it has no frames (a dataset is missing)";
-      *nframes = 0;
-      H5Fclose(fid);
-      PetscFunctionReturn(0);
-    }
-    sid = H5Dget_space(did);
-    if (H5Sget_simple_extent_dims(sid, dims, NULL) < 1) dims[0] = 0;
-    *nframes = PetscMin(*nframes, (PetscInt) dims[0]);
-    H5Sclose(sid);
-    H5Dclose(did);
-  }
-  if (*nframes < 1) *why = "it holds no complete frame";
-  aid = H5Aopen(fid, "options", H5P_DEFAULT);
-  tid = H5Aget_type(aid);
-  {
-    size_t n = H5Tget_size(tid);
-    PetscCall(PetscCalloc1(n + 1, options));
-    if (H5Aread(aid, tid, *options) < 0) *why = "its options attribute cannot be read";
-  }
-  H5Tclose(tid);
-  H5Aclose(aid);
+  ierr = RestartInspectFile(fid, r);
   H5Fclose(fid);
+  PetscCall(ierr);
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode RestartInfoDestroy(RestartInfo *r)
+{
+  PetscFunctionBeginUser;
+  PetscCall(PetscFree(r->options));
+  PetscCall(PetscFree(r->times));
+  PetscFunctionReturn(0);
+}
+
+/* Rank 0 inspects the file; every rank learns the verdict and raises it together. */
+static PetscErrorCode RestartCheck(MPI_Comm comm, const char file[], RestartInfo *r)
+{
+  PetscMPIInt rank;
+  char        reason[256] = "";
+
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  PetscCall(PetscMemzero(r, sizeof *r));
+  if (!rank) {
+    PetscCall(RestartInspect(file, r));
+    if (r->why) PetscCall(PetscStrncpy(reason, r->why, sizeof reason));
+  }
+  PetscCallMPI(MPI_Bcast(reason, sizeof reason, MPI_CHAR, 0, comm));
+  if (reason[0]) PetscCall(RestartInfoDestroy(r));
+  PetscCheck(!reason[0], comm, PETSC_ERR_FILE_UNEXPECTED, "Cannot restart from %s: %s", file, reason);
   PetscFunctionReturn(0);
 }
 
 PetscErrorCode RestartInsertOptions(MPI_Comm comm, const char file[])
 {
   PetscMPIInt rank;
-  PetscInt    nframes = 0, len = 0;
-  char       *options = NULL, reason[256] = "";
-  const char *why = NULL;
+  PetscInt    len = 0;
+  RestartInfo r;
   int         argc;
   char      **argv;
 
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  PetscCall(DrapeRegisterInput(file, "restart file"));
+  PetscCall(RestartCheck(comm, file, &r));
   if (!rank) {
-    PetscCall(RestartInspect(file, &nframes, &options, &why));
-    if (why) PetscCall(PetscStrncpy(reason, why, sizeof reason));
-    if (options) {
-      size_t n;
-      PetscCall(PetscStrlen(options, &n));
-      len = (PetscInt) n;
-    }
+    size_t n;
+    PetscCall(PetscStrlen(r.options, &n));
+    len = (PetscInt) n;
   }
-  PetscCallMPI(MPI_Bcast(reason, sizeof reason, MPI_CHAR, 0, comm));
-  PetscCheck(!reason[0], comm, PETSC_ERR_FILE_UNEXPECTED, "Cannot restart from %s: %s", file, reason);
   PetscCallMPI(MPI_Bcast(&len, 1, MPIU_INT, 0, comm));
-  if (rank) PetscCall(PetscCalloc1(len + 1, &options));
-  PetscCallMPI(MPI_Bcast(options, (PetscMPIInt) len + 1, MPI_CHAR, 0, comm));
+  if (rank) PetscCall(PetscCalloc1(len + 1, &r.options));
+  PetscCallMPI(MPI_Bcast(r.options, (PetscMPIInt) len + 1, MPI_CHAR, 0, comm));
   /* the stored run's options, then the command line again: it wins */
-  PetscCall(PetscOptionsInsertString(NULL, options));
+  PetscCall(PetscOptionsInsertString(NULL, r.options));
   PetscCall(PetscGetArgs(&argc, &argv));
   PetscCall(PetscOptionsInsert(NULL, &argc, &argv, NULL));
-  PetscCall(PetscFree(options));
+  PetscCall(RestartInfoDestroy(&r));
   PetscFunctionReturn(0);
 }
 
-/* an HDF5 call on the (already inspected) restart file; a negative return stops
- * the run with the file's name (only rank 0 reads: main aborts the job) */
-#define H5Check(call)                                                                                                                                                                                                                                    \
-  do {                                                                                                                                                                                                                                                   \
-    if ((call) < 0) SETERRQ(PETSC_COMM_SELF, PETSC_ERR_FILE_READ, "Cannot read the restart file %s: %s failed", file, #call);                                                                                                                            \
-  } while (0)
+typedef struct {
+  const char  *file;
+  Cloth        cloth;
+  PetscScalar *x, *v;
+  PetscInt     frame;
+} RestartFrame;
 
-PetscErrorCode RestartLoad(MPI_Comm comm, const char file[], Cloth cloth, PetscScalar *x, PetscScalar *v, PetscReal *t, PetscInt *step, PetscInt *nframes, PetscReal **times)
+static PetscErrorCode RestartReadFrame(void *ctx)
 {
-  PetscMPIInt rank;
-  PetscInt    n = 0, dims[2] = {0, 0};
-  char       *options = NULL;
-  const char *why;
-  PetscViewer viewer;
-  DM          da;
-  Vec         X;
-  ClothInfo   info;
-  PetscReal   stepv = 0;
+  RestartFrame *f = (RestartFrame *) ctx;
+  PetscViewer   viewer;
+  DM            da;
+  Vec           X;
 
   PetscFunctionBeginUser;
-  PetscCallMPI(MPI_Comm_rank(comm, &rank));
-  PetscCall(ClothGetInfo(cloth, &info));
-  if (!rank) {
-    hid_t fid, did, sid;
-    PetscCall(RestartInspect(file, &n, &options, &why));
-    PetscCall(PetscFree(options));
-    PetscCall(PetscMalloc1(n, times));
-    H5Check(fid = H5Fopen(file, H5F_ACC_RDONLY, H5P_DEFAULT));
-    H5Check(did = H5Dopen2(fid, "position", H5P_DEFAULT));
-    H5Check(sid = H5Dget_space(did));
-    {
-      hsize_t d[4];
-      PetscCheck(H5Sget_simple_extent_ndims(sid) == 4, PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED, "Cannot restart from %s: its /position dataset is not [frames][My][Mx][3]", file);
-      H5Check(H5Sget_simple_extent_dims(sid, d, NULL));
-      dims[0] = (PetscInt) d[2];
-      dims[1] = (PetscInt) d[1];
-    }
-    H5Check(H5Sclose(sid));
-    H5Check(H5Dclose(did));
-    {
-      /* /time and /step: [frames][1]; read all times, the last step */
-      PetscReal *buf;
-      PetscCall(PetscMalloc1(PetscMax(n, 1), &buf));
-      H5Check(did = H5Dopen2(fid, "time", H5P_DEFAULT));
-      {
-        hsize_t start[2] = {0, 0}, count[2] = {(hsize_t) n, 1};
-        hid_t   fs, ms;
-        H5Check(fs = H5Dget_space(did));
-        H5Check(ms = H5Screate_simple(2, count, NULL));
-        H5Check(H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, NULL, count, NULL));
-        H5Check(H5Dread(did, H5T_NATIVE_DOUBLE, ms, fs, H5P_DEFAULT, *times));
-        H5Check(H5Sclose(ms));
-        H5Check(H5Sclose(fs));
-      }
-      H5Check(H5Dclose(did));
-      H5Check(did = H5Dopen2(fid, "step", H5P_DEFAULT));
-      {
-        hsize_t start[2] = {(hsize_t) (n - 1), 0}, count[2] = {1, 1};
-        hid_t   fs, ms;
-        H5Check(fs = H5Dget_space(did));
-        H5Check(ms = H5Screate_simple(2, count, NULL));
-        H5Check(H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, NULL, count, NULL));
-        H5Check(H5Dread(did, H5T_NATIVE_DOUBLE, ms, fs, H5P_DEFAULT, buf));
-        stepv = buf[0];
-        H5Check(H5Sclose(ms));
-        H5Check(H5Sclose(fs));
-      }
-      H5Check(H5Dclose(did));
-      PetscCall(PetscFree(buf));
-    }
-    H5Check(H5Fclose(fid));
-  }
-  PetscCallMPI(MPI_Bcast(&n, 1, MPIU_INT, 0, comm));
-  PetscCallMPI(MPI_Bcast(dims, 2, MPIU_INT, 0, comm));
-  PetscCallMPI(MPI_Bcast(&stepv, 1, MPIU_REAL, 0, comm));
-  PetscCheck(dims[0] == info.Mx && dims[1] == info.My, comm, PETSC_ERR_USER_INPUT, "Cannot restart from %s: its lattice is %" PetscInt_FMT " x %" PetscInt_FMT ", this run's is %" PetscInt_FMT " x %" PetscInt_FMT, file, dims[0], dims[1], info.Mx,
-             info.My);
-  if (rank) PetscCall(PetscMalloc1(n, times));
-  PetscCallMPI(MPI_Bcast(*times, (PetscMPIInt) n, MPIU_REAL, 0, comm));
-  *nframes = n;
-  *t       = (*times)[n - 1];
-  *step    = (PetscInt) stepv;
-
-  PetscCall(ClothGetDM(cloth, &da));
+  PetscCall(ClothGetDM(f->cloth, &da));
   PetscCall(DMCreateGlobalVector(da, &X));
-  PetscCall(PetscViewerHDF5Open(comm, file, FILE_MODE_READ, &viewer));
+  PetscCall(PetscViewerHDF5Open(PetscObjectComm((PetscObject) da), f->file, FILE_MODE_READ, &viewer));
   PetscCall(PetscViewerHDF5PushTimestepping(viewer));
-  PetscCall(PetscViewerHDF5SetTimestep(viewer, n - 1));
-  for (PetscInt f = 0; f < 2; f++) {
-    PetscCall(PetscObjectSetName((PetscObject) X, f ? "velocity" : "position"));
+  PetscCall(PetscViewerHDF5SetTimestep(viewer, f->frame));
+  for (PetscInt k = 0; k < 2; k++) {
+    PetscCall(PetscObjectSetName((PetscObject) X, k ? "velocity" : "position"));
     PetscCall(VecLoad(X, viewer));
-    PetscCall(ClothFromDMDA(cloth, X, f ? v : x));
+    PetscCall(ClothFromDMDA(f->cloth, X, k ? f->v : f->x));
   }
   PetscCall(PetscViewerHDF5PopTimestepping(viewer));
   PetscCall(PetscViewerDestroy(&viewer));
   PetscCall(VecDestroy(&X));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode RestartLoad(MPI_Comm comm, const char file[], Cloth cloth, PetscScalar *x, PetscScalar *v, PetscReal *t, PetscInt *step, PetscInt *nframes, PetscReal **times)
+{
+  PetscMPIInt  rank;
+  PetscInt     sizes[3];
+  ClothInfo    info;
+  RestartInfo  r;
+  RestartFrame frame = {.file = file, .cloth = cloth, .x = x, .v = v};
+  char         what[PETSC_MAX_PATH_LEN + 64];
+  PetscBool    finite = PETSC_TRUE;
+
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  PetscCall(ClothGetInfo(cloth, &info));
+  PetscCall(RestartCheck(comm, file, &r));
+  sizes[0] = r.nframes;
+  sizes[1] = r.Mx;
+  sizes[2] = r.My;
+  PetscCallMPI(MPI_Bcast(sizes, 3, MPIU_INT, 0, comm));
+  PetscCallMPI(MPI_Bcast(&r.step, 1, MPIU_REAL, 0, comm));
+  if (sizes[1] != info.Mx || sizes[2] != info.My) PetscCall(RestartInfoDestroy(&r));
+  PetscCheck(sizes[1] == info.Mx && sizes[2] == info.My, comm, PETSC_ERR_USER_INPUT, "Cannot restart from %s: its lattice is %" PetscInt_FMT " x %" PetscInt_FMT ", this run's is %" PetscInt_FMT " x %" PetscInt_FMT, file, sizes[1], sizes[2], info.Mx,
+             info.My);
+  if (rank) PetscCall(PetscMalloc1(sizes[0], &r.times));
+  PetscCallMPI(MPI_Bcast(r.times, (PetscMPIInt) sizes[0], MPIU_REAL, 0, comm));
+  frame.frame = sizes[0] - 1;
+  PetscCall(PetscSNPrintf(what, sizeof what, "Cannot restart from %s: its last frame cannot be read", file));
+  PetscCall(DrapeCollectiveRead(comm, RestartReadFrame, &frame, what));
+  for (PetscInt k = 0; k < 3 * info.nowned; k++) finite = (PetscBool) (finite && !PetscIsInfOrNanScalar(x[k]) && !PetscIsInfOrNanScalar(v[k]));
+  PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &finite, 1, MPIU_BOOL, MPI_LAND, comm));
+  if (!finite) PetscCall(RestartInfoDestroy(&r));
+  PetscCheck(finite, comm, PETSC_ERR_FILE_UNEXPECTED, "Cannot restart from %s: its last frame holds positions or velocities that are not finite", file);
+  *nframes = sizes[0];
+  *t       = r.times[sizes[0] - 1];
+  *step    = (PetscInt) r.step;
+  *times   = r.times; /* the caller's now */
+  r.times  = NULL;
+  PetscCall(RestartInfoDestroy(&r));
   PetscFunctionReturn(0);
 }
