@@ -205,7 +205,13 @@ PetscErrorCode SimulationCreate(MPI_Comm comm, Simulation *sim)
   s->rest_time         = 0.2;
   s->rest_since        = -1;
   s->summary           = PETSC_TRUE;
-  s->progress          = (PetscBool) (isatty(1) && !getenv("CI"));
+  {
+    /* a progress line only on an interactive terminal: Open MPI gives its ranks a pty
+     * even when mpirun's output goes to a batch log, so not under an MPI launcher */
+    PetscMPIInt size;
+    PetscCallMPI(MPI_Comm_size(comm, &size));
+    s->progress = (PetscBool) (size == 1 && isatty(1) && !getenv("CI") && !getenv("OMPI_COMM_WORLD_SIZE") && !getenv("PMI_SIZE") && !getenv("PMIX_RANK") && !getenv("SLURM_STEP_ID"));
+  }
   PetscCall(ClothCreate(comm, &s->cloth));
   PetscCall(SolidCreate(comm, &s->solid));
   PetscCall(OutputCreate(comm, &s->output));
@@ -221,7 +227,16 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
   PetscCall(
     PetscOptionsString("-restart", "Continue the run stored in this drape HDF5 file from its last complete frame (its options apply; the command line overrides them)", "RestartLoad", s->restart, s->restart, sizeof s->restart, &s->have_restart));
   PetscOptionsEnd();
-  if (s->have_restart) PetscCall(RestartInsertOptions(s->comm, s->restart));
+  if (s->have_restart) {
+    PetscBool output_given;
+    PetscCall(DrapeCheckPathLength(s->comm, "-restart", s->restart, sizeof s->restart));
+    PetscCheck(s->restart[0], s->comm, PETSC_ERR_USER_INPUT, "-restart needs a file name");
+    PetscCall(PetscOptionsHasName(NULL, NULL, "-output_file", &output_given));
+    PetscCall(RestartInsertOptions(s->comm, s->restart));
+    /* the frames go on in the file restarted from, not in the file its options name
+     * (a copy's options name the original, which a new run would truncate) */
+    if (!output_given) PetscCall(PetscOptionsSetValue(NULL, "-output_file", s->restart));
+  }
   PetscOptionsBegin(s->comm, NULL, "drape run control", "Simulation");
   PetscCall(PetscOptionsInt("-drape_stability_its", "Power iterations for the Omega_max estimate printed at start-up (0: skip)", "StabilityEstimate", s->stability_its, &s->stability_its, NULL));
   PetscCall(PetscOptionsReal("-drape_divergence_factor", "Stop when the energy exceeds its initial value by this many times the run's energy scale (M g L + initial energy)", "SimulationRun", s->divergence_factor, &s->divergence_factor, NULL));
@@ -237,10 +252,13 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
   }
   PetscCall(PetscOptionsBool("-drape_summary", "One-line summary at the end of the run", "SimulationRun", s->summary, &s->summary, NULL));
   PetscOptionsEnd();
-  PetscCheck(s->stability_its >= 0, s->comm, PETSC_ERR_USER_INPUT, "-drape_stability_its must be zero or positive; got %" PetscInt_FMT, s->stability_its);
-  PetscCheck(s->cusick_radius >= 0, s->comm, PETSC_ERR_USER_INPUT, "-cusick_pedestal_radius must be zero or positive (m); got %g", (double) s->cusick_radius);
-  PetscCheck(s->rest_tol >= 0 && s->rest_time >= 0, s->comm, PETSC_ERR_USER_INPUT, "-drape_rest_tol and -drape_rest_time must be zero or positive");
-  PetscCheck(s->divergence_factor > 0, s->comm, PETSC_ERR_USER_INPUT, "-drape_divergence_factor must be positive; got %g", (double) s->divergence_factor);
+  PetscCall(DrapeCheckInt(s->comm, "-drape_stability_its", s->stability_its, 0, 100000));
+  PetscCall(DrapeCheckReal(s->comm, "-cusick_pedestal_radius", 1, &s->cusick_radius, 0, 1e3, "m (0: no analysis)"));
+  PetscCheck(s->cusick_radius == 0 || s->cusick_radius >= 1e-3, s->comm, PETSC_ERR_USER_INPUT, "-cusick_pedestal_radius must be 0 (no analysis) or from 0.001 to 1000 m; got %g", (double) s->cusick_radius);
+  PetscCall(DrapeCheckReal(s->comm, "-cusick_center", 2, s->cusick_center, -1e4, 1e4, "m"));
+  PetscCall(DrapeCheckReal(s->comm, "-drape_rest_tol", 1, &s->rest_tol, 0, 1e6, "J/kg"));
+  PetscCall(DrapeCheckReal(s->comm, "-drape_rest_time", 1, &s->rest_time, 0, 1e6, "s"));
+  PetscCall(DrapeCheckReal(s->comm, "-drape_divergence_factor", 1, &s->divergence_factor, 1e-12, 1e15, ""));
   PetscCall(ClothSetFromOptions(s->cloth));
   PetscCall(SolidSetFromOptions(s->solid));
   PetscCall(ContactCreate(s->comm, s->solid, &s->contact));
@@ -292,8 +310,20 @@ PetscErrorCode SimulationSetUp(Simulation s)
   PetscCall(VecGetArray(s->U, &u));
   PetscCall(ClothSetInitialState(s->cloth, u, u + s->n));
   if (s->cusick_radius > 0) {
+    PetscReal        box[4] = {-PETSC_MAX_REAL, -PETSC_MAX_REAL, -PETSC_MAX_REAL, -PETSC_MAX_REAL}; /* -xmin, -ymin, xmax, ymax of the flat specimen */
+    const PetscBool *active;
     PetscCheck(2 * s->cusick_radius < PetscMin(info.size[0], info.size[1]), s->comm, PETSC_ERR_USER_INPUT, "-cusick_pedestal_radius %g m leaves no overhang on a %g x %g m specimen: the pedestal must be smaller than the specimen",
                (double) s->cusick_radius, (double) info.size[0], (double) info.size[1]);
+    PetscCall(ClothGetActive(s->cloth, &active));
+    for (PetscInt k = 0; k < s->n / 3; k++)
+      for (PetscInt d = 0; d < 2 && active[k]; d++) {
+        box[d]     = PetscMax(box[d], -PetscRealPart(u[3 * k + d]));
+        box[2 + d] = PetscMax(box[2 + d], PetscRealPart(u[3 * k + d]));
+      }
+    PetscCall(MPIU_Allreduce(MPI_IN_PLACE, box, 4, MPIU_REAL, MPIU_MAX, s->comm));
+    PetscCheck(s->cusick_center[0] - s->cusick_radius > -box[0] && s->cusick_center[0] + s->cusick_radius < box[2] && s->cusick_center[1] - s->cusick_radius > -box[1] && s->cusick_center[1] + s->cusick_radius < box[3], s->comm, PETSC_ERR_USER_INPUT,
+               "The Cusick pedestal (-cusick_center %g,%g, radius %g m) must lie under the flat specimen, which spans [%g, %g] x [%g, %g] m horizontally (the analysis needs a horizontal specimen)", (double) s->cusick_center[0],
+               (double) s->cusick_center[1], (double) s->cusick_radius, (double) -box[0], (double) box[2], (double) -box[1], (double) box[3]);
     PetscCall(PetscMalloc1(s->n, &s->x0));
     PetscCall(PetscArraycpy(s->x0, u, s->n));
   }
@@ -348,9 +378,18 @@ PetscErrorCode SimulationSetUp(Simulation s)
     PetscCall(TSSetStepNumber(s->ts, s->restart_step));
   }
   {
-    PetscReal dt;
+    /* finite, in range, consistent: a run that starts must be able to end */
+    PetscReal dt, t0, tmax;
+    PetscInt  max_steps;
     PetscCall(TSGetTimeStep(s->ts, &dt));
-    PetscCheck(dt > 0, s->comm, PETSC_ERR_USER_INPUT, "-ts_dt must be positive (seconds); got %g", (double) dt);
+    PetscCall(TSGetTime(s->ts, &t0));
+    PetscCall(TSGetMaxTime(s->ts, &tmax));
+    PetscCall(TSGetMaxSteps(s->ts, &max_steps));
+    PetscCall(DrapeCheckReal(s->comm, "-ts_dt", 1, &dt, 1e-15, 1e3, "s"));
+    PetscCall(DrapeCheckReal(s->comm, "-ts_max_time", 1, &tmax, 1e-15, 1e12, "s"));
+    PetscCall(DrapeCheckInt(s->comm, "-ts_max_steps", max_steps, 0, PETSC_MAX_INT));
+    PetscCheck(tmax > t0, s->comm, PETSC_ERR_USER_INPUT, "-ts_max_time %g s is not after the %s time %g s: nothing to do", (double) tmax, s->have_restart ? "restart" : "start", (double) t0);
+    PetscCheck(t0 + dt > t0 && tmax + dt > tmax, s->comm, PETSC_ERR_USER_INPUT, "-ts_dt %g s is too small to advance the time from %g s: time would stand still", (double) dt, (double) t0);
   }
   if (s->contact) {
     PetscCall(VecGetArray(s->U, &u));
