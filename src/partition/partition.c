@@ -8,6 +8,33 @@ const char *const PartitionTypes[] = {"dmda", "metis", "PartitionType", "PARTITI
 /* The 12 interaction neighbours of the paper (Fig. 2): stretch, shear, bending. */
 static const PetscInt stencil[12][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}, {1, 1}, {-1, 1}, {1, -1}, {-1, -1}, {2, 0}, {-2, 0}, {0, 2}, {0, -2}};
 
+/* METIS can leave a part empty on a tiny graph (a 2 x 2 lattice on 2 ranks): a rank
+ * without particles breaks the solvers (an empty block for ICC). Each empty part
+ * takes a vertex of the largest part (there are at least as many vertices as parts). */
+static PetscErrorCode PartitionFillEmpty(idx_t nv, PetscMPIInt nparts, idx_t *part)
+{
+  PetscInt *count;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscCalloc1(nparts, &count));
+  for (idx_t v = 0; v < nv; v++) count[part[v]]++;
+  for (PetscMPIInt p = 0; p < nparts; p++) {
+    PetscMPIInt largest = 0;
+    if (count[p]) continue;
+    for (PetscMPIInt q = 1; q < nparts; q++)
+      if (count[q] > count[largest]) largest = q;
+    for (idx_t v = nv - 1; v >= 0; v--)
+      if (part[v] == largest) {
+        part[v] = p;
+        count[largest]--;
+        count[p]++;
+        break;
+      }
+  }
+  PetscCall(PetscFree(count));
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode PartitionMetis(MPI_Comm comm, PetscInt Mx, PetscInt My, PetscBool (*active)(void *, PetscInt, PetscInt), void *ctx, const PetscInt *weight, PetscInt *owner)
 {
   PetscMPIInt size, rank;
@@ -41,6 +68,7 @@ static PetscErrorCode PartitionMetis(MPI_Comm comm, PetscInt Mx, PetscInt My, Pe
       PetscCheck(status == METIS_OK, PETSC_COMM_SELF, PETSC_ERR_LIB, "METIS_PartGraphKway failed with status %d", status);
     } else
       for (idx_t v = 0; v < nv; v++) part[v] = 0;
+    if (nv >= size) PetscCall(PartitionFillEmpty(nv, size, part));
     /* inactive particles (outside the cloth's outline) do no work: blocks */
     for (PetscInt n = 0; n < N; n++) owner[n] = vertex[n] >= 0 ? (PetscInt) part[vertex[n]] : (PetscInt) ((n * (PetscInt64) size) / N);
     PetscCall(PetscFree5(vertex, xadj, adjncy, part, vwgt));
@@ -53,6 +81,13 @@ PetscErrorCode PartitionOwners(MPI_Comm comm, PartitionType type, DM da, PetscIn
 {
   PetscFunctionBeginUser;
   if (type == PARTITION_METIS) {
+    PetscMPIInt size;
+    PetscInt64  nactive = 0;
+    PetscCallMPI(MPI_Comm_size(comm, &size));
+    for (PetscInt j = 0; j < My; j++)
+      for (PetscInt i = 0; i < Mx; i++) nactive += active(ctx, i, j);
+    PetscCheck(nactive >= size, comm, PETSC_ERR_USER_INPUT, "-cloth_partition metis gives every rank part of the cloth: %d ranks need at least as many active particles, and this cloth has %" PetscInt64_FMT "; run on fewer ranks", (int) size,
+               nactive);
     PetscCall(PartitionMetis(comm, Mx, My, active, ctx, weight, owner));
   } else {
     const PetscInt *lx, *ly;
