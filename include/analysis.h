@@ -13,9 +13,10 @@
 
 /* Rasterise ntri triangles (xy: 6 reals each) on a square grid of half-width
  * `extent` around (cx, cy) with `npixels` per side; return the covered area and,
- * for nbins equal angle bins around (cx, cy), the largest radius covered (0 if none). */
+ * for nbins equal angle bins around (cx, cy), the largest radius covered (0 if none).
+ * Not collective. */
 PETSC_EXTERN PetscErrorCode CusickSilhouette(PetscInt ntri, const PetscReal *xy, const PetscReal c[2], PetscReal extent, PetscInt npixels, PetscReal *area, PetscInt nbins, PetscReal *radius);
-/* Number of folds: prominent maxima of the radius profile (circular). */
+/* Number of folds: prominent maxima of the radius profile (circular). Not collective. */
 PETSC_EXTERN PetscErrorCode CusickCountFolds(PetscInt nbins, const PetscReal *radius, PetscReal prominence, PetscInt *folds);
 /* Drape coefficient and folds of the cloth at x (owned order), against the flat
  * reference x0, for a pedestal of radius r centred at c. Collective. */

@@ -35,40 +35,48 @@ typedef struct {
   PetscReal stretch[2], shear, bend[2]; /* continuum rigidities (see README) */
 } ClothInfo;
 
+/* Create (not collective: nothing is communicated yet), read the -cloth_* and
+ * -da_grid_* options and the outline file, set up (partition, layout, element
+ * lists), view, destroy: Collective. */
 PETSC_EXTERN PetscErrorCode ClothCreate(MPI_Comm, Cloth *);
 PETSC_EXTERN PetscErrorCode ClothSetFromOptions(Cloth);
 PETSC_EXTERN PetscErrorCode ClothSetUp(Cloth);
 PETSC_EXTERN PetscErrorCode ClothDestroy(Cloth *);
 PETSC_EXTERN PetscErrorCode ClothView(Cloth, PetscViewer);
+/* The lattice and material in numbers (global counts are set up collectively by
+ * ClothSetUp). Not collective. */
 PETSC_EXTERN PetscErrorCode ClothGetInfo(Cloth, ClothInfo *);
 /* The lattice DMDA (dof 3), for I/O: VecView/VecLoad of its global vectors are in
- * natural lattice order; fill them with ClothToDMDA. */
+ * natural lattice order; fill them with ClothToDMDA. Not collective. */
 PETSC_EXTERN PetscErrorCode ClothGetDM(Cloth, DM *);
-/* Natural lattice index (j Mx + i) of each owned particle. */
+/* Natural lattice index (j Mx + i) of each owned particle. Not collective. */
 PETSC_EXTERN PetscErrorCode ClothGetNatural(Cloth, const PetscInt **);
-/* A vector in owned-particle order (3 entries per particle, block size 3). */
+/* A vector in owned-particle order (3 entries per particle, block size 3). Collective. */
 PETSC_EXTERN PetscErrorCode ClothCreateVector(Cloth, Vec *);
 /* Owned-order array <-> DMDA global vector (whose VecView/VecLoad are in natural
  * order): a copy for -cloth_partition dmda, a scatter for metis. Collective. */
 PETSC_EXTERN PetscErrorCode ClothToDMDA(Cloth, const PetscScalar *x, Vec Xda);
 PETSC_EXTERN PetscErrorCode ClothFromDMDA(Cloth, Vec Xda, PetscScalar *x);
-/* Lumped particle masses and pin flags, owned-particle order (1 entry each). */
+/* Lumped particle masses and pin flags, owned-particle order (1 entry each). Not
+ * collective. */
 PETSC_EXTERN PetscErrorCode ClothGetMasses(Cloth, const PetscReal **, const PetscBool **);
 
 /* Is lattice particle (i, j) part of the cloth? (-cloth_shape circle cuts the
  * lattice to a disc; the particles outside it stay where they are, take part in
  * no interaction and count in no sum.) */
 PETSC_EXTERN PetscBool ClothIsActive(Cloth, PetscInt i, PetscInt j);
-/* Owned-order active flags. */
+/* Owned-order active flags. ClothIsActive and ClothGetActive: not collective. */
 PETSC_EXTERN PetscErrorCode ClothGetActive(Cloth, const PetscBool **);
 
 /* Work of a particle, from its initial position, for -cloth_partition metis to
- * balance (e.g. contact candidates count more); call before ClothSetUp. */
+ * balance (e.g. contact candidates count more); call before ClothSetUp. Not
+ * collective. */
 PETSC_EXTERN PetscErrorCode ClothSetPartitionWeight(Cloth, PetscInt (*work)(void *, const PetscReal x[3]), void *ctx);
 
-/* Initial state: the flat sheet at rest given by the options. */
+/* Initial state: the flat sheet at rest given by the options. Not collective. */
 PETSC_EXTERN PetscErrorCode ClothSetInitialState(Cloth, PetscScalar *x, PetscScalar *v);
-/* Acceleration a = F(x, v)/m with internal, gravity and damping forces; 0 at pins. */
+/* Acceleration a = F(x, v)/m with internal, gravity and damping forces; 0 at pins.
+ * Collective (ghost exchange), as are the four below. */
 PETSC_EXTERN PetscErrorCode ClothComputeAcceleration(Cloth, const PetscScalar *x, const PetscScalar *v, PetscScalar *a);
 /* Internal force only (no gravity, no damping, pins not zeroed). */
 PETSC_EXTERN PetscErrorCode ClothComputeInternalForce(Cloth, const PetscScalar *x, PetscScalar *f);

@@ -14,5 +14,6 @@ typedef enum {
 PETSC_EXTERN const char *const PartitionTypes[];
 
 /* owner[j * Mx + i] = rank owning lattice particle (i, j), on every rank. weight
- * (may be NULL: all 1) is the work of a particle for METIS's balance. */
+ * (may be NULL: all 1) is the work of a particle for METIS's balance. Collective
+ * (METIS runs on rank 0, which broadcasts the owners). */
 PETSC_EXTERN PetscErrorCode PartitionOwners(MPI_Comm, PartitionType, DM da, PetscInt Mx, PetscInt My, PetscBool (*active)(void *, PetscInt, PetscInt), void *ctx, const PetscInt *weight, PetscInt *owner);

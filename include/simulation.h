@@ -10,12 +10,16 @@
 
 typedef struct _p_Simulation *Simulation;
 
+/* Create; read and check every option (and the input files they name) before any
+ * output file is opened; set up cloth, solid, state and TS; run to the end; destroy.
+ * Collective. */
 PETSC_EXTERN PetscErrorCode SimulationCreate(MPI_Comm, Simulation *);
 PETSC_EXTERN PetscErrorCode SimulationSetFromOptions(Simulation);
 PETSC_EXTERN PetscErrorCode SimulationSetUp(Simulation);
 PETSC_EXTERN PetscErrorCode SimulationRun(Simulation);
 PETSC_EXTERN PetscErrorCode SimulationDestroy(Simulation *);
-/* Was the run stopped by SIGTERM/SIGINT (after writing its last frame)? */
+/* Was the run stopped by SIGTERM/SIGINT (after writing its last frame)? Not
+ * collective. */
 PETSC_EXTERN PetscErrorCode SimulationInterrupted(Simulation, PetscBool *);
 
 /* beuler.c: drape's backward Euler in the paper's form (A dv = b, SNES + KSP CG on
@@ -25,7 +29,7 @@ PETSC_EXTERN PetscErrorCode DrapeTSRegisterBEuler(void);
 PETSC_EXTERN PetscErrorCode TSDrapeGetContactImpulse(TS, PetscReal[3]);
 
 /* stability.c: Omega_max^2 = lambda_max(M^-1 H) by power iteration, and the step
- * limits it implies for the explicit schemes. */
+ * limits it implies for the explicit schemes. Collective. */
 typedef struct {
   PetscReal omega;      /* rad/s                                          */
   PetscReal symplectic; /* largest stable step of symplectic Euler, s     */

@@ -8,7 +8,8 @@
 
 #include <petscsys.h>
 
-/* A closed triangle mesh in a CGAL AABB tree (src/solid/aabb.cxx). */
+/* A closed triangle mesh in a CGAL AABB tree (src/solid/aabb.cxx); each rank holds
+ * its own. Not collective. */
 typedef struct _p_SolidMesh *SolidMesh;
 PETSC_EXTERN PetscErrorCode  SolidMeshCreateFromFile(const char path[], const PetscReal A[9], const PetscReal b[3], SolidMesh *);
 PETSC_EXTERN PetscErrorCode  SolidMeshCreateFromArrays(PetscInt nv, const PetscReal v[], PetscInt nt, const PetscInt t[], const char name[], SolidMesh *);
@@ -22,7 +23,9 @@ typedef struct _p_Solid    *Solid;
 PETSC_EXTERN PetscErrorCode SolidCreate(MPI_Comm, Solid *);
 /* -solid_type, -solid_file, -solid_scale, -solid_rotate, -solid_translate,
  * -solid_size, -solid_radius, -solid_height, -solid_resolution, -solid_plane,
- * -solid_floor */
+ * -solid_floor. SolidSetFromOptions, SolidSetUp (every rank reads the mesh file; a
+ * failure is raised together) and SolidView are collective; SolidCreate,
+ * SolidDestroy and the queries below are not. */
 PETSC_EXTERN PetscErrorCode SolidSetFromOptions(Solid);
 PETSC_EXTERN PetscErrorCode SolidSetUp(Solid);
 PETSC_EXTERN PetscErrorCode SolidView(Solid, PetscViewer);
@@ -50,7 +53,8 @@ typedef enum {
 
 typedef struct _p_Contact  *Contact;
 PETSC_EXTERN PetscErrorCode ContactCreate(MPI_Comm, Solid, Contact *);
-/* -contact_mode, -contact_thickness, -contact_friction */
+/* -contact_mode, -contact_thickness, -contact_friction. ContactSetFromOptions and
+ * ContactView are collective; ContactCreate, ContactDestroy, ContactGetMode are not. */
 PETSC_EXTERN PetscErrorCode ContactSetFromOptions(Contact);
 PETSC_EXTERN PetscErrorCode ContactView(Contact, PetscViewer);
 PETSC_EXTERN PetscErrorCode ContactDestroy(Contact *);
@@ -62,7 +66,8 @@ PETSC_EXTERN PetscErrorCode ContactGetMode(Contact, ContactMode *, PetscReal *fr
  * in contact. Particles outside the solid's box are not queried. h: for schemes
  * whose position update used the new velocity (symplectic and backward Euler),
  * the step, so that the position follows the corrected velocity (a particle held
- * by static friction does not creep); 0 otherwise. */
+ * by static friction does not creep); 0 otherwise. Collective (the deepest
+ * penetration and the count are reduced), as is ContactCheckInitial. */
 PETSC_EXTERN PetscErrorCode ContactProject(Contact, PetscInt n, PetscScalar *x, PetscScalar *v, const PetscReal *mass, const PetscBool *pinned, PetscReal h, PetscReal *depth, PetscInt *ncontact, PetscReal impulse[3]);
 /* Refuse an initial state with particles inside the solid (one sentence). */
 PETSC_EXTERN PetscErrorCode ContactCheckInitial(Contact, PetscInt n, const PetscScalar *x);
