@@ -44,10 +44,13 @@ static const PetscReal error_wait = 5;             /* s: how long failed ranks w
 static PetscErrorCode DrapeErrorHandler(MPI_Comm comm, int line, const char *fun, const char *file, PetscErrorCode n, PetscErrorType p, const char *mess, void *ctx)
 {
   if (p == PETSC_ERROR_INITIAL) {
-    error_is_user = IsUserError(n);
-    if (n == PETSC_ERR_MEM)
-      (void) PetscSNPrintf(error_message, sizeof error_message, "Out of memory (%s bytes): this run needs more memory than the machine gives it; use a smaller lattice, or more nodes",
-                           mess && !strncmp(mess, "Memory requested ", 17) ? mess + 17 : "an allocation of unknown size");
+    /* PETSc 3.18's PetscMallocAlign raises a failed allocation with its caller's line
+     * as the error code and the caller's name as the message: known by where it is raised */
+    const PetscBool memory = (PetscBool) (n == PETSC_ERR_MEM || (fun && (!strcmp(fun, "PetscMallocAlign") || !strcmp(fun, "PetscReallocAlign") || !strcmp(fun, "PetscTrMallocDefault") || !strcmp(fun, "PetscTrReallocDefault"))));
+    error_is_user          = (PetscBool) (memory || IsUserError(n));
+    if (memory)
+      (void) PetscSNPrintf(error_message, sizeof error_message, "Out of memory (an allocation in %s failed): this run needs more memory than the machine gives it; use a smaller lattice, or more nodes",
+                           mess && strncmp(mess, "Memory requested", 16) ? mess : "PETSc");
     else
       (void) PetscStrncpy(error_message, mess ? mess : "(no message)", sizeof error_message);
   }
