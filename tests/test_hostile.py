@@ -1,0 +1,260 @@
+"""Hostile input (issue 12, part 3): every class of bad input a hostile user tried ends
+with one `drape: error:` sentence, a non-zero exit, no traceback, and every file that
+was there before (an earlier output, the inputs) unchanged; runs that used to lose data
+or never end now keep the data and end."""
+import hashlib
+import resource
+import shutil
+import subprocess
+
+import h5py
+import numpy as np
+import pytest
+
+from conftest import DRAPE, ROOT, Frames, mpiexec, run
+
+TINY = ["-da_grid_x", "4", "-da_grid_y", "4", "-ts_max_steps", "2", "-drape_progress", "0"]
+PANEL = (ROOT / "runs/outlines/panel.txt").read_text()
+TETRA = "OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n0 0 {z}\n3 0 2 1\n3 0 1 3\n3 1 2 3\n3 0 3 2\n"
+
+
+def snapshot(directory):
+    """Digest of every file under directory (what must survive a refused run)."""
+    return {str(p.relative_to(directory)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(directory.rglob("*")) if p.is_file()}
+
+
+def refused(res, message, ranks=1):
+    """One `drape: error:` sentence naming the problem, a non-zero exit, no traceback."""
+    out = res.stdout + res.stderr
+    errors = [line for line in res.stderr.splitlines() if line.startswith("drape: error:")]
+    assert res.returncode != 0, out
+    assert len(errors) == 1 and message in errors[0], out
+    assert "PETSC ERROR" not in out and "Traceback" not in out and "HDF5-DIAG" not in out, out
+    if ranks == 1:
+        assert [line for line in res.stderr.splitlines() if line.strip()] == errors, res.stderr
+    return errors[0]
+
+
+def drape(args, cwd, timeout=60, **kwargs):
+    return subprocess.run([str(DRAPE)] + args, capture_output=True, text=True, cwd=cwd, timeout=timeout, **kwargs)
+
+
+# (id, arguments after TINY, message, files to create first)
+CASES = [
+    # data loss with exit 0
+    ("xdmf-over-its-h5", "-output_file run.xmf", "would be overwritten by its own XDMF index", {"run.xmf": "earlier index"}),
+    ("output-is-options-file", "-options_file scene.opts -output_file scene.opts", "the options file this run reads", {"scene.opts": "-cloth_density 0.2\n"}),
+    ("output-is-outline", "-cloth_outline panel.txt -output_file ./panel.txt", "the cloth outline this run reads", {"panel.txt": PANEL}),
+    ("output-is-mesh", "-solid_file tetra.off -cloth_center 0,0,2 -output_file tetra.off", "the solid mesh this run reads", {"tetra.off": TETRA.format(z=1)}),
+    ("xdmf-is-outline", "-cloth_outline run.xmf -output_file run.h5", "XDMF index of -output_file would overwrite run.xmf", {"run.xmf": PANEL}),
+    # crashes
+    ("output-dev-full", "-output_file /dev/full", "not a regular file", {}),
+    ("output-name-245", "-output_file " + "a" * 245 + ".h5", "longer than 200 characters", {}),
+    ("solid-scale-1e300", "-solid_type sphere -solid_scale 1e300", "-solid_scale must be positive and finite", {}),
+    ("mesh-vertex-1e300", "-solid_file tetra.off -cloth_center 0,0,2", "not finite or beyond 1e6 m", {"tetra.off": TETRA.format(z="1e300")}),
+    # hangs that ignored SIGTERM
+    ("output-interval-inf", "-output_interval inf -output_file x.h5", "-output_interval must be zero or positive and finite", {}),
+    # non-finite or absurd numbers
+    ("stretch-1e308", "-cloth_stretch 1e308 -output_file x.h5", "-cloth_stretch must be zero or positive and finite", {}),
+    ("density-inf", "-cloth_density inf -output_file x.h5", "-cloth_density must be positive and finite", {}),
+    ("size-nan", "-cloth_size nan", "-cloth_size must be positive and finite", {}),
+    ("bend-10", "-cloth_bend 10", "-cloth_bend must be", {}),
+    ("damping-inf", "-cloth_damping inf", "-cloth_damping must be", {}),
+    ("gravity-nan", "-gravity 0,0,nan", "-gravity must be finite", {}),
+    ("center-1e308", "-cloth_center 1e308,0,0", "-cloth_center must be finite", {}),
+    ("thickness-inf", "-contact_thickness inf -solid_floor -1", "-contact_thickness must be", {}),
+    ("plane-nan", "-solid_plane 0,0,1,nan", "-solid_plane must be finite", {}),
+    ("plane-far", "-solid_plane 1e-5,0,0,1e3", "-solid_plane puts the plane", {}),
+    ("floor-nan", "-solid_floor nan", "-solid_floor must be finite", {}),
+    ("max-time-negative", "-ts_max_time -3 -output_file x.h5", "-ts_max_time must be positive", {}),
+    ("max-steps-negative", "-ts_max_steps -5 -output_file x.h5", "-ts_max_steps must be zero or positive", {}),
+    ("dt-inf", "-ts_dt inf -output_file x.h5", "-ts_dt must be positive", {}),
+    ("cusick-center-off-specimen", "-cloth_shape circle -cusick_pedestal_radius 0.1 -cusick_center 5,5", "must lie under the flat specimen", {}),
+    ("cusick-radius-1e-200", "-cusick_pedestal_radius 1e-200", "-cusick_pedestal_radius must be 0", {}),
+    ("grid-beyond-petscint", "-da_grid_x 4294967302", "beyond the integers this PETSc build holds", {}),
+    ("pin-beyond-petscint", "-cloth_pin list -cloth_pin_list 4294967297,0", "beyond the integers", {}),
+    ("lattice-100000-squared", "-da_grid_x 100000 -da_grid_y 100000", "lattice", {}),
+    ("rest-tol-nan", "-drape_rest_tol nan", "-drape_rest_tol must be", {}),
+    # PETSc tracebacks instead of a sentence
+    ("max-time-inf", "-ts_max_time inf -output_file x.h5", "-ts_max_time must be positive and finite", {}),
+    ("solid-translate-nan", "-solid_type sphere -solid_translate nan,0,0", "-solid_translate must be finite", {}),
+    ("output-in-proc", "-output_file /proc/drape.h5", "does not exist or is not writable", {}),
+    ("options-file-missing", "-options_file missing.opts", "Cannot read the options file missing.opts: it does not exist", {}),
+    ("options-file-directory", "-options_file .", "it is a directory", {}),
+    ("options-file-garbage", "-options_file bad.opts", "Line 2 of the options file bad.opts", {"bad.opts": "-cloth_density 0.2\nthis is not an option\n"}),
+    ("options-file-binary", "-options_file bin.opts", "not a text file", {"bin.opts": b"\x7fELF\x02\x01\x01\x00\x00\x00"}),
+    ("options-file-includes-itself", "-options_file self.opts", "nested more than 8 deep", {"self.opts": "-options_file self.opts\n"}),
+    ("options-file-two-per-line", "-options_file two.opts", "Line 1 of the options file two.opts", {"two.opts": "-cloth_density 0.2 -cloth_damping 1\n"}),
+    ("options-file-yaml", "-options_file scene.yaml", "YAML", {"scene.yaml": "cloth_density: 0.2\n"}),
+    ("options-file-name-missing", "-options_file", "-options_file needs a file name", {}),
+    # the outline reader
+    ("outline-trailing-text", "-cloth_outline junk.txt", "Line 2 of the outline junk.txt is not 'x y'", {"junk.txt": "0 0\n1 0 junk\n1 1\n"}),
+    ("outline-nan", "-cloth_outline nan.txt", "not finite", {"nan.txt": "0 0\n1 nan\n1 1\n"}),
+]
+
+
+@pytest.mark.parametrize("args,message,files", [c[1:] for c in CASES], ids=[c[0] for c in CASES])
+def test_hostile_input_is_one_sentence_and_loses_nothing(tmp, args, message, files):
+    (tmp / "x.h5").write_bytes(b"earlier results")
+    for name, text in files.items():
+        (tmp / name).write_bytes(text if isinstance(text, bytes) else text.encode())
+    before = snapshot(tmp)
+    res = drape(TINY + args.split(), tmp, timeout=30)
+    refused(res, message)
+    assert snapshot(tmp) == before
+
+
+def test_rank_local_missing_directory_is_one_sentence_not_a_hang(tmp):
+    """Node-local directories: only rank 1's working directory lacks sub/. Every rank
+    checks before anything is opened; the job ends with one sentence naming rank 1."""
+    (tmp / "A" / "sub").mkdir(parents=True)
+    (tmp / "B").mkdir()
+    (tmp / "A" / "sub" / "x.h5").write_bytes(b"earlier results")
+    before = snapshot(tmp)
+    args = [str(DRAPE)] + TINY + ["-output_file", "sub/x.h5"]
+    cmd = mpiexec(1) + ["-wdir", str(tmp / "A")] + args + [":", "-np", "1", "-wdir", str(tmp / "B")] + args
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
+    error = refused(res, "directory sub does not exist or is not writable", ranks=2)
+    assert "(on rank 1)" in error
+    assert snapshot(tmp) == before
+
+
+def test_failure_only_one_rank_sees_aborts_the_job(tmp):
+    """A failure only rank 0 sees (its own bad option): rank 1 waits in a collective
+    operation; rank 0 says why and ends the job with MPI_Abort instead of a hang."""
+    (tmp / "x.h5").write_bytes(b"earlier results")
+    before = snapshot(tmp)
+    good = [str(DRAPE)] + TINY + ["-output_file", "x.h5"]
+    cmd = mpiexec(1) + good + ["-cloth_density", "0"] + [":", "-np", "1"] + good
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=60, cwd=tmp)
+    refused(res, "-cloth_density must be positive", ranks=2)
+    assert snapshot(tmp) == before
+
+
+def test_metis_leaves_no_rank_without_particles():
+    """-cloth_partition metis on a 2 x 2 lattice and 2 ranks left one rank empty, and
+    backward Euler's ICC crashed on its empty block."""
+    res = run("-da_grid_x 2 -da_grid_y 2 -cloth_partition metis -ts_type beuler -ts_dt 1e-3 -ts_max_steps 3", np_=2)
+    assert "metis on 2 ranks, 1 to 3 active particles per rank" in res.stdout
+
+
+def test_metis_refuses_more_ranks_than_particles(tmp):
+    (tmp / "two.txt").write_text("-0.1 -0.1\n0.6 -0.1\n0.6 0.1\n-0.1 0.1\n")  # holds (0, 0) and (0.5, 0)
+    res = subprocess.run(mpiexec(3) + [str(DRAPE), "-da_grid_x", "3", "-da_grid_y", "3", "-cloth_outline", "two.txt", "-cloth_partition", "metis",
+                                       "-ts_max_steps", "1"], capture_output=True, text=True, timeout=60, cwd=tmp)
+    refused(res, "3 ranks need at least as many active particles, and this cloth has 2", ranks=3)
+    assert "MPI_ABORT" not in res.stdout + res.stderr
+
+
+def test_tiny_output_interval_ends(tmp):
+    """-output_interval 1e-15 counted its way to the next frame time forever: now a
+    frame every step, and the run ends."""
+    out = tmp / "tiny.h5"
+    run(f"-da_grid_x 4 -da_grid_y 4 -ts_max_steps 5 -output_interval 1e-15 -output_file {out}", timeout=60)
+    assert len(Frames(out).time) == 6
+
+
+SCENE = "-da_grid_x 5 -da_grid_y 5 -ts_max_time 0.01 -output_interval 0.005"
+
+
+def test_restart_under_another_spelling_continues_the_file(tmp):
+    """-restart r.h5 -output_file ./r.h5 truncated the file it had just read."""
+    subprocess.run([str(DRAPE)] + SCENE.split() + ["-output_file", "r.h5", "-drape_progress", "0"], check=True, capture_output=True, cwd=tmp)
+    first = Frames(tmp / "r.h5")
+    res = drape(["-restart", "r.h5", "-output_file", "./r.h5", "-ts_max_time", "0.02", "-drape_progress", "0"], tmp)
+    assert res.returncode == 0, res.stderr
+    after = Frames(tmp / "r.h5")
+    assert np.allclose(after.time, [0, 0.005, 0.01, 0.015, 0.02])
+    assert np.array_equal(after.x[:3], first.x)
+
+
+def test_restart_from_a_copy_leaves_the_original(tmp):
+    """A copy's stored options name the original file: the restart wrote there
+    (truncating it); now the frames go on in the copy."""
+    subprocess.run([str(DRAPE)] + SCENE.split() + ["-output_file", "orig.h5", "-drape_progress", "0"], check=True, capture_output=True, cwd=tmp)
+    shutil.copy(tmp / "orig.h5", tmp / "copy.h5")
+    digest = hashlib.sha256((tmp / "orig.h5").read_bytes()).hexdigest()
+    res = drape(["-restart", "copy.h5", "-ts_max_time", "0.02", "-drape_progress", "0"], tmp)
+    assert res.returncode == 0, res.stderr
+    assert hashlib.sha256((tmp / "orig.h5").read_bytes()).hexdigest() == digest
+    assert len(Frames(tmp / "copy.h5").time) == 5
+
+
+@pytest.mark.parametrize("damage,message", [
+    ("time-inf", "the times of its frames are not finite"),
+    ("time-nan", "the times of its frames are not finite"),
+    ("time-backwards", "the times of its frames are not finite, in order"),
+    ("step-nan", "the step of its last frame"),
+    ("position-nan", "its last frame holds positions or velocities that are not finite"),
+    ("velocity-shape", "not [frames][My][Mx][3]"),
+    ("options-file", "name an options file"),
+])
+def test_damaged_restart_file_is_refused_naming_it(tmp, damage, message):
+    """A restart whose last time is inf or NaN never ended; others printed HDF5's or
+    PETSc's words without the file's name."""
+    subprocess.run([str(DRAPE)] + SCENE.split() + ["-output_file", "r.h5", "-drape_progress", "0"], check=True, capture_output=True, cwd=tmp)
+    with h5py.File(tmp / "r.h5", "r+") as f:
+        if damage.startswith("time"):
+            t = f["time"][:]
+            t[-1] = {"time-inf": np.inf, "time-nan": np.nan, "time-backwards": -1.0}[damage]
+            f["time"][...] = t
+        elif damage == "step-nan":
+            s = f["step"][:]
+            s[-1] = np.nan
+            f["step"][...] = s
+        elif damage == "position-nan":
+            x = f["position"][:]
+            x[-1, 0, 0, 0] = np.nan
+            f["position"][...] = x
+        elif damage == "velocity-shape":
+            del f["velocity"]
+            f["velocity"] = np.zeros((3, 5, 5, 2))
+        else:
+            f.attrs["options"] = np.bytes_("-options_file /etc/hostname")
+    before = snapshot(tmp)
+    res = drape(["-restart", "r.h5", "-ts_max_time", "0.02", "-drape_progress", "0"], tmp, timeout=30)
+    error = refused(res, message)
+    assert "Cannot restart from r.h5" in error
+    assert snapshot(tmp) == before
+
+
+def test_out_of_memory_is_one_sentence(tmp):
+    """Out of memory (here an address-space limit) ends with one sentence: either the
+    estimate made before allocating, or the allocation that failed."""
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (400 << 20, 400 << 20))
+    for n in (700, 4000):
+        res = drape(["-da_grid_x", str(n), "-da_grid_y", str(n), "-ts_max_steps", "1", "-drape_stability_its", "0", "-drape_progress", "0"], tmp,
+                    preexec_fn=limit)
+        error = refused(res, "")
+        assert "Out of memory" in error or "lattice needs at least" in error, error
+
+
+def test_outline_lines_of_any_length(tmp):
+    """The outline reader read 512-byte pieces: a long comment or indentation changed a
+    valid file. The same polygon with 600 blanks before each vertex and 700-character
+    comments (ending in numbers) gives the same cloth."""
+    lines = []
+    for line in PANEL.splitlines():
+        if line.startswith("#"):
+            lines.append("#" + "x" * 700 + " 0.1 0.2")
+        elif line.strip():
+            lines.append(" " * 600 + line.strip())
+        else:
+            lines.append("")
+    (tmp / "long.txt").write_text("\n".join(lines) + "\n")
+    masses = [run(f"-da_grid_x 21 -da_grid_y 21 -cloth_outline {f} -ts_max_steps 0").value(r"mass (\S+) kg")
+              for f in (tmp / "long.txt", ROOT / "runs/outlines/panel.txt")]
+    assert masses[0] == masses[1]
+
+
+def test_progress_line_stays_out_of_batch_logs():
+    """Open MPI gives its ranks a pty even when mpirun's output goes to a file or pipe:
+    the progress line is off under mpirun unless -drape_progress 1 asks for it."""
+    args = [str(DRAPE), "-da_grid_x", "32", "-da_grid_y", "32", "-ts_max_time", "0.6", "-drape_stability_its", "0"]
+    default = subprocess.run(mpiexec(2) + args, capture_output=True, text=True, timeout=120, cwd=ROOT)
+    forced = subprocess.run(mpiexec(2) + args + ["-drape_progress", "1"], capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert default.returncode == 0 and forced.returncode == 0
+    assert " s left" not in default.stdout  # (text mode reads the line's \r as a newline)
+    assert " s left" in forced.stdout
