@@ -202,7 +202,7 @@ static PetscErrorCode ClothCheckLatticeSize(Cloth c, PetscInt Mx, PetscInt My)
   fits = (PetscBool) (need * local <= node_bytes && need <= process_bytes);
   PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &fits, 1, MPIU_BOOL, MPI_LAND, c->comm));
   PetscCheck(fits, c->comm, PETSC_ERR_USER_INPUT,
-             "A %" PetscInt_FMT " x %" PetscInt_FMT " lattice needs at least %.3g GB per rank (%.3g GB for the %d ranks of a node), more than this machine gives a run (%.3g GB per node%s): use a smaller lattice, or more nodes", Mx, My, need / 1e9,
+             "A %" PetscInt_FMT " x %" PetscInt_FMT " lattice needs at least %.1f GB per rank (%.1f GB on a node running %d ranks), more than this machine gives a run (%.1f GB per node%s): use a smaller lattice, or more nodes", Mx, My, need / 1e9,
              need * local / 1e9, (int) local, node_bytes / 1e9, process_bytes < node_bytes ? ", less per process" : "");
   PetscFunctionReturn(0);
 }
