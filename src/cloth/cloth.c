@@ -274,8 +274,8 @@ PetscErrorCode ClothSetFromOptions(Cloth c)
   c->orientation   = (ClothOrientation) iorient;
   c->exact_hessian = hess == 1 ? PETSC_TRUE : PETSC_FALSE;
 
-  PetscCall(DrapeCheckIntOption(c->comm, "-da_grid_x"));
-  PetscCall(DrapeCheckIntOption(c->comm, "-da_grid_y"));
+  for (const char *const *name = (const char *const[]){"-da_grid_x", "-da_grid_y", "-da_processors_x", "-da_processors_y", "-da_refine", "-da_refine_x", "-da_refine_y", NULL}; *name; name++)
+    PetscCall(DrapeCheckIntOption(c->comm, *name)); /* the DMDA reads these too */
   PetscCheck(c->Mx >= 2 && c->My >= 2, c->comm, PETSC_ERR_USER_INPUT, "The lattice must have at least 2 x 2 particles; got -da_grid_x %" PetscInt_FMT " -da_grid_y %" PetscInt_FMT, c->Mx, c->My);
   PetscCall(ClothCheckLatticeSize(c, c->Mx, c->My));
   /* ranges no real cloth or scene approaches: a typo or a hostile value, not a fabric */

@@ -389,7 +389,7 @@ PetscErrorCode SimulationSetUp(Simulation s)
     PetscCall(DrapeCheckReal(s->comm, "-ts_max_time", 1, &tmax, 1e-15, 1e12, "s"));
     PetscCall(DrapeCheckInt(s->comm, "-ts_max_steps", max_steps, 0, PETSC_MAX_INT));
     PetscCheck(tmax > t0, s->comm, PETSC_ERR_USER_INPUT, "-ts_max_time %g s is not after the %s time %g s: nothing to do", (double) tmax, s->have_restart ? "restart" : "start", (double) t0);
-    PetscCheck(t0 + dt > t0 && tmax + dt > tmax, s->comm, PETSC_ERR_USER_INPUT, "-ts_dt %g s is too small to advance the time from %g s: time would stand still", (double) dt, (double) t0);
+    PetscCheck(t0 + dt > t0 && tmax + dt > tmax, s->comm, PETSC_ERR_USER_INPUT, "-ts_dt %g s is too small to advance the time up to -ts_max_time %g s: time would stand still", (double) dt, (double) tmax);
   }
   if (s->contact) {
     PetscCall(VecGetArray(s->U, &u));
