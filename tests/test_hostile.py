@@ -219,6 +219,19 @@ def test_damaged_restart_file_is_refused_naming_it(tmp, damage, message):
     assert snapshot(tmp) == before
 
 
+def test_restart_whose_time_a_step_cannot_advance_is_refused(tmp):
+    """Restarted at t = 1e6 s with a 1e-12 s step, the time would stand still."""
+    subprocess.run([str(DRAPE)] + SCENE.split() + ["-output_file", "r.h5", "-drape_progress", "0"], check=True, capture_output=True, cwd=tmp)
+    with h5py.File(tmp / "r.h5", "r+") as f:
+        t = f["time"][:]
+        t[-1] = 1e6
+        f["time"][...] = t
+    before = snapshot(tmp)
+    res = drape(["-restart", "r.h5", "-ts_max_time", "2e6", "-ts_dt", "1e-12", "-drape_progress", "0"], tmp, timeout=30)
+    refused(res, "-ts_dt 1e-12 s is too small to advance the time")
+    assert snapshot(tmp) == before
+
+
 def test_out_of_memory_is_one_sentence(tmp):
     """Out of memory (here an address-space limit) ends with one sentence: either the
     estimate made before allocating, or the allocation that failed."""

@@ -386,10 +386,13 @@ PetscErrorCode SimulationSetUp(Simulation s)
     PetscCall(TSGetMaxTime(s->ts, &tmax));
     PetscCall(TSGetMaxSteps(s->ts, &max_steps));
     PetscCall(DrapeCheckReal(s->comm, "-ts_dt", 1, &dt, 1e-15, 1e3, "s"));
-    PetscCall(DrapeCheckReal(s->comm, "-ts_max_time", 1, &tmax, 1e-15, 1e12, "s"));
+    PetscCall(DrapeCheckReal(s->comm, "-ts_max_time", 1, &tmax, 1e-15, 1e30, "s (1e30: no limit but -ts_max_steps)"));
     PetscCall(DrapeCheckInt(s->comm, "-ts_max_steps", max_steps, 0, PETSC_MAX_INT));
     PetscCheck(tmax > t0, s->comm, PETSC_ERR_USER_INPUT, "-ts_max_time %g s is not after the %s time %g s: nothing to do", (double) tmax, s->have_restart ? "restart" : "start", (double) t0);
-    PetscCheck(t0 + dt > t0 && tmax + dt > tmax, s->comm, PETSC_ERR_USER_INPUT, "-ts_dt %g s is too small to advance the time up to -ts_max_time %g s: time would stand still", (double) dt, (double) tmax);
+    {
+      const PetscReal tend = PetscMin(tmax, t0 + (PetscReal) max_steps * dt); /* where the run can get to */
+      PetscCheck(t0 + dt > t0 && tend + dt > tend, s->comm, PETSC_ERR_USER_INPUT, "-ts_dt %g s is too small to advance the time near t = %g s, where this run ends: time would stand still", (double) dt, (double) tend);
+    }
   }
   if (s->contact) {
     PetscCall(VecGetArray(s->U, &u));
