@@ -85,7 +85,11 @@ static PetscErrorCode OutputCheckFile(void *ctx)
       PetscCheck(!access(o->file, W_OK), PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "Cannot write -output_file %s: it exists and is not writable", o->file);
     }
   }
-  PetscCall(PetscSNPrintf(probe, sizeof probe, "%s/.drape-probe-%d-%d", dir, (int) getpid(), (int) rank));
+  {
+    PetscLogDouble now; /* a name no other run on any node picks at this moment */
+    PetscCall(PetscTime(&now));
+    PetscCall(PetscSNPrintf(probe, sizeof probe, "%s/.drape-probe-%d-%d-%.0f", dir, (int) getpid(), (int) rank, 1e6 * now));
+  }
   fp = fopen(probe, "wbx");
   PetscCheck(fp, PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "Cannot write -output_file %s: directory %s does not exist or is not writable (%s)", o->file, dir, strerror(errno));
   {
