@@ -7,9 +7,10 @@
 # command line (a cluster's PETSc module); without PETSC_DIR, pkg-config's `petsc`
 # (Debian: petsc-dev). As PETSc's share/petsc/Makefile.user does, its petsc.pc gives
 # the compilers (its mpicc, mpicxx), the include and link flags and the rpath;
-# drape's own CFLAGS replace PETSc's optimisation flags. HDF5 (drape calls it
-# directly too) is PETSc's, from its petscvariables; METIS is PETSc's when PETSc has
-# it (petscconf.h), else the system's -lmetis; -lgmp -lmpfr only if CGAL uses them.
+# drape's own CFLAGS replace PETSc's optimisation flags. MPI (when PETSc's compilers
+# are not MPI wrappers) and HDF5, which drape calls directly too, are PETSc's, from
+# its petscvariables; METIS is PETSc's when PETSc has it (petscconf.h), else the
+# system's -lmetis; -lgmp -lmpfr only if CGAL uses them.
 # Out of tree, with generated dependencies, in $(BUILD): build/ for the default
 # PETSc, build-<PETSc's path with / as _> for another, so builds never mix objects.
 
@@ -57,12 +58,13 @@ PETSC_METIS := $(call petsc_conf,HAVE_METIS)
 PETSC_STATIC := $(if $(PETSC_PC),$(if $(call petsc_conf,USE_SHARED_LIBRARIES),,--static))
 PETSC_RPATH  := $(call pc,--variable=ldflag_rpath)
 
-DRAPE_CPPFLAGS := -Iinclude $(call pc,--cflags) $(call petsc_var,HDF5_INCLUDE) $(if $(PETSC_METIS),$(call petsc_var,METIS_INCLUDE))
+DRAPE_CPPFLAGS := -Iinclude $(call pc,--cflags) $(call petsc_var,MPI_INCLUDE) $(call petsc_var,HDF5_INCLUDE) $(if $(PETSC_METIS),$(call petsc_var,METIS_INCLUDE))
 DRAPE_CFLAGS   := -std=c11 -Wall -Wextra -Wno-unused-parameter -MMD -MP
 DRAPE_CXXFLAGS := -std=c++17 -frounding-math -Wall -Wextra -Wno-unused-parameter -MMD -MP
 DRAPE_LDFLAGS  := $(call pc,--libs-only-L --libs-only-other $(PETSC_STATIC)) \
                   $(if $(PETSC_RPATH),$(patsubst -L%,$(PETSC_RPATH)%,$(call pc,--libs-only-L $(PETSC_STATIC))))
-DRAPE_LDLIBS   := $(call pc,--libs-only-l $(PETSC_STATIC)) $(call petsc_var,HDF5_LIB) $(if $(PETSC_METIS),$(call petsc_var,METIS_LIB),-lmetis)
+DRAPE_LDLIBS   := $(call pc,--libs-only-l $(PETSC_STATIC)) $(call petsc_var,HDF5_LIB) $(if $(PETSC_METIS),$(call petsc_var,METIS_LIB),-lmetis) \
+                  $(call petsc_var,MPI_LIB)
 # CGAL (header-only) uses GMP and MPFR when their headers are installed; asked once, at the first link
 CGAL_LIBS = $(eval CGAL_LIBS := $(shell printf '\#include <CGAL/config.h>\n\#if defined(CGAL_USE_GMP) && defined(CGAL_USE_MPFR)\n-lgmp -lmpfr\n\#endif\n' | \
               $(CXX) $(DRAPE_CPPFLAGS) -x c++ -E - 2>/dev/null | grep '^-l'))$(CGAL_LIBS)
