@@ -1,28 +1,74 @@
 # drape: build, run and test.
 #   make run    set up what is missing, build, simulate runs/hang.opts, write HDF5 and a PNG
 #   make test   set up what is missing, build, run every test
-# The build reads PETSc's pkg-config data, compiles with mpicc (mpicxx for C++),
-# and builds out of tree in $(BUILD) with generated dependencies.
+#   make check  build and run every test with what is installed (installs nothing)
+#   make all    build only
+# PETSc: the one PETSC_DIR (and PETSC_ARCH) names, from the environment or the
+# command line (a cluster's PETSc module); without PETSC_DIR, pkg-config's `petsc`
+# (Debian: petsc-dev). As PETSc's share/petsc/Makefile.user does, its petsc.pc gives
+# the compilers (its mpicc, mpicxx), the include and link flags and the rpath;
+# drape's own CFLAGS replace PETSc's optimisation flags. MPI (when PETSc's compilers
+# are not MPI wrappers) and HDF5, which drape calls directly too, are PETSc's, from
+# its petscvariables; METIS is PETSc's when PETSc has it (petscconf.h), else the
+# system's -lmetis; -lgmp -lmpfr only if CGAL uses them.
+# Out of tree, with generated dependencies, in $(BUILD): build/ for the default
+# PETSc, build-<PETSc's path with / as _> for another, so builds never mix objects.
 
-BUILD   ?= build
 VENV    ?= .venv
 NP      ?= 2
 OUT     ?= out
 CFLAGS  ?= -O3 -g -fno-math-errno
 CXXFLAGS ?= -O3 -g
+TESTS   ?= tests
 # NATIVE=1 adds -march=native (faster on the build machine, may not run on others)
 ifeq ($(NATIVE),1)
 CFLAGS   += -march=native
 CXXFLAGS += -march=native
 endif
 
-CC  := mpicc
-CXX := mpicxx
-PKGS := petsc hdf5-openmpi
-DRAPE_CPPFLAGS := -Iinclude $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
+DEBIAN_PACKAGES := petsc-dev libmetis-dev libhdf5-openmpi-dev libcgal-dev
+ifdef PETSC_DIR
+PETSC_HOME := $(patsubst %/,%,$(PETSC_DIR)/$(PETSC_ARCH))
+PETSC_PC   := $(firstword $(wildcard $(PETSC_HOME)/lib/pkgconfig/PETSc.pc $(PETSC_HOME)/lib/pkgconfig/petsc.pc))
+PETSC_NAME := PETSc at PETSC_DIR=$(PETSC_DIR) PETSC_ARCH=$(PETSC_ARCH)
+PETSC_FOUND := $(strip $(if $(wildcard $(PETSC_DIR)/lib/pkgconfig/*.pc),PETSC_ARCH='') $(addprefix PETSC_ARCH=,$(sort \
+                 $(patsubst $(PETSC_DIR)/%/lib/pkgconfig/,%,$(dir $(wildcard $(PETSC_DIR)/*/lib/pkgconfig/PETSc.pc $(PETSC_DIR)/*/lib/pkgconfig/petsc.pc))))))
+PETSC_MISSING := drape: no PETSc at PETSC_DIR=$(PETSC_DIR) PETSC_ARCH=$(PETSC_ARCH) (no $(PETSC_HOME)/lib/pkgconfig/petsc.pc); \
+  $(if $(PETSC_FOUND),PETSc builds found under PETSC_DIR: $(PETSC_FOUND),PETSC_DIR must name a configured PETSc and PETSC_ARCH its build (empty for a --prefix install))
+BUILD ?= build-$(subst /,_,$(patsubst /%,%,$(or $(realpath $(PETSC_HOME)),$(abspath $(PETSC_HOME)))))
+else
+PETSC_PC   := $(if $(shell pkg-config --exists petsc 2>/dev/null && echo y),petsc)
+PETSC_NAME := pkg-config's PETSc
+PETSC_MISSING := drape: PETSc not found (pkg-config knows no petsc); set PETSC_DIR and PETSC_ARCH to a PETSc build, or run 'make deps' (Debian: apt-get install $(DEBIAN_PACKAGES))
+BUILD ?= build
+endif
+
+# PETSc's pkg-config data, configuration header and make variables
+pc = $(if $(PETSC_PC),$(shell pkg-config $(1) $(PETSC_PC) 2>/dev/null))
+PETSC_INCDIR := $(call pc,--variable=includedir)
+PETSC_LIBDIR := $(call pc,--variable=libdir)
+petsc_conf = $(if $(PETSC_INCDIR),$(shell grep -qs '^#define PETSC_$(1) 1' $(PETSC_INCDIR)/petscconf.h && echo 1))
+petsc_var  = $(if $(PETSC_LIBDIR),$(shell sed -n 's/^$(1) *= *//p' $(PETSC_LIBDIR)/petsc/conf/petscvariables 2>/dev/null))
+
+CC  := $(or $(call pc,--variable=ccompiler),mpicc)
+CXX := $(or $(call pc,--variable=cxxcompiler),mpicxx)
+PETSC_HDF5  := $(call petsc_conf,HAVE_HDF5)
+PETSC_METIS := $(call petsc_conf,HAVE_METIS)
+# a static PETSc (no PETSC_USE_SHARED_LIBRARIES) also needs the libraries it uses
+PETSC_STATIC := $(if $(PETSC_PC),$(if $(call petsc_conf,USE_SHARED_LIBRARIES),,--static))
+PETSC_RPATH  := $(call pc,--variable=ldflag_rpath)
+
+DRAPE_CPPFLAGS := -Iinclude $(call pc,--cflags) $(call petsc_var,MPI_INCLUDE) $(call petsc_var,HDF5_INCLUDE) $(if $(PETSC_METIS),$(call petsc_var,METIS_INCLUDE))
 DRAPE_CFLAGS   := -std=c11 -Wall -Wextra -Wno-unused-parameter -MMD -MP
 DRAPE_CXXFLAGS := -std=c++17 -frounding-math -Wall -Wextra -Wno-unused-parameter -MMD -MP
-LDLIBS := $(shell pkg-config --libs $(PKGS) 2>/dev/null) -lmetis -lgmp -lmpfr -lm
+DRAPE_LDFLAGS  := $(call pc,--libs-only-L --libs-only-other $(PETSC_STATIC)) \
+                  $(if $(PETSC_RPATH),$(patsubst -L%,$(PETSC_RPATH)%,$(call pc,--libs-only-L $(PETSC_STATIC))))
+DRAPE_LDLIBS   := $(call pc,--libs-only-l $(PETSC_STATIC)) $(call petsc_var,HDF5_LIB) $(if $(PETSC_METIS),$(call petsc_var,METIS_LIB),-lmetis) \
+                  $(call petsc_var,MPI_LIB)
+# CGAL (header-only) uses GMP and MPFR when their headers are installed; asked once, at the first link
+CGAL_LIBS = $(eval CGAL_LIBS := $(shell printf '\#include <CGAL/config.h>\n\#if defined(CGAL_USE_GMP) && defined(CGAL_USE_MPFR)\n-lgmp -lmpfr\n\#endif\n' | \
+              $(CXX) $(DRAPE_CPPFLAGS) -x c++ -E - 2>/dev/null | grep '^-l'))$(CGAL_LIBS)
+LDLIBS = $(DRAPE_LDLIBS) $(CGAL_LIBS) -lm
 
 LIB_C   := $(filter-out src/main.c,$(wildcard src/*.c src/*/*.c))
 LIB_CXX := $(wildcard src/*/*.cxx)
@@ -31,18 +77,38 @@ LINK    := $(if $(LIB_CXX),$(CXX),$(CC))
 UNIT    := $(patsubst tests/unit/%.c,$(BUILD)/tests/%,$(wildcard tests/unit/*.c))
 
 MPIEXEC ?= mpiexec $(if $(filter 0,$(shell id -u)),--allow-run-as-root) --oversubscribe
+# Python for make check: the virtual environment of make venv if there is one
+PYTHON  ?= $(if $(wildcard $(VENV)/bin/python),$(VENV)/bin/python,python3)
+PYTHON_MODULES := numpy h5py matplotlib PIL pytest
 
-.PHONY: all deps venv run test bench format clean check-petsc
-all: check-petsc $(BUILD)/drape $(UNIT)
+.PHONY: all deps venv run test check check-deps check-python config bench format clean
+all: $(BUILD)/drape $(UNIT)
 
-check-petsc:
-	@pkg-config --exists $(PKGS) || { echo "drape: PETSc/HDF5 development files not found by pkg-config; run 'make deps' (Debian: apt-get install petsc-dev libmetis-dev libhdf5-openmpi-dev libcgal-dev)"; exit 1; }
+# what the build takes from PETSc and the system
+config:
+	@echo "PETSc    $(PETSC_NAME): $(or $(PETSC_PC),not found)"
+	@echo "BUILD    $(BUILD)"
+	@echo "CC       $(CC)"
+	@echo "CXX      $(CXX)"
+	@echo "CPPFLAGS $(DRAPE_CPPFLAGS)"
+	@echo "LDFLAGS  $(DRAPE_LDFLAGS)"
+	@echo "LDLIBS   $(LDLIBS)"
 
-$(BUILD)/%.o: %.c
+# What the build needs, in order; the first missing piece stops it with one sentence.
+check-deps:
+	@command -v pkg-config >/dev/null || { echo "drape: pkg-config is missing; install it (Debian: apt-get install pkg-config)"; exit 1; }
+	@test -n "$(PETSC_PC)" || { echo "$(PETSC_MISSING)"; exit 1; }
+	@command -v $(firstword $(CC)) >/dev/null || { echo "drape: the C compiler $(firstword $(CC)) (PETSc's, from its petsc.pc, unless CC=... names another) is not on PATH; load the MPI that PETSc was built with"; exit 1; }
+	@command -v $(firstword $(CXX)) >/dev/null || { echo "drape: the C++ compiler $(firstword $(CXX)) (PETSc's, mpicxx if PETSc names none, or CXX=...) is not on PATH; drape's CGAL part needs one: load the MPI that PETSc was built with or name one with CXX=..."; exit 1; }
+	@test -n "$(PETSC_HDF5)" || { echo "drape: $(PETSC_NAME) has no HDF5 (no PETSC_HAVE_HDF5 in $(PETSC_INCDIR)/petscconf.h), and drape writes through PetscViewerHDF5; configure PETSc with --download-hdf5 or --with-hdf5-dir=DIR"; exit 1; }
+	@printf '#include <metis.h>\n' | $(CC) $(DRAPE_CPPFLAGS) -E - >/dev/null 2>&1 || { echo "drape: METIS not found (no metis.h; $(PETSC_NAME) has no METIS); install it (Debian: apt-get install libmetis-dev) or configure PETSc with --download-metis"; exit 1; }
+	@printf '#include <CGAL/AABB_tree.h>\n' | $(CXX) $(DRAPE_CPPFLAGS) -x c++ -E - >/dev/null 2>&1 || { echo "drape: CGAL not found (no CGAL/AABB_tree.h, or Boost missing); install it (Debian: apt-get install libcgal-dev)"; exit 1; }
+
+$(BUILD)/%.o: %.c | check-deps
 	@mkdir -p $(dir $@)
 	$(CC) $(DRAPE_CPPFLAGS) $(DRAPE_CFLAGS) $(CFLAGS) -c $< -o $@
 
-$(BUILD)/%.o: %.cxx
+$(BUILD)/%.o: %.cxx | check-deps
 	@mkdir -p $(dir $@)
 	$(CXX) $(DRAPE_CPPFLAGS) $(DRAPE_CXXFLAGS) $(CXXFLAGS) -c $< -o $@
 
@@ -50,20 +116,27 @@ $(BUILD)/libdrape.a: $(OBJ)
 	ar rcs $@ $^
 
 $(BUILD)/drape: $(BUILD)/src/main.o $(BUILD)/libdrape.a
-	$(LINK) $(CFLAGS) -o $@ $^ $(LDLIBS)
+	$(LINK) $(CFLAGS) $(DRAPE_LDFLAGS) -o $@ $^ $(LDLIBS)
 
 $(BUILD)/tests/%: $(BUILD)/tests/unit/%.o $(BUILD)/libdrape.a
 	@mkdir -p $(dir $@)
-	$(LINK) $(CFLAGS) -o $@ $^ $(LDLIBS)
+	$(LINK) $(CFLAGS) $(DRAPE_LDFLAGS) -o $@ $^ $(LDLIBS)
 
+# Debian packages; with PETSC_DIR given, all but PETSc's own
 deps:
-	@bash scripts/install-deps.sh
+	@bash scripts/install-deps.sh $(if $(PETSC_DIR),--without-petsc)
 
 $(VENV)/.installed: scripts/requirements.txt
 	@bash scripts/install-deps.sh --python $(VENV)
 	@touch $@
 
 venv: $(VENV)/.installed
+
+check-python:
+	@command -v $(PYTHON) >/dev/null || { echo "drape: the tests need Python 3 ($(PYTHON) not found); install it (Debian: apt-get install python3) or name it with PYTHON=..."; exit 1; }
+	@$(PYTHON) -c 'import importlib.util, sys; m = [n for n in sys.argv[1:] if importlib.util.find_spec(n) is None]; \
+	  m and print("drape: the tests need the Python packages " + ", ".join(m) + " (not found by $(PYTHON)); run make venv (pip installs scripts/requirements.txt into $(VENV)) or install them (Debian: apt-get install " + " ".join("python3-" + n.lower() for n in m) + ")"); \
+	  sys.exit(1 if m else 0)' $(PYTHON_MODULES)
 
 run: deps venv
 	@$(MAKE) --no-print-directory -j$$(nproc) all
@@ -74,11 +147,16 @@ run: deps venv
 
 test: deps venv
 	@$(MAKE) --no-print-directory -j$$(nproc) all
-	DRAPE_BUILD=$(BUILD) $(VENV)/bin/python -m pytest -q tests
+	DRAPE_BUILD=$(BUILD) $(VENV)/bin/python -m pytest -q $(TESTS)
+
+# build and test with what is installed: no apt-get, no pip
+check: check-python
+	@$(MAKE) --no-print-directory -j$$(nproc) all
+	DRAPE_BUILD=$(BUILD) $(PYTHON) -m pytest -q $(TESTS)
 
 bench: deps venv
 	@$(MAKE) --no-print-directory -j$$(nproc) all
-	$(VENV)/bin/python scripts/bench_core.py --out $(OUT)/bench_core.csv
+	DRAPE_BUILD=$(BUILD) $(VENV)/bin/python scripts/bench_core.py --out $(OUT)/bench_core.csv
 
 format:
 	clang-format -i $(wildcard src/*.c src/*/*.c src/*/*.h src/*/*.cxx include/*.h tests/unit/*.c)

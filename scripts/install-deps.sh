@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
 # Install what drape needs on Debian 12, only what is missing.
-#   install-deps.sh            Debian packages (PETSc, Open MPI, HDF5, METIS, CGAL)
-#   install-deps.sh --python D a Python virtual environment D with scripts/requirements.txt
+#   install-deps.sh                 Debian packages (PETSc, Open MPI, HDF5, METIS, CGAL)
+#   install-deps.sh --without-petsc METIS, CGAL and the tools, not PETSc, its MPI and HDF5
+#                                   (PETSC_DIR names another PETSc; nothing without dpkg)
+#   install-deps.sh --petsc64       Debian's PETSc with 64-bit indices (libpetsc64-real3.18-dev)
+#   install-deps.sh --python D      a Python virtual environment D with scripts/requirements.txt
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 
@@ -17,6 +20,15 @@ fi
 # libopenblas0-serial: PETSc's BLAS (vector updates, dense solves) through OpenBLAS
 # instead of the reference BLAS (single-threaded: MPI ranks own the cores)
 packages="petsc-dev libopenblas0-serial libmetis-dev libhdf5-openmpi-dev libcgal-dev pkg-config make g++ clang-format"
+case "${1:-}" in
+  --without-petsc)
+    command -v dpkg >/dev/null || exit 0
+    packages="libmetis-dev libcgal-dev pkg-config make g++ clang-format" ;;
+  --petsc64) packages="libpetsc64-real3.18-dev" ;;
+  "") ;;
+  *) echo "drape: install-deps.sh takes --without-petsc, --petsc64 or --python DIR, not '$1'"; exit 1 ;;
+esac
+command -v dpkg >/dev/null || { echo "drape: no dpkg: this is not a Debian machine; install PETSc (with HDF5), METIS and CGAL yourself and name PETSc with PETSC_DIR and PETSC_ARCH"; exit 1; }
 missing=""
 for p in $packages; do
   dpkg -s "$p" >/dev/null 2>&1 || missing="$missing $p"

@@ -37,12 +37,17 @@ static PetscErrorCode PartitionFillEmpty(idx_t nv, PetscMPIInt nparts, idx_t *pa
 
 static PetscErrorCode PartitionMetis(MPI_Comm comm, PetscInt Mx, PetscInt My, PetscBool (*active)(void *, PetscInt, PetscInt), void *ctx, const PetscInt *weight, PetscInt *owner)
 {
-  PetscMPIInt size, rank;
+  PetscMPIInt size, rank, count;
   PetscInt    N = Mx * My;
 
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_size(comm, &size));
   PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  /* METIS numbers vertices and links with its own idx_t (32 bits in Debian's METIS,
+   * whatever PetscInt is): every rank refuses a graph it cannot number */
+  PetscCheck(12 * (PetscInt64) N <= (PetscInt64) IDX_MAX, comm, PETSC_ERR_SUP,
+             "-cloth_partition metis cannot partition a %" PetscInt_FMT " x %" PetscInt_FMT " lattice: its particle graph (up to 12 links per particle) exceeds METIS's %d-bit indices; use -cloth_partition dmda", Mx, My, IDXTYPEWIDTH);
+  PetscCall(PetscMPIIntCast(N, &count));
   if (!rank) {
     idx_t *vertex, *xadj, *adjncy, *part, *vwgt, nv = 0, ne = 0, ncon = 1, nparts = size, objval, options[METIS_NOPTIONS];
     PetscCall(PetscMalloc5(N, &vertex, N + 1, &xadj, 12 * N + 1, &adjncy, N + 1, &part, N + 1, &vwgt));
@@ -73,7 +78,7 @@ static PetscErrorCode PartitionMetis(MPI_Comm comm, PetscInt Mx, PetscInt My, Pe
     for (PetscInt n = 0; n < N; n++) owner[n] = vertex[n] >= 0 ? (PetscInt) part[vertex[n]] : (PetscInt) ((n * (PetscInt64) size) / N);
     PetscCall(PetscFree5(vertex, xadj, adjncy, part, vwgt));
   }
-  PetscCallMPI(MPI_Bcast(owner, (PetscMPIInt) N, MPIU_INT, 0, comm));
+  PetscCallMPI(MPI_Bcast(owner, count, MPIU_INT, 0, comm));
   PetscFunctionReturn(0);
 }
 
