@@ -1,9 +1,10 @@
 /* The rigid solid the cloth drapes over, and contact with it.
  *
- * A Solid is a set of bodies: closed triangle meshes (read from OFF/OBJ/STL/PLY
- * files with CGAL's I/O, or generated: box, sphere, cylinder), each held in a CGAL
- * AABB tree, and optionally a plane. Queries return the signed distance to the
- * nearest body (positive outside) and the outward normal there. */
+ * A Solid is a body, either a closed triangle mesh (read from an OFF/OBJ/STL/PLY file
+ * with CGAL's I/O and held in a CGAL AABB tree) or a generated primitive (box,
+ * sphere, capped cylinder: exact closed-form distance, no tree), and optionally a
+ * plane. Queries return the signed distance to the nearest of them (positive
+ * outside) and the outward normal there. */
 #pragma once
 
 #include <petscsys.h>
@@ -12,7 +13,6 @@
  * its own. Not collective. */
 typedef struct _p_SolidMesh *SolidMesh;
 PETSC_EXTERN PetscErrorCode  SolidMeshCreateFromFile(const char path[], const PetscReal A[9], const PetscReal b[3], SolidMesh *);
-PETSC_EXTERN PetscErrorCode  SolidMeshCreateFromArrays(PetscInt nv, const PetscReal v[], PetscInt nt, const PetscInt t[], const char name[], SolidMesh *);
 PETSC_EXTERN PetscErrorCode  SolidMeshGetBoundingBox(SolidMesh, PetscReal lo[3], PetscReal hi[3]);
 PETSC_EXTERN PetscErrorCode  SolidMeshGetSize(SolidMesh, PetscInt *nv, PetscInt *nt);
 PETSC_EXTERN PetscErrorCode  SolidMeshGetTriangles(SolidMesh, PetscReal *xyz); /* 9 per triangle */
@@ -53,12 +53,15 @@ typedef enum {
 
 typedef struct _p_Contact  *Contact;
 PETSC_EXTERN PetscErrorCode ContactCreate(MPI_Comm, Solid, Contact *);
-/* -contact_mode, -contact_thickness, -contact_friction. ContactSetFromOptions and
- * ContactView are collective; ContactCreate, ContactDestroy, ContactGetMode are not. */
+/* -contact_mode, -contact_thickness, -contact_friction, -contact_stick_velocity.
+ * ContactSetFromOptions and ContactView are collective; ContactCreate,
+ * ContactDestroy, ContactGetMode are not. */
 PETSC_EXTERN PetscErrorCode ContactSetFromOptions(Contact);
 PETSC_EXTERN PetscErrorCode ContactView(Contact, PetscViewer);
 PETSC_EXTERN PetscErrorCode ContactDestroy(Contact *);
-PETSC_EXTERN PetscErrorCode ContactGetMode(Contact, ContactMode *, PetscReal *friction);
+/* mode, Coulomb coefficient (0 unless friction), sliding speed below which backward
+ * Euler smooths static friction into a viscous force (m/s) */
+PETSC_EXTERN PetscErrorCode ContactGetMode(Contact, ContactMode *, PetscReal *friction, PetscReal *stick_velocity);
 /* After a step: move particles closer than the thickness back onto the contact
  * surface and constrain their velocity by the mode; n particles, 3 entries each,
  * pinned particles skipped. Returns the deepest penetration below the contact
@@ -71,6 +74,9 @@ PETSC_EXTERN PetscErrorCode ContactGetMode(Contact, ContactMode *, PetscReal *fr
 PETSC_EXTERN PetscErrorCode ContactProject(Contact, PetscInt n, PetscScalar *x, PetscScalar *v, const PetscReal *mass, const PetscBool *pinned, PetscReal h, PetscReal *depth, PetscInt *ncontact, PetscReal impulse[3]);
 /* Refuse an initial state with particles inside the solid (one sentence). */
 PETSC_EXTERN PetscErrorCode ContactCheckInitial(Contact, PetscInt n, const PetscScalar *x);
-/* Constraint of local particle l (of nlocal) at x for the implicit solve: 0 free,
- * 1 normal (slides along the surface), 2 fixed (sticky); n the outward normal. */
-PETSC_EXTERN PetscErrorCode ContactConstraint(void *contact, PetscInt l, PetscInt nlocal, const PetscReal x[3], PetscInt *type, PetscReal n[3]);
+/* Distance of owned particle k (of n) at x to the solid, as SolidQuery, through a
+ * per-particle cache shared with ContactProject: a particle that moved less than its
+ * last clearance is not queried again. Where the answer is larger than twice the
+ * contact thickness it may be a lower bound, and the normal is not set. */
+PETSC_EXTERN PetscErrorCode ContactDistance(Contact, PetscInt k, PetscInt n, const PetscReal x[3], PetscReal *dist, PetscReal normal[3]);
+PETSC_EXTERN PetscErrorCode ContactGetThickness(Contact, PetscReal *);

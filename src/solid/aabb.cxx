@@ -86,26 +86,6 @@ PetscErrorCode SolidMeshCreateFromFile(const char path[], const PetscReal A[9], 
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode SolidMeshCreateFromArrays(PetscInt nv, const PetscReal v[], PetscInt nt, const PetscInt t[], const char name[], SolidMesh *mesh)
-{
-  std::unique_ptr<_p_SolidMesh>   m(new _p_SolidMesh);
-  std::vector<Mesh::Vertex_index> vi(nv);
-
-  PetscFunctionBeginUser;
-  try {
-    for (PetscInt i = 0; i < nv; i++) vi[i] = m->mesh.add_vertex(Point(v[3 * i], v[3 * i + 1], v[3 * i + 2]));
-    for (PetscInt f = 0; f < nt; f++) {
-      Mesh::Face_index fi = m->mesh.add_face(vi[t[3 * f]], vi[t[3 * f + 1]], vi[t[3 * f + 2]]);
-      PetscCheck(fi != Mesh::null_face(), PETSC_COMM_SELF, PETSC_ERR_PLIB, "Triangle %" PetscInt_FMT " of the generated %s is not manifold", f, name);
-    }
-  } catch (const std::exception &e) {
-    SETERRQ(PETSC_COMM_SELF, PETSC_ERR_LIB, "CGAL failed to build the %s mesh: %s", name, e.what());
-  }
-  PetscCall(SolidMeshFinish(m.get(), name));
-  *mesh = m.release();
-  PetscFunctionReturn(0);
-}
-
 PetscErrorCode SolidMeshGetBoundingBox(SolidMesh m, PetscReal lo[3], PetscReal hi[3])
 {
   PetscFunctionBeginUser;

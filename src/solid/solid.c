@@ -1,4 +1,6 @@
-/* The rigid solid: bodies from mesh files or generated primitives, and a plane. */
+/* The rigid solid: a body from a mesh file (a CGAL AABB tree) or a generated
+ * primitive (box, sphere, cylinder: exact closed-form distance, no tree; the
+ * triangulated primitive serves pictures only), and a plane. */
 #include <solid.h>
 #include <petscviewer.h>
 #include <drape.h>
@@ -13,15 +15,18 @@ typedef enum {
 static const char *const solid_type_names[] = {"none", "mesh", "box", "sphere", "cylinder", "SolidType", "SOLID_", NULL};
 
 struct _p_Solid {
-  MPI_Comm  comm;
-  SolidType type;
-  char      file[PETSC_MAX_PATH_LEN];
-  PetscReal scale, rotate[3], translate[3], size[3], radius, height;
-  PetscInt  resolution;
-  PetscBool has_plane;
-  PetscReal plane[4]; /* n.x = offset, outside where n.x > offset; n unit */
-  SolidMesh mesh;
-  PetscReal lo[3], hi[3];
+  MPI_Comm   comm;
+  SolidType  type;
+  char       file[PETSC_MAX_PATH_LEN];
+  PetscReal  scale, rotate[3], translate[3], size[3], radius, height;
+  PetscInt   resolution;
+  PetscBool  has_plane;
+  PetscReal  plane[4];     /* n.x = offset, outside where n.x > offset; n unit */
+  SolidMesh  mesh;         /* -solid_type mesh */
+  PetscReal  R[9];         /* primitives: rotation (body to world), with scale and translate */
+  PetscInt   ntri;         /* primitives: triangles for pictures */
+  PetscReal *tri;          /* 9 reals each, world coordinates */
+  PetscReal  lo[3], hi[3]; /* the body's box */
 };
 
 PetscErrorCode SolidCreate(MPI_Comm comm, Solid *solid)
@@ -64,7 +69,7 @@ PetscErrorCode SolidSetFromOptions(Solid s)
   PetscCheck(!set || n == 3, s->comm, PETSC_ERR_USER_INPUT, "-solid_size needs three lengths sx,sy,sz");
   PetscCall(PetscOptionsReal("-solid_radius", "Sphere or cylinder radius (m)", "SolidSetFromOptions", s->radius, &s->radius, NULL));
   PetscCall(PetscOptionsReal("-solid_height", "Cylinder height along z (m), centred at the origin", "SolidSetFromOptions", s->height, &s->height, NULL));
-  PetscCall(PetscOptionsInt("-solid_resolution", "Segments around a generated sphere or cylinder", "SolidSetFromOptions", s->resolution, &s->resolution, NULL));
+  PetscCall(PetscOptionsInt("-solid_resolution", "Segments around a generated sphere or cylinder in pictures (contact uses the exact shape)", "SolidSetFromOptions", s->resolution, &s->resolution, NULL));
   n = 4;
   PetscCall(PetscOptionsRealArray("-solid_plane", "Plane nx,ny,nz,d: the solid fills n.x < d", "SolidSetFromOptions", s->plane, &n, &s->has_plane));
   PetscCheck(!s->has_plane || n == 4, s->comm, PETSC_ERR_USER_INPUT, "-solid_plane needs four numbers nx,ny,nz,d (the solid fills n.x < d)");
@@ -103,8 +108,8 @@ PetscErrorCode SolidSetFromOptions(Solid s)
   PetscFunctionReturn(0);
 }
 
-/* A = Rz Ry Rx * scale */
-static void SolidTransform(const Solid s, PetscReal A[9])
+/* R = Rz Ry Rx: the body's rotation; A = scale R */
+static void SolidRotation(const Solid s, PetscReal R[9])
 {
   const PetscReal d  = PETSC_PI / 180;
   PetscReal       cx = PetscCosReal(s->rotate[0] * d), sx = PetscSinReal(s->rotate[0] * d);
@@ -115,7 +120,62 @@ static void SolidTransform(const Solid s, PetscReal A[9])
   for (PetscInt i = 0; i < 3; i++)
     for (PetscInt j = 0; j < 3; j++) T[3 * i + j] = Ry[3 * i] * Rx[j] + Ry[3 * i + 1] * Rx[3 + j] + Ry[3 * i + 2] * Rx[6 + j];
   for (PetscInt i = 0; i < 3; i++)
-    for (PetscInt j = 0; j < 3; j++) A[3 * i + j] = s->scale * (Rz[3 * i] * T[j] + Rz[3 * i + 1] * T[3 + j] + Rz[3 * i + 2] * T[6 + j]);
+    for (PetscInt j = 0; j < 3; j++) R[3 * i + j] = Rz[3 * i] * T[j] + Rz[3 * i + 1] * T[3 + j] + Rz[3 * i + 2] * T[6 + j];
+}
+
+static void SolidTransform(const Solid s, PetscReal A[9])
+{
+  SolidRotation(s, A);
+  for (PetscInt i = 0; i < 9; i++) A[i] *= s->scale;
+}
+
+/* Signed distance (negative inside) and outward unit normal of the primitive in its
+ * own frame (centred at the origin, cylinder along z), at body point q. */
+static void PrimitiveDistance(const Solid s, const PetscReal q[3], PetscReal *dist, PetscReal n[3])
+{
+  n[0] = n[1] = 0;
+  n[2]        = 1;
+  if (s->type == SOLID_SPHERE) {
+    const PetscReal l = PetscSqrtReal(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
+    *dist             = l - s->radius;
+    if (l > 0)
+      for (PetscInt d = 0; d < 3; d++) n[d] = q[d] / l;
+  } else if (s->type == SOLID_BOX) {
+    PetscReal e[3], out = 0, in = -PETSC_MAX_REAL;
+    PetscInt  axis = 0;
+    for (PetscInt d = 0; d < 3; d++) {
+      e[d] = PetscAbsReal(q[d]) - 0.5 * s->size[d];
+      out += PetscSqr(PetscMax(e[d], 0));
+      if (e[d] > in) in = e[d], axis = d;
+    }
+    if (in > 0) { /* outside: to the nearest point of the box */
+      out   = PetscSqrtReal(out);
+      *dist = out;
+      for (PetscInt d = 0; d < 3; d++) n[d] = (q[d] < 0 ? -1 : 1) * PetscMax(e[d], 0) / out;
+    } else { /* inside: to the nearest face */
+      *dist   = in;
+      n[2]    = 0;
+      n[axis] = q[axis] < 0 ? -1 : 1;
+    }
+  } else { /* capped cylinder along z */
+    const PetscReal rho = PetscSqrtReal(q[0] * q[0] + q[1] * q[1]), er = rho - s->radius, ez = PetscAbsReal(q[2]) - 0.5 * s->height;
+    const PetscReal ur[2] = {rho > 0 ? q[0] / rho : 1, rho > 0 ? q[1] / rho : 0}, sz = q[2] < 0 ? -1 : 1;
+    if (er > 0 || ez > 0) {
+      const PetscReal a = PetscMax(er, 0), b = PetscMax(ez, 0), l = PetscSqrtReal(a * a + b * b);
+      *dist = l;
+      n[0]  = a * ur[0] / l;
+      n[1]  = a * ur[1] / l;
+      n[2]  = b * sz / l;
+    } else if (er > ez) {
+      *dist = er;
+      n[0]  = ur[0];
+      n[1]  = ur[1];
+      n[2]  = 0;
+    } else {
+      *dist = ez;
+      n[2]  = sz;
+    }
+  }
 }
 
 /* Generated primitives, centred at the origin, outward-oriented triangles. */
@@ -229,19 +289,44 @@ PetscErrorCode SolidSetUp(Solid s)
     SolidRead r = {.s = s};
     PetscCall(PetscArraycpy(r.A, A, 9));
     PetscCall(DrapeCollective(s->comm, SolidReadFile, &r));
+    PetscCall(SolidMeshGetBoundingBox(s->mesh, s->lo, s->hi));
   } else {
+    /* a primitive: exact distances (PrimitiveDistance); its triangles for pictures,
+     * and its box from the corners of its own box (the sphere's: exact) */
     PetscInt   nv, nt;
-    PetscReal *v;
+    PetscReal *v, half[3];
     PetscInt  *t;
+    SolidRotation(s, s->R);
     PetscCall(SolidGenerate(s, &nv, &v, &nt, &t));
     for (PetscInt i = 0; i < nv; i++) {
       PetscReal p[3] = {v[3 * i], v[3 * i + 1], v[3 * i + 2]};
       for (PetscInt d = 0; d < 3; d++) v[3 * i + d] = A[3 * d] * p[0] + A[3 * d + 1] * p[1] + A[3 * d + 2] * p[2] + s->translate[d];
     }
-    PetscCall(SolidMeshCreateFromArrays(nv, v, nt, t, solid_type_names[s->type], &s->mesh));
+    s->ntri = nt;
+    PetscCall(PetscMalloc1(9 * nt, &s->tri));
+    for (PetscInt f = 0; f < nt; f++)
+      for (PetscInt c = 0; c < 3; c++)
+        for (PetscInt d = 0; d < 3; d++) s->tri[9 * f + 3 * c + d] = v[3 * t[3 * f + c] + d];
     PetscCall(PetscFree2(v, t));
+    if (s->type == SOLID_BOX)
+      for (PetscInt d = 0; d < 3; d++) half[d] = 0.5 * s->size[d];
+    else {
+      half[0] = half[1] = s->radius;
+      half[2]           = s->type == SOLID_SPHERE ? s->radius : 0.5 * s->height;
+    }
+    for (PetscInt d = 0; d < 3; d++) {
+      s->lo[d] = PETSC_MAX_REAL;
+      s->hi[d] = -PETSC_MAX_REAL;
+    }
+    for (PetscInt c = 0; c < 8; c++) {
+      const PetscReal q[3] = {(c & 1 ? 1 : -1) * half[0], (c & 2 ? 1 : -1) * half[1], (c & 4 ? 1 : -1) * half[2]};
+      for (PetscInt d = 0; d < 3; d++) {
+        const PetscReal x = s->type == SOLID_SPHERE ? s->translate[d] + q[d] * s->scale : s->translate[d] + A[3 * d] * q[0] + A[3 * d + 1] * q[1] + A[3 * d + 2] * q[2];
+        s->lo[d]          = PetscMin(s->lo[d], x);
+        s->hi[d]          = PetscMax(s->hi[d], x);
+      }
+    }
   }
-  PetscCall(SolidMeshGetBoundingBox(s->mesh, s->lo, s->hi));
   PetscFunctionReturn(0);
 }
 
@@ -251,9 +336,10 @@ PetscErrorCode SolidView(Solid s, PetscViewer viewer)
   if (s->mesh) {
     PetscInt nv, nt;
     PetscCall(SolidMeshGetSize(s->mesh, &nv, &nt));
-    PetscCall(PetscViewerASCIIPrintf(viewer, "Solid: %s%s%s, %" PetscInt_FMT " triangles in an AABB tree, box [%g,%g]x[%g,%g]x[%g,%g] m\n", solid_type_names[s->type], s->type == SOLID_MESH ? " " : "", s->type == SOLID_MESH ? s->file : "", nt,
-                                     (double) s->lo[0], (double) s->hi[0], (double) s->lo[1], (double) s->hi[1], (double) s->lo[2], (double) s->hi[2]));
-  }
+    PetscCall(PetscViewerASCIIPrintf(viewer, "Solid: mesh %s, %" PetscInt_FMT " triangles in an AABB tree, box [%g,%g]x[%g,%g]x[%g,%g] m\n", s->file, nt, (double) s->lo[0], (double) s->hi[0], (double) s->lo[1], (double) s->hi[1], (double) s->lo[2],
+                                     (double) s->hi[2]));
+  } else if (s->type != SOLID_NONE)
+    PetscCall(PetscViewerASCIIPrintf(viewer, "Solid: %s (exact distance), box [%g,%g]x[%g,%g]x[%g,%g] m\n", solid_type_names[s->type], (double) s->lo[0], (double) s->hi[0], (double) s->lo[1], (double) s->hi[1], (double) s->lo[2], (double) s->hi[2]));
   if (s->has_plane) PetscCall(PetscViewerASCIIPrintf(viewer, "Solid: plane %g x + %g y + %g z = %g (solid below)\n", (double) s->plane[0], (double) s->plane[1], (double) s->plane[2], (double) s->plane[3]));
   PetscFunctionReturn(0);
 }
@@ -263,6 +349,7 @@ PetscErrorCode SolidDestroy(Solid *solid)
   PetscFunctionBeginUser;
   if (!*solid) PetscFunctionReturn(0);
   if ((*solid)->mesh) PetscCall(SolidMeshDestroy(&(*solid)->mesh));
+  PetscCall(PetscFree((*solid)->tri));
   PetscCall(PetscFree(*solid));
   PetscFunctionReturn(0);
 }
@@ -270,13 +357,13 @@ PetscErrorCode SolidDestroy(Solid *solid)
 PetscErrorCode SolidIsEmpty(Solid s, PetscBool *empty)
 {
   PetscFunctionBeginUser;
-  *empty = (PetscBool) (!s->mesh && !s->has_plane);
+  *empty = (PetscBool) (s->type == SOLID_NONE && !s->has_plane);
   PetscFunctionReturn(0);
 }
 
 PetscBool SolidBoxNear(Solid s, const PetscReal lo[3], const PetscReal hi[3], PetscReal grow)
 {
-  if (s->mesh) {
+  if (s->type != SOLID_NONE) {
     PetscBool apart = PETSC_FALSE;
     for (PetscInt d = 0; d < 3; d++) apart = (PetscBool) (apart || lo[d] > s->hi[d] + grow || hi[d] < s->lo[d] - grow);
     if (!apart) return PETSC_TRUE;
@@ -297,6 +384,16 @@ PetscErrorCode SolidQuery(Solid s, const PetscReal p[3], PetscReal *distance, Pe
   if (s->has_plane) {
     *distance = s->plane[0] * p[0] + s->plane[1] * p[1] + s->plane[2] * p[2] - s->plane[3];
     for (PetscInt d = 0; d < 3; d++) normal[d] = s->plane[d];
+  }
+  if (s->type != SOLID_NONE && s->type != SOLID_MESH) {
+    PetscReal q[3], r[3], dl, nl[3];
+    for (PetscInt d = 0; d < 3; d++) r[d] = (p[d] - s->translate[d]) / s->scale;
+    for (PetscInt d = 0; d < 3; d++) q[d] = s->R[d] * r[0] + s->R[3 + d] * r[1] + s->R[6 + d] * r[2]; /* R^T r */
+    PrimitiveDistance(s, q, &dl, nl);
+    if (s->scale * dl < *distance) {
+      *distance = s->scale * dl;
+      for (PetscInt d = 0; d < 3; d++) normal[d] = s->R[3 * d] * nl[0] + s->R[3 * d + 1] * nl[1] + s->R[3 * d + 2] * nl[2];
+    }
   }
   if (s->mesh) {
     PetscReal c[3], e[3], l;
@@ -327,6 +424,11 @@ PetscErrorCode SolidGetTriangles(Solid s, PetscInt *ntri, PetscReal **xyz)
   PetscFunctionBeginUser;
   *ntri = 0;
   *xyz  = NULL;
+  if (s->tri) {
+    *ntri = s->ntri;
+    PetscCall(PetscMalloc1(9 * s->ntri, xyz));
+    PetscCall(PetscArraycpy(*xyz, s->tri, 9 * s->ntri));
+  }
   if (!s->mesh) PetscFunctionReturn(0);
   PetscCall(SolidMeshGetSize(s->mesh, NULL, ntri));
   PetscCall(PetscMalloc1(9 * *ntri, xyz));
