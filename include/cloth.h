@@ -17,6 +17,7 @@ typedef struct _p_Cloth *Cloth;
 /* Internal energy split by kind, plus kinetic and gravitational energy. */
 typedef struct {
   PetscReal kinetic, gravity, stretch, shear, bend;
+  PetscReal strain_max;       /* largest stretch of any lattice edge, (l - L)/L          */
   PetscReal contact_depth;    /* deepest penetration corrected since the last frame, m */
   PetscInt  contact_count;    /* particles in contact after the last step            */
   PetscReal contact_force[3]; /* mean force of the solid on the cloth since the last frame, N */
@@ -89,15 +90,25 @@ PETSC_EXTERN PetscErrorCode ClothApplyHessian(Cloth, const PetscScalar *x, const
 PETSC_EXTERN PetscErrorCode ClothCreateMatrix(Cloth, MatType, Mat *);
 /* J = a M + b H(x); pinned particles get m*I on the diagonal and nothing else. */
 PETSC_EXTERN PetscErrorCode ClothAssembleMatrix(Cloth, const PetscScalar *x, PetscReal a, PetscReal b, Mat J);
+/* The 3x3 diagonal blocks H_kk (owned particles, 9 each, row-major) of the Hessian
+ * that the last ClothAssembleMatrix used, before any constraint filtered them;
+ * NULL before the first assembly. */
+PETSC_EXTERN PetscErrorCode ClothGetHessianDiagonal(Cloth, const PetscReal **);
 
-/* Contact constraints of the implicit solve. fn(ctx, x, &type, n) tells whether a
- * particle at x is free (0), may only slide along a surface of outward normal n (1),
- * or is held fixed (2). ClothUpdateConstraints evaluates it for every local
- * particle at positions x (owned order); ClothAssembleMatrix then returns
- * S J S + (I - S) M with S the per-particle projector onto the free directions,
- * which stays SPD. */
-PETSC_EXTERN PetscErrorCode ClothSetConstraintFunction(Cloth, PetscErrorCode (*fn)(void *, PetscInt, PetscInt, const PetscReal *, PetscInt *, PetscReal *), void *ctx, PetscReal friction);
-PETSC_EXTERN PetscErrorCode ClothUpdateConstraints(Cloth, const PetscScalar *x, PetscBool *any);
-/* Owned-order constraint type and normal arrays (NULL when there is no function),
- * and the Coulomb coefficient of sliding contacts (0: frictionless). */
-PETSC_EXTERN PetscErrorCode ClothGetConstraints(Cloth, const PetscInt **type, const PetscReal **normal, PetscReal *friction);
+/* Contact constraints of the implicit solve, one per owned particle: free, sliding
+ * (only the motion along a surface of outward unit normal n is free) or fixed.
+ * ClothAssembleMatrix then returns S J S + (I - S) D, with S the per-particle
+ * projector onto the free directions (I, I - n n^T or 0) and D the mean diagonal of
+ * the particle's unconstrained block of J (ClothGetConstraintScale), which stays
+ * SPD and as well scaled as J; block (may be NULL; owned, 9 each, symmetric PSD in
+ * the tangent plane) is added to a sliding particle's diagonal block (friction).
+ * type == NULL removes every constraint. Collective (ghost particles learn their
+ * owner's). */
+typedef enum {
+  CLOTH_FREE,
+  CLOTH_SLIDE,
+  CLOTH_FIXED
+} ClothConstraint;
+PETSC_EXTERN PetscErrorCode ClothSetConstraints(Cloth, const ClothConstraint type[], const PetscReal normal[], const PetscReal block[]);
+/* d of owned particle k for J = a M + b H at the last assembly (m before any). */
+PETSC_EXTERN PetscErrorCode ClothGetConstraintScale(Cloth, PetscReal a, PetscReal b, PetscInt k, PetscReal *d);

@@ -7,6 +7,7 @@
 
 #include <petscts.h>
 #include <cloth.h>
+#include <solid.h>
 
 typedef struct _p_Simulation *Simulation;
 
@@ -22,11 +23,24 @@ PETSC_EXTERN PetscErrorCode SimulationDestroy(Simulation *);
  * collective. */
 PETSC_EXTERN PetscErrorCode SimulationInterrupted(Simulation, PetscBool *);
 
-/* beuler.c: drape's backward Euler in the paper's form (A dv = b, SNES + KSP CG on
- * an assembled MATAIJ), registered as TS type "beuler". The Cloth must be composed
- * on the TS as a PetscContainer named "drape_cloth". */
-PETSC_EXTERN PetscErrorCode DrapeTSRegisterBEuler(void);
-PETSC_EXTERN PetscErrorCode TSDrapeGetContactImpulse(TS, PetscReal[3]);
+/* drapebe.c: drape's backward Euler in the paper's form (scheme 4: A dv = b, SNES +
+ * KSP CG on an assembled matrix, contact as constraints of the step), the TS type
+ * "drapebe". DrapeTSRegister() registers it; TSDrapeBESetCloth() gives it the cloth
+ * (required) and TSDrapeBESetContact() the contact with the solid (none: no
+ * contact). The setters and getters do nothing on TS of other types (the impulse and
+ * statistics are then zero). */
+#define TSDRAPEBE "drapebe"
+PETSC_EXTERN PetscErrorCode DrapeTSRegister(void);
+PETSC_EXTERN PetscErrorCode TSDrapeBESetCloth(TS, Cloth);
+PETSC_EXTERN PetscErrorCode TSDrapeBESetContact(TS, Contact);
+/* Omega_max of the cloth at the start (rad/s): with (h Omega_max)^2 the default
+ * preconditioner is chosen (block Jacobi/ICC or algebraic multigrid); without it
+ * the TS estimates Omega_max itself. */
+PETSC_EXTERN PetscErrorCode TSDrapeBESetStiffness(TS, PetscReal);
+/* Impulse (N s) the contact constraints gave this rank's particles in the last step. */
+PETSC_EXTERN PetscErrorCode TSDrapeBEGetContactImpulse(TS, PetscReal[3]);
+/* Solves made and steps rejected so far, and the last failed solve in words. */
+PETSC_EXTERN PetscErrorCode TSDrapeBEGetStatistics(TS, PetscInt *solves, PetscInt *rejected, const char **failure);
 
 /* stability.c: Omega_max^2 = lambda_max(M^-1 H) by power iteration, and the step
  * limits it implies for the explicit schemes. Collective. */

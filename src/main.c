@@ -1,7 +1,7 @@
 #define _POSIX_C_SOURCE 200809L /* unsetenv */
 static const char help[] = "drape: how a fabric falls, hangs and drapes, by the particle method (Landovsky).\n"
                            "Usage: mpirun -np N ./build/drape -options_file runs/hang.opts [options]\n"
-                           "Integrators: -ts_type euler | basicsymplectic | beuler | rk | ssp. See README.md.\n\n";
+                           "Integrators: -ts_type euler | basicsymplectic | drapebe | rk | ssp. See README.md.\n\n";
 
 #include <drape.h>
 #include <simulation.h>

@@ -684,7 +684,8 @@ PetscErrorCode ClothDestroy(Cloth *cloth)
     PetscCall(PetscFree4(c->owned_local, c->mass, c->pinned, c->active));
     PetscCall(PetscFree3(c->row_map, c->col_map, c->pinned_local));
     PetscCall(PetscFree2(c->natural, c->global));
-    PetscCall(PetscFree4(c->ctype, c->ctype_owned, c->cnormal, c->cnormal_owned));
+    PetscCall(PetscFree3(c->ctype, c->cnormal, c->cblock));
+    PetscCall(PetscFree(c->hdiag));
     PetscCall(PetscFree(c->map));
     PetscCall(PetscFree(c->map_diag));
     PetscCall(PetscFree6(c->rb_start, c->rb_ncols, c->rb_colstart, c->rb_cols, c->rb_map, c->rb_diag));

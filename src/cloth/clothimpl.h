@@ -87,13 +87,12 @@ struct _p_Cloth {
   ClothElements stretch_el, shear_el, bend_el;
   PetscInt      nstretch, nshear, nbend, npinned; /* global counts            */
   PetscReal     total_mass;
-  /* contact constraints of the implicit solve: 0 free, 1 normal, 2 fixed */
-  PetscErrorCode (*constraint)(void *, PetscInt, PetscInt, const PetscReal *, PetscInt *, PetscReal *);
-  void      *constraint_ctx;
-  PetscReal  friction;
-  PetscInt  *ctype, *ctype_owned;     /* local, owned             */
-  PetscReal *cnormal, *cnormal_owned; /* local, owned (3 each)    */
-  PetscBool  constrained;             /* any on this rank         */
+  /* contact constraints of the implicit solve (ClothSetConstraints), local particles */
+  ClothConstraint *ctype;
+  PetscReal       *cnormal;     /* 3 each */
+  PetscReal       *cblock;      /* owned: added to a sliding particle's diagonal block, 9 each */
+  PetscBool        constrained; /* any local particle constrained */
+  PetscReal       *hdiag;       /* diagonal blocks of the Hessian at the last assembly (owned, 9 each) */
   /* fast AIJ assembly (forces.c): CSR value positions for map_mat */
   Mat       map_mat;
   PetscInt *map, *map_diag, map_nnzA;

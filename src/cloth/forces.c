@@ -149,7 +149,7 @@ PetscErrorCode ClothComputeEnergies(Cloth c, const PetscScalar *x, const PetscSc
 {
   const ClothElements *st = &c->stretch_el, *sh = &c->shear_el, *be = &c->bend_el;
   const PetscScalar   *xl;
-  PetscReal            local[5] = {0, 0, 0, 0, 0}, sum[5];
+  PetscReal            local[5] = {0, 0, 0, 0, 0}, sum[5], strain = -1;
 
   PetscFunctionBeginUser;
   PetscCall(PetscLogEventBegin(drape_log.energies, 0, 0, 0, 0));
@@ -161,14 +161,19 @@ PetscErrorCode ClothComputeEnergies(Cloth c, const PetscScalar *x, const PetscSc
     }
   }
   PetscCall(ClothScatterPositions(c, x, &xl));
-  for (PetscInt e = 0; e < st->n; e++)
-    if (st->own[e]) local[2] += KernelStretch(xl + 3 * st->p[2 * e], xl + 3 * st->p[2 * e + 1], ElemCoef(st, e), ElemRest(st, e), NULL, NULL, PETSC_FALSE);
+  for (PetscInt e = 0; e < st->n; e++) {
+    const PetscReal *a = xl + 3 * st->p[2 * e], *b = xl + 3 * st->p[2 * e + 1], L = ElemRest(st, e);
+    if (!st->own[e]) continue;
+    local[2] += KernelStretch(a, b, ElemCoef(st, e), L, NULL, NULL, PETSC_FALSE);
+    strain = PetscMax(strain, PetscSqrtReal(PetscSqr(b[0] - a[0]) + PetscSqr(b[1] - a[1]) + PetscSqr(b[2] - a[2])) / L - 1);
+  }
   for (PetscInt e = 0; e < sh->n; e++)
     if (sh->own[e]) local[3] += KernelAngle(KERNEL_SHEAR, xl + 3 * sh->p[3 * e], xl + 3 * sh->p[3 * e + 1], xl + 3 * sh->p[3 * e + 2], ElemCoef(sh, e), NULL, NULL, PETSC_FALSE);
   for (PetscInt e = 0; e < be->n; e++)
     if (be->own[e]) local[4] += KernelAngle(KERNEL_BEND, xl + 3 * be->p[3 * e], xl + 3 * be->p[3 * e + 1], xl + 3 * be->p[3 * e + 2], ElemCoef(be, e), NULL, NULL, PETSC_FALSE);
   PetscCall(ClothEndScatter(c, &xl));
   PetscCall(MPIU_Allreduce(local, sum, 5, MPIU_REAL, MPI_SUM, c->comm));
+  PetscCall(MPIU_Allreduce(&strain, &en->strain_max, 1, MPIU_REAL, MPIU_MAX, c->comm));
   en->kinetic = sum[0];
   en->gravity = sum[1];
   en->stretch = sum[2];
@@ -178,54 +183,43 @@ PetscErrorCode ClothComputeEnergies(Cloth c, const PetscScalar *x, const PetscSc
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode ClothSetConstraintFunction(Cloth c, PetscErrorCode (*fn)(void *, PetscInt, PetscInt, const PetscReal *, PetscInt *, PetscReal *), void *ctx, PetscReal friction)
+PetscErrorCode ClothSetConstraints(Cloth c, const ClothConstraint type[], const PetscReal normal[], const PetscReal block[])
 {
-  PetscFunctionBeginUser;
-  c->friction       = friction;
-  c->constraint     = fn;
-  c->constraint_ctx = ctx;
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode ClothUpdateConstraints(Cloth c, const PetscScalar *x, PetscBool *any)
-{
-  const PetscScalar *xl;
-  PetscInt           count = 0;
+  PetscScalar *buf, *l;
+  PetscInt     count = 0;
 
   PetscFunctionBeginUser;
-  *any = PETSC_FALSE;
-  if (!c->constraint) PetscFunctionReturn(0);
-  if (!c->ctype) PetscCall(PetscMalloc4(c->nlocal, &c->ctype, c->nowned, &c->ctype_owned, 3 * c->nlocal, &c->cnormal, 3 * c->nowned, &c->cnormal_owned));
-  PetscCall(ClothScatterPositions(c, x, &xl));
-  for (PetscInt l = 0; l < c->nlocal; l++) {
-    c->ctype[l] = 0;
-    if (!c->pinned_local[l]) PetscCall(c->constraint(c->constraint_ctx, l, c->nlocal, xl + 3 * l, &c->ctype[l], c->cnormal + 3 * l));
-    count += c->ctype[l] != 0;
+  if (!c->ctype) PetscCall(PetscMalloc3(c->nlocal, &c->ctype, 3 * c->nlocal, &c->cnormal, 9 * c->nowned + 1, &c->cblock));
+  for (PetscInt i = 0; i < 9 * c->nowned; i++) c->cblock[i] = block && type ? block[i] : 0;
+  /* owned values to the ghosts: the normals, then the types (one real each) */
+  PetscCall(PetscMalloc1(3 * c->nowned + 1, &buf));
+  for (PetscInt k = 0; k < c->nowned; k++)
+    for (PetscInt d = 0; d < 3; d++) buf[3 * k + d] = type && type[k] == CLOTH_SLIDE ? normal[3 * k + d] : 0;
+  PetscCall(VecPlaceArray(c->Xg, buf));
+  PetscCall(VecScatterBegin(c->ghost, c->Xg, c->Zl, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterEnd(c->ghost, c->Xg, c->Zl, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecGetArray(c->Zl, &l));
+  PetscCall(PetscArraycpy(c->cnormal, l, 3 * c->nlocal));
+  PetscCall(VecRestoreArray(c->Zl, &l));
+  for (PetscInt k = 0; k < c->nowned; k++) buf[3 * k] = buf[3 * k + 1] = buf[3 * k + 2] = type ? (PetscScalar) type[k] : 0;
+  PetscCall(VecScatterBegin(c->ghost, c->Xg, c->Zl, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterEnd(c->ghost, c->Xg, c->Zl, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecResetArray(c->Xg));
+  PetscCall(VecGetArray(c->Zl, &l));
+  for (PetscInt k = 0; k < c->nlocal; k++) {
+    c->ctype[k] = c->pinned_local[k] ? CLOTH_FREE : (ClothConstraint) (PetscInt) PetscRealPart(l[3 * k]);
+    count += c->ctype[k] != CLOTH_FREE;
   }
-  PetscCall(ClothEndScatter(c, &xl));
-  for (PetscInt k = 0; k < c->nowned; k++) {
-    const PetscInt l  = c->owned_local[k];
-    c->ctype_owned[k] = c->ctype[l];
-    for (PetscInt d = 0; d < 3; d++) c->cnormal_owned[3 * k + d] = c->cnormal[3 * l + d];
-  }
+  PetscCall(VecRestoreArray(c->Zl, &l));
+  PetscCall(PetscFree(buf));
   c->constrained = (PetscBool) (count > 0);
-  PetscCall(MPIU_Allreduce(&c->constrained, any, 1, MPIU_BOOL, MPI_LOR, c->comm));
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode ClothGetConstraints(Cloth c, const PetscInt **type, const PetscReal **normal, PetscReal *friction)
+/* B <- S B (left) or B S (right), S = I - n n^T (sliding) or 0 (fixed); B 3x3 with row stride ld. */
+static inline void ProjectBlock(ClothConstraint type, const PetscReal *n, PetscReal *B, PetscInt ld, PetscBool left)
 {
-  PetscFunctionBeginUser;
-  *friction = c->friction;
-  *type     = c->constraint ? c->ctype_owned : NULL;
-  *normal   = c->constraint ? c->cnormal_owned : NULL;
-  PetscFunctionReturn(0);
-}
-
-/* B <- S B (left) or B S (right), S = I - n n^T (type 1) or 0 (type 2); B 3x3 with row stride ld. */
-static inline void ProjectBlock(PetscInt type, const PetscReal *n, PetscReal *B, PetscInt ld, PetscBool left)
-{
-  if (type == 2) {
+  if (type == CLOTH_FIXED) {
     for (PetscInt i = 0; i < 3; i++) B[ld * i] = B[ld * i + 1] = B[ld * i + 2] = 0;
     return;
   }
@@ -247,8 +241,8 @@ static inline void FilterElementHessian(Cloth c, PetscInt n, const PetscInt *p, 
 {
   const PetscInt m = 3 * n;
   for (PetscInt a = 0; a < n; a++) {
-    const PetscInt t = c->ctype[p[a]];
-    if (!t) continue;
+    const ClothConstraint t = c->ctype[p[a]];
+    if (t == CLOTH_FREE) continue;
     for (PetscInt b = 0; b < n; b++) {
       ProjectBlock(t, c->cnormal + 3 * p[a], H + m * 3 * a + 3 * b, m, PETSC_TRUE);
       ProjectBlock(t, c->cnormal + 3 * p[a], H + m * 3 * b + 3 * a, m, PETSC_FALSE);
@@ -256,19 +250,32 @@ static inline void FilterElementHessian(Cloth c, PetscInt n, const PetscInt *p, 
   }
 }
 
-/* Diagonal mass block of owned particle k: a m S + m (I - S). */
-static inline void MassBlock(Cloth c, PetscInt k, PetscReal a, PetscReal D[9])
+/* Diagonal block of owned particle k besides the Hessian: a m S + d (I - S) (+ the
+ * block of ClothSetConstraints when sliding), with
+ * d = a m + b tr(H_kk)/3 the mean diagonal of its unconstrained block, so that a
+ * constrained row is scaled like its neighbours (m would do for the answer, but at
+ * large steps, h^2 H >> M, it leaves rows a thousand times smaller than the others:
+ * bad for the preconditioners, AMG above all). Pinned particles get m I. */
+static inline void MassBlock(Cloth c, PetscInt k, PetscReal a, PetscReal b, PetscReal D[9])
 {
-  const PetscReal m = c->mass[k];
-  const PetscInt  t = c->pinned[k] ? 2 : (c->constrained ? c->ctype[c->owned_local[k]] : 0);
+  const PetscReal       m = c->mass[k];
+  const ClothConstraint t = c->pinned[k] ? CLOTH_FIXED : (c->constrained ? c->ctype[c->owned_local[k]] : CLOTH_FREE);
+  const PetscReal      *H = c->hdiag + 9 * k, d = c->pinned[k] ? m : a * m + b * (H[0] + H[4] + H[8]) / 3;
 
   for (PetscInt i = 0; i < 9; i++) D[i] = 0;
-  D[0] = D[4] = D[8] = (t == 2 ? 1 : a) * m;
-  if (t == 1) {
-    const PetscReal *n = c->cnormal + 3 * c->owned_local[k];
+  D[0] = D[4] = D[8] = t == CLOTH_FIXED ? d : a * m;
+  if (t == CLOTH_SLIDE) {
+    const PetscReal *n = c->cnormal + 3 * c->owned_local[k], *B = c->cblock + 9 * k;
     for (PetscInt i = 0; i < 3; i++)
-      for (PetscInt j = 0; j < 3; j++) D[3 * i + j] += (1 - a) * m * n[i] * n[j];
+      for (PetscInt j = 0; j < 3; j++) D[3 * i + j] += (d - a * m) * n[i] * n[j] + B[3 * i + j];
   }
+}
+
+PetscErrorCode ClothGetConstraintScale(Cloth c, PetscReal a, PetscReal b, PetscInt k, PetscReal *d)
+{
+  PetscFunctionBeginUser;
+  *d = c->hdiag ? a * c->mass[k] + b * (c->hdiag[9 * k] + c->hdiag[9 * k + 4] + c->hdiag[9 * k + 8]) / 3 : c->mass[k];
+  PetscFunctionReturn(0);
 }
 
 /* Element Hessian (particles p[0..n-1]); H is (3n x 3n) row-major. */
@@ -281,13 +288,26 @@ static inline void ElementHessian(PetscBool project, PetscInt kind, const PetscR
 }
 
 /* The implicit matrix's block of element e of list `kind`: the (projected unless
- * -cloth_hessian exact) Hessian, filtered by the contact constraints. */
+ * -cloth_hessian exact) Hessian, filtered by the contact constraints; its diagonal
+ * blocks before the filter are summed into c->hdiag (owned particles). */
 static inline void MatrixElementHessian(Cloth c, PetscInt kind, const ClothElements *el, PetscInt e, const PetscReal *xl, PetscReal *H)
 {
-  const PetscInt n = kind ? 3 : 2;
+  const PetscInt  n = kind ? 3 : 2, m = 3 * n;
+  const PetscInt *p = el->p + n * e;
 
-  ElementHessian((PetscBool) !c->exact_hessian, kind, xl, el->p + n * e, ElemCoef(el, e), ElemRest(el, e), H);
-  if (c->constrained) FilterElementHessian(c, n, el->p + n * e, H);
+  ElementHessian((PetscBool) !c->exact_hessian, kind, xl, p, ElemCoef(el, e), ElemRest(el, e), H);
+  for (PetscInt a = 0; a < n; a++)
+    if (p[a] < c->nowned)
+      for (PetscInt i = 0; i < 3; i++)
+        for (PetscInt j = 0; j < 3; j++) c->hdiag[9 * p[a] + 3 * i + j] += H[m * (3 * a + i) + 3 * a + j];
+  if (c->constrained) FilterElementHessian(c, n, p, H);
+}
+
+PetscErrorCode ClothGetHessianDiagonal(Cloth c, const PetscReal **hdiag)
+{
+  PetscFunctionBeginUser;
+  *hdiag = c->hdiag;
+  PetscFunctionReturn(0);
 }
 
 PetscErrorCode ClothApplyHessian(Cloth c, const PetscScalar *x, const PetscScalar *z, PetscScalar *y)
@@ -358,7 +378,7 @@ static PetscErrorCode ClothAddToMatrix(Cloth c, const PetscReal *xl, PetscReal a
   }
   for (PetscInt k = 0; k < c->nowned; k++) {
     PetscInt g = c->global[c->owned_local[k]];
-    MassBlock(c, k, a, D);
+    MassBlock(c, k, a, b, D);
     PetscCall(MatSetValuesBlocked(J, 1, &g, 1, &g, D, ADD_VALUES));
   }
   PetscFunctionReturn(0);
@@ -598,7 +618,7 @@ static PetscErrorCode ClothAddToMatrixRows(Cloth c, const PetscReal *xl, PetscRe
   }
   for (PetscInt k = 0; k < c->nowned; k++) {
     const PetscInt ld = 3 * c->rb_ncols[k];
-    MassBlock(c, k, a, D);
+    MassBlock(c, k, a, b, D);
     for (PetscInt i = 0; i < 3; i++)
       for (PetscInt j = 0; j < 3; j++) c->rb_val[c->rb_diag[k] + ld * i + j] += D[3 * i + j];
     PetscCall(MatSetValuesBlocked(J, 1, &c->global[k], c->rb_ncols[k], c->rb_cols + c->rb_colstart[k], c->rb_val + c->rb_start[k], INSERT_VALUES));
@@ -654,7 +674,7 @@ static PetscErrorCode ClothAddToMatrixFast(Cloth c, const PetscReal *xl, PetscRe
   }
   for (PetscInt k = 0; k < c->nowned; k++) {
     PetscReal D[9];
-    MassBlock(c, k, a, D);
+    MassBlock(c, k, a, b, D);
     for (PetscInt d = 0; d < 3; d++)
       for (PetscInt e = 0; e < 3; e++) va[c->map_diag[3 * k + d] + e] += D[3 * d + e];
   }
@@ -669,6 +689,8 @@ PetscErrorCode ClothAssembleMatrix(Cloth c, const PetscScalar *x, PetscReal a, P
 
   PetscFunctionBeginUser;
   PetscCall(PetscLogEventBegin(drape_log.jacobian, 0, 0, 0, 0));
+  if (!c->hdiag) PetscCall(PetscMalloc1(9 * c->nowned + 1, &c->hdiag));
+  PetscCall(PetscArrayzero(c->hdiag, 9 * c->nowned));
   if (c->map_mat != J) {
     PetscBool block;
     PetscCall(ClothBuildAssemblyMap(c, J));

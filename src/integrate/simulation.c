@@ -7,7 +7,7 @@
  *     (euler = paper scheme 2, rk, ssp);
  *   - the "position" and "momentum" splits for basicsymplectic (scheme 3: velocity
  *     first; the momentum update sees the current velocity for the damping force);
- *   - its own TS type beuler (scheme 4, see beuler.c). */
+ *   - its own TS type drapebe (scheme 4, see drapebe.c). */
 #include <petsc/private/tsimpl.h>
 #include <simulation.h>
 #include <output.h>
@@ -38,6 +38,7 @@ struct _p_Simulation {
   StabilityLimits limits;
   PetscInt        stability_its;
   PetscReal       divergence_factor;
+  PetscReal       max_strain, strain_last; /* bound, and the largest strain at the last full check */
   PetscReal       rest_tol, rest_time, rest_since; /* stop at rest */
   PetscReal       cusick_radius, cusick_center[2]; /* Cusick analysis      */
   PetscScalar    *x0;                              /* flat initial state   */
@@ -53,7 +54,7 @@ struct _p_Simulation {
   PetscReal energy0, energy_scale, wall0, wall_last;
 };
 
-static const char *const supported_types[] = {TSEULER, TSBASICSYMPLECTIC, TSBEULER, TSRK, TSSSP, NULL};
+static const char *const supported_types[] = {TSEULER, TSBASICSYMPLECTIC, TSDRAPEBE, TSRK, TSSSP, NULL};
 
 static PetscErrorCode RHSFirstOrder(TS ts, PetscReal t, Vec U, Vec G, void *ctx)
 {
@@ -99,7 +100,7 @@ static PetscErrorCode RHSMomentum(TS ts, PetscReal t, Vec X, Vec A, void *ctx)
 }
 
 /* Land exactly on -ts_max_time (TS_EXACTFINALTIME_MATCHSTEP) for every TS type:
- * basicsymplectic and beuler take fixed steps without a TSAdapt to clip the last
+ * basicsymplectic and drapebe take fixed steps without a TSAdapt to clip the last
  * one. A step that ends within round-off of the end keeps its size (so a run
  * stopped at t and one that went on take the same steps) and PostStep snaps the
  * time; accumulated round-off never adds a spurious extra step. */
@@ -157,14 +158,17 @@ static PetscErrorCode PostStep(TS ts)
   if (s->contact) {
     PetscReal depth, h = 0, t0;
     PetscBool velocity_first;
-    PetscCall(PetscObjectTypeCompareAny((PetscObject) ts, &velocity_first, TSBASICSYMPLECTIC, TSBEULER, ""));
+    /* symplectic Euler: the projection is its contact, and the position follows the
+     * corrected velocity; backward Euler made its contacts constraints of the step and
+     * leaves the projection the shallow ones, lifted along the normal only */
+    PetscCall(PetscObjectTypeCompare((PetscObject) ts, TSBASICSYMPLECTIC, &velocity_first));
     if (velocity_first) {
       PetscCall(TSGetPrevTime(ts, &t0));
       PetscCall(TSGetTime(ts, &t));
       h = t - t0;
     }
     PetscReal j[3];
-    PetscCall(TSDrapeGetContactImpulse(ts, j));
+    PetscCall(TSDrapeBEGetContactImpulse(ts, j));
     for (PetscInt d = 0; d < 3; d++) s->impulse[d] += j[d];
     PetscCall(ContactProject(s->contact, s->n / 3, u, u + s->n, mass, pinned, h, &depth, &s->ncontact, s->impulse));
     s->depth = PetscMax(s->depth, depth);
@@ -202,6 +206,7 @@ PetscErrorCode SimulationCreate(MPI_Comm comm, Simulation *sim)
   s->comm              = comm;
   s->stability_its     = 30;
   s->divergence_factor = 1.0;
+  s->max_strain        = 1.0;
   s->rest_time         = 0.2;
   s->rest_since        = -1;
   s->summary           = PETSC_TRUE;
@@ -239,7 +244,8 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
   }
   PetscOptionsBegin(s->comm, NULL, "drape run control", "Simulation");
   PetscCall(PetscOptionsInt("-drape_stability_its", "Power iterations for the Omega_max estimate printed at start-up (0: skip)", "StabilityEstimate", s->stability_its, &s->stability_its, NULL));
-  PetscCall(PetscOptionsReal("-drape_divergence_factor", "Stop when the energy exceeds its initial value by this many times the run's energy scale (M g L + initial energy)", "SimulationRun", s->divergence_factor, &s->divergence_factor, NULL));
+  PetscCall(PetscOptionsReal("-drape_divergence_factor", "Stop when the mechanical energy exceeds its initial value by this many times the run's energy scale (M g L + initial energy)", "SimulationRun", s->divergence_factor, &s->divergence_factor, NULL));
+  PetscCall(PetscOptionsReal("-drape_max_strain", "Stop when a lattice edge is stretched by more than this (relative; 1: twice its length)", "SimulationRun", s->max_strain, &s->max_strain, NULL));
   PetscCall(PetscOptionsBool("-drape_progress", "One updating progress line (default: on for a terminal, off in CI)", "SimulationRun", s->progress, &s->progress, NULL));
   PetscCall(PetscOptionsReal("-drape_rest_tol", "Stop when the kinetic energy per unit mass (J/kg) stays below this for -drape_rest_time (0: never)", "SimulationRun", s->rest_tol, &s->rest_tol, NULL));
   PetscCall(PetscOptionsReal("-drape_rest_time", "Simulated time the cloth must stay below -drape_rest_tol to count as at rest (s)", "SimulationRun", s->rest_time, &s->rest_time, NULL));
@@ -259,6 +265,7 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
   PetscCall(DrapeCheckReal(s->comm, "-drape_rest_tol", 1, &s->rest_tol, 0, 1e6, "J/kg"));
   PetscCall(DrapeCheckReal(s->comm, "-drape_rest_time", 1, &s->rest_time, 0, 1e6, "s"));
   PetscCall(DrapeCheckReal(s->comm, "-drape_divergence_factor", 1, &s->divergence_factor, 1e-12, 1e15, ""));
+  PetscCall(DrapeCheckReal(s->comm, "-drape_max_strain", 1, &s->max_strain, 1e-6, 1e6, ""));
   PetscCall(ClothSetFromOptions(s->cloth));
   PetscCall(SolidSetFromOptions(s->solid));
   PetscCall(ContactCreate(s->comm, s->solid, &s->contact));
@@ -290,16 +297,9 @@ PetscErrorCode SimulationSetUp(Simulation s)
   PetscCall(ClothSetUp(s->cloth));
   PetscCall(ClothGetInfo(s->cloth, &info));
   {
-    PetscBool   empty;
-    ContactMode mode;
-    PetscReal   mu;
+    PetscBool empty;
     PetscCall(SolidIsEmpty(s->solid, &empty));
-    if (empty)
-      PetscCall(ContactDestroy(&s->contact)); /* no solid, no contact code */
-    else {
-      PetscCall(ContactGetMode(s->contact, &mode, &mu));
-      PetscCall(ClothSetConstraintFunction(s->cloth, ContactConstraint, s->contact, mu));
-    }
+    if (empty) PetscCall(ContactDestroy(&s->contact)); /* no solid, no contact code */
   }
   s->n = 3 * info.nowned;
   PetscCall(VecCreateMPI(s->comm, 2 * s->n, PETSC_DETERMINE, &s->U));
@@ -334,16 +334,9 @@ PetscErrorCode SimulationSetUp(Simulation s)
   }
   PetscCall(VecRestoreArray(s->U, &u));
 
-  PetscCall(DrapeTSRegisterBEuler());
+  PetscCall(DrapeTSRegister());
   PetscCall(TSCreate(s->comm, &s->ts));
   PetscCall(TSSetApplicationContext(s->ts, s));
-  {
-    PetscContainer container; /* the Cloth, for drape's beuler TS type */
-    PetscCall(PetscContainerCreate(s->comm, &container));
-    PetscCall(PetscContainerSetPointer(container, s->cloth));
-    PetscCall(PetscObjectCompose((PetscObject) s->ts, "drape_cloth", (PetscObject) container));
-    PetscCall(PetscContainerDestroy(&container));
-  }
   PetscCall(TSSetProblemType(s->ts, TS_NONLINEAR));
   PetscCall(TSSetType(s->ts, TSBASICSYMPLECTIC));
   PetscCall(TSBasicSymplecticSetType(s->ts, TSBASICSYMPLECTICSIEULER));
@@ -369,9 +362,14 @@ PetscErrorCode SimulationSetUp(Simulation s)
       PetscCall(PetscStrcmp(want, *t, &match));
       ok = (PetscBool) (ok || match);
     }
-    PetscCheck(!set || ok, s->comm, PETSC_ERR_USER_INPUT, "-ts_type %s is not supported by drape; use euler (paper scheme 2), basicsymplectic (scheme 3), beuler (scheme 4), rk or ssp", want);
+    PetscCheck(!set || ok || strcmp(want, TSBEULER), s->comm, PETSC_ERR_USER_INPUT,
+               "-ts_type beuler is PETSc's backward Euler of a first-order system, which needs an implicit function drape does not provide; the paper's backward Euler (scheme 4) is -ts_type drapebe");
+    PetscCheck(!set || ok, s->comm, PETSC_ERR_USER_INPUT, "-ts_type %s is not supported by drape; use euler (paper scheme 2), basicsymplectic (scheme 3), drapebe (scheme 4), rk or ssp", want);
   }
   PetscCall(TSSetFromOptions(s->ts));
+  PetscCall(TSSetErrorIfStepFails(s->ts, PETSC_FALSE)); /* drape says why, after TSSolve */
+  PetscCall(TSDrapeBESetCloth(s->ts, s->cloth));
+  if (s->contact) PetscCall(TSDrapeBESetContact(s->ts, s->contact));
   if (s->have_restart) {
     PetscCall(TSSetTime(s->ts, s->restart_time));
     s->impulse_t0 = s->restart_time;
@@ -399,6 +397,16 @@ PetscErrorCode SimulationSetUp(Simulation s)
     PetscCall(ContactCheckInitial(s->contact, s->n / 3, u));
     PetscCall(VecRestoreArray(s->U, &u));
   }
+  /* Omega_max of the initial state: printed with the step limits it implies, and the
+   * backward-Euler solver's choice of preconditioner */
+  if (s->stability_its > 0) {
+    const PetscScalar *x;
+    PetscCall(VecGetArrayRead(s->U, &x));
+    PetscCall(StabilityEstimate(s->cloth, x, s->stability_its, &s->limits));
+    PetscCall(VecRestoreArrayRead(s->U, &x));
+    PetscCall(TSDrapeBESetStiffness(s->ts, s->limits.omega));
+  } else
+    s->limits.symplectic = s->limits.euler = PETSC_INFINITY;
   /* create the solvers now, so their options are read before drape checks for unused ones */
   PetscCall(TSSetUp(s->ts));
   PetscFunctionReturn(0);
@@ -463,18 +471,22 @@ static PetscErrorCode SimulationWriteFrame(Simulation s, PetscInt step, PetscRea
   PetscFunctionReturn(0);
 }
 
-/* Divergence: NaN, or kinetic + gravitational energy above the initial total
- * energy by more than factor x scale (internal energy is never negative, and
- * damping and pins only remove energy, so a sound step cannot do that). */
-static PetscErrorCode CheckDivergence(Simulation s, TS ts, PetscInt step, PetscReal t, const PetscScalar *u)
+/* Divergence: NaN; or the mechanical energy (kinetic + gravitational + stretch +
+ * shear + bending) above its initial value by more than factor x scale: damping,
+ * friction, pins and fixed solids only remove energy, so a sound step cannot add
+ * it; or an edge stretched beyond -drape_max_strain. With full = PETSC_FALSE only
+ * the cheap part: finite, and kinetic + gravitational energy (internal energy is
+ * never negative) within the same bound. The largest strain of the full check is
+ * kept for the summary. */
+static PetscErrorCode CheckDivergence(Simulation s, TS ts, PetscInt step, PetscReal t, const PetscScalar *u, PetscBool full)
 {
   const PetscReal *mass;
   ClothInfo        info;
-  PetscReal        loc[2] = {0, 0}, sum[2], e;
+  PetscReal        loc[2] = {0, 0}, sum[2], e, strain = 0;
   PetscBool        finite;
   TSType           type;
   PetscReal        dt;
-  char             euler[64];
+  char             euler[64], what[256];
   PetscBool        implicit = PETSC_FALSE;
 
   PetscFunctionBeginUser;
@@ -495,29 +507,62 @@ static PetscErrorCode CheckDivergence(Simulation s, TS ts, PetscInt step, PetscR
   /* a non-finite position or velocity makes its sum non-finite (0 x Inf is NaN too) */
   finite = (PetscBool) !(PetscIsInfOrNanReal(sum[0]) || PetscIsInfOrNanReal(sum[1]));
   e      = sum[0] + sum[1];
-  if (!s->baseline) {
+  if (full || !s->baseline) {
     ClothEnergies en;
-    s->baseline = PETSC_TRUE;
-    PetscReal g = PetscSqrtReal(PetscSqr(info.gravity[0]) + PetscSqr(info.gravity[1]) + PetscSqr(info.gravity[2]));
     PetscCall(ClothComputeEnergies(s->cloth, u, u + s->n, &en));
-    s->energy0      = e + en.stretch + en.shear + en.bend;
-    s->energy_scale = info.mass * g * PetscMax(info.size[0], info.size[1]) + PetscAbsReal(s->energy0 - en.gravity) + PETSC_SMALL;
+    e += en.stretch + en.shear + en.bend;
+    strain         = en.strain_max;
+    s->strain_last = strain;
+    finite         = (PetscBool) (finite && !PetscIsInfOrNanReal(e));
+  }
+  if (!s->baseline) {
+    const PetscReal g = PetscSqrtReal(PetscSqr(info.gravity[0]) + PetscSqr(info.gravity[1]) + PetscSqr(info.gravity[2]));
+    s->baseline       = PETSC_TRUE;
+    s->energy0        = e;
+    s->energy_scale   = info.mass * g * PetscMax(info.size[0], info.size[1]) + PetscAbsReal(e - sum[1]) + PETSC_SMALL;
     PetscFunctionReturn(0);
   }
-  if (finite && e - s->energy0 <= s->divergence_factor * s->energy_scale) PetscFunctionReturn(0);
+  if (finite && e - s->energy0 <= s->divergence_factor * s->energy_scale && strain <= s->max_strain) PetscFunctionReturn(0);
   PetscCall(TSGetType(ts, &type));
   PetscCall(TSGetTimeStep(ts, &dt));
   if (s->limits.euler > 0)
     PetscCall(PetscSNPrintf(euler, sizeof euler, "h < %.4e s", (double) s->limits.euler));
   else
     PetscCall(PetscStrcpy(euler, "unstable at every step without damping"));
-  PetscCall(PetscObjectTypeCompare((PetscObject) ts, TSBEULER, &implicit));
-  SETERRQ(s->comm, PETSC_ERR_NOT_CONVERGED, "The run diverged at step %" PetscInt_FMT " (t = %g s): %s. Estimated stability limits: symplectic Euler h < %.4e s, explicit Euler %s; this run used -ts_type %s -ts_dt %g. %s", step, (double) t,
-          !finite ? "positions or velocities are not finite" : "the energy grew beyond what gravity and the initial state can supply", (double) s->limits.symplectic, euler, type, (double) dt,
-          implicit ? "Reduce -ts_dt: the single linearisation of -snes_type ksponly fails at steps this large for this fabric" : "Reduce -ts_dt or use -ts_type beuler");
+  if (!finite)
+    PetscCall(PetscStrcpy(what, "positions or velocities are not finite"));
+  else if (e - s->energy0 > s->divergence_factor * s->energy_scale)
+    PetscCall(PetscSNPrintf(what, sizeof what, "the mechanical energy (kinetic, gravitational and elastic) grew by %.3g J, beyond what the start can supply (%.3g J)", (double) (e - s->energy0), (double) (s->divergence_factor * s->energy_scale)));
+  else
+    PetscCall(PetscSNPrintf(what, sizeof what, "a lattice edge is stretched by %.3g %%, beyond -drape_max_strain %g %% (no fabric in the model's linear range stretches so far; raise the bound if this one really does)", (double) (100 * strain), (double) (100 * s->max_strain)));
+  PetscCall(PetscObjectTypeCompare((PetscObject) ts, TSDRAPEBE, &implicit));
+  SETERRQ(s->comm, PETSC_ERR_NOT_CONVERGED, "The run diverged at step %" PetscInt_FMT " (t = %g s): %s. Estimated stability limits: symplectic Euler h < %.4e s, explicit Euler %s; this run used -ts_type %s -ts_dt %g. %s", step, (double) t, what,
+          (double) s->limits.symplectic, euler, type, (double) dt, implicit ? "Reduce -ts_dt: the single linearisation of -snes_type ksponly fails at steps this large for this fabric (or use -snes_type newtonls)" : "Reduce -ts_dt or use -ts_type drapebe");
 }
 
+/* Divergence checks: the cheap one every DIVERGENCE_EVERY steps, the full one (an
+ * energy evaluation, two thirds of a force evaluation) every DIVERGENCE_FULL steps,
+ * before every frame and after the last step; backward Euler, whose steps cost many
+ * force evaluations, checks fully every DIVERGENCE_EVERY steps. */
 #define DIVERGENCE_EVERY 8
+#define DIVERGENCE_FULL  32
+
+/* The updating progress line: every half second of wall time, and (last) at the end. */
+static PetscErrorCode ProgressLine(Simulation s, TS ts, PetscInt step, PetscReal t, PetscBool last)
+{
+  PetscLogDouble now;
+  PetscReal      tmax, t0 = s->restart_time;
+  PetscInt       steps = step - s->restart_step;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscTime(&now));
+  if (!last && (now - s->wall_last <= 0.5 || steps <= 0)) PetscFunctionReturn(0);
+  PetscCall(TSGetMaxTime(ts, &tmax));
+  s->wall_last = now;
+  PetscCall(PetscPrintf(s->comm, "\r  t = %.4g / %.4g s, step %" PetscInt_FMT ", %.0f steps/s, %.0f s left   ", (double) t, (double) tmax, step, steps / PetscMax(now - s->wall0, 1e-9),
+                        (double) (t > t0 ? (now - s->wall0) * (tmax - t) / (t - t0) : 0)));
+  PetscFunctionReturn(0);
+}
 
 static PetscErrorCode Monitor(TS ts, PetscInt step, PetscReal t, Vec U, void *ctx)
 {
@@ -528,21 +573,15 @@ static PetscErrorCode Monitor(TS ts, PetscInt step, PetscReal t, Vec U, void *ct
   PetscFunctionBeginUser;
   PetscCall(VecGetArrayRead(U, &u));
   PetscCall(OutputFrameDue(s->output, step, t, &due));
-  /* every DIVERGENCE_EVERY steps, before every frame, and after the last step: a
-   * diverging run is stopped within a few steps and no frame it writes is unchecked */
-  if (due || step % DIVERGENCE_EVERY == 0 || !s->baseline) PetscCall(CheckDivergence(s, ts, step, t, u));
+  /* a diverging run is stopped within a few steps and no frame it writes is unchecked */
+  if (due || step % DIVERGENCE_EVERY == 0 || !s->baseline) {
+    PetscBool full = (PetscBool) (due || step % DIVERGENCE_FULL == 0);
+    if (!full) PetscCall(PetscObjectTypeCompare((PetscObject) ts, TSDRAPEBE, &full));
+    PetscCall(CheckDivergence(s, ts, step, t, u, full));
+  }
   if (due) PetscCall(SimulationWriteFrame(s, step, t, u));
   PetscCall(VecRestoreArrayRead(U, &u));
-  if (s->progress) {
-    PetscLogDouble now;
-    PetscCall(PetscTime(&now));
-    if (now - s->wall_last > 0.5 && step > 0) {
-      PetscReal tmax, t0 = 0;
-      PetscCall(TSGetMaxTime(ts, &tmax));
-      s->wall_last = now;
-      PetscCall(PetscPrintf(s->comm, "\r  t = %.4g / %.4g s, step %" PetscInt_FMT ", %.0f steps/s, %.0f s left   ", (double) t, (double) tmax, step, step / (now - s->wall0), (double) ((now - s->wall0) * (tmax - t) / (t - t0))));
-    }
-  }
+  if (s->progress) PetscCall(ProgressLine(s, ts, step, t, PETSC_FALSE));
   PetscFunctionReturn(0);
 }
 
@@ -625,7 +664,7 @@ static PetscErrorCode SimulationViewStart(Simulation s)
   }
   PetscCall(PetscViewerASCIIPrintf(viewer, ", to t = %g s\n", (double) tmax));
   if (s->stability_its > 0) PetscCall(WarnStepLimit(s, viewer, type, dt, tmax));
-  if (!strcmp(type, TSBEULER)) {
+  if (!strcmp(type, TSDRAPEBE)) {
     KSPType  kt;
     PCType   pt;
     SNESType st;
@@ -656,12 +695,6 @@ PetscErrorCode SimulationRun(Simulation s)
 
   PetscFunctionBeginUser;
   PetscCall(ClothGetInfo(s->cloth, &info));
-  if (s->stability_its > 0) {
-    PetscCall(VecGetArrayRead(s->U, &u));
-    PetscCall(StabilityEstimate(s->cloth, u, s->stability_its, &s->limits));
-    PetscCall(VecRestoreArrayRead(s->U, &u));
-  } else
-    s->limits.symplectic = s->limits.euler = PETSC_INFINITY;
   PetscCall(SimulationViewStart(s));
   PetscCall(DrapeCheckUnusedOptions(s->comm));
   if (s->help) PetscFunctionReturn(0);
@@ -682,15 +715,28 @@ PetscErrorCode SimulationRun(Simulation s)
   PetscCall(PetscLogStagePush(drape_log.timeloop));
   PetscCall(TSSolve(s->ts, s->U));
   PetscCall(PetscLogStagePop());
+  {
+    TSConvergedReason reason;
+    const char       *failure;
+    PetscReal         tnow;
+    PetscCall(TSGetConvergedReason(s->ts, &reason));
+    PetscCall(TSGetTime(s->ts, &tnow));
+    PetscCall(TSDrapeBEGetStatistics(s->ts, NULL, NULL, &failure));
+    PetscCheck(reason >= 0, s->comm, PETSC_ERR_NOT_CONVERGED, "The run stopped at t = %g s: %s%s (%s). Reduce -ts_dt, or allow more retries at smaller steps with -ts_max_reject and -ts_max_snes_failures", (double) tnow,
+               failure && failure[0] ? failure : "a step failed", failure && failure[0] ? ", and so did its retries at smaller steps" : "", TSConvergedReasons[reason]);
+  }
   PetscCall(PetscTime(&t1));
   PetscCall(TSGetStepNumber(s->ts, &steps));
   PetscCall(TSGetTime(s->ts, &t));
   PetscCall(OutputLastStep(s->output, &last));
   PetscCall(VecGetArrayRead(s->U, &u));
-  PetscCall(CheckDivergence(s, s->ts, steps, t, u));
+  PetscCall(CheckDivergence(s, s->ts, steps, t, u, PETSC_TRUE));
   if (enabled && last != steps) PetscCall(SimulationWriteFrame(s, steps, t, u));
   PetscCall(VecRestoreArrayRead(s->U, &u));
-  if (s->progress) PetscCall(PetscPrintf(s->comm, "\n"));
+  if (s->progress) {
+    PetscCall(ProgressLine(s, s->ts, steps, t, PETSC_TRUE));
+    PetscCall(PetscPrintf(s->comm, "\n"));
+  }
   signal(SIGTERM, SIG_DFL);
   signal(SIGINT, SIG_DFL);
   if (s->interrupted) {
@@ -718,7 +764,13 @@ PetscErrorCode SimulationRun(Simulation s)
     PetscInt run = steps - s->restart_step; /* steps taken by this run */
     PetscCall(PetscPrintf(s->comm, "Summary: %" PetscInt_FMT " steps to t = %g s in %.3f s wall, %.4e particle-steps/s", run, (double) t, (double) wall, wall > 0 ? ((double) run * info.nparticles / wall) : 0.0));
     if (its > 0) PetscCall(PetscPrintf(s->comm, ", %.2f CG iterations per step", (double) its / PetscMax(run, 1)));
-    PetscCall(PetscPrintf(s->comm, "\n"));
+    {
+      PetscInt solves, rejected;
+      PetscCall(TSDrapeBEGetStatistics(s->ts, &solves, &rejected, NULL));
+      if (solves > run) PetscCall(PetscPrintf(s->comm, ", %.2f solves per step", (double) solves / PetscMax(run, 1)));
+      if (rejected) PetscCall(PetscPrintf(s->comm, ", %" PetscInt_FMT " steps retried at a smaller step", rejected));
+    }
+    PetscCall(PetscPrintf(s->comm, "; largest edge strain %.3g %%\n", (double) (100 * s->strain_last)));
   }
   PetscFunctionReturn(0);
 }

@@ -8,6 +8,7 @@
  *                                           (s, -, J, m, -)
  *   /contact_force   [t][3]  mean force of the solid on the cloth since the
  *                            previous frame (N; 0 in the first frame)
+ *   /strain_max      [t][1]  largest stretch of a lattice edge, (l - L)/L
  *   /solid_triangles  [9 x triangles]       (m) the solid's mesh, for pictures
  *   attributes of /: drape_version, options (as given), description, lattice.
  * /time is written last in each frame, so its length counts the complete frames;
@@ -19,9 +20,9 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#define NSCALARS 10
-static const char *const scalar_names[NSCALARS] = {"step", "energy_kinetic", "energy_gravity", "energy_stretch", "energy_shear", "energy_bend", "contact_depth", "contact_count", "contact_force", "time"};
-static const PetscInt    scalar_sizes[NSCALARS] = {1, 1, 1, 1, 1, 1, 1, 1, 3, 1};
+#define NSCALARS 11
+static const char *const scalar_names[NSCALARS] = {"step", "energy_kinetic", "energy_gravity", "energy_stretch", "energy_shear", "energy_bend", "contact_depth", "contact_count", "contact_force", "strain_max", "time"};
+static const PetscInt    scalar_sizes[NSCALARS] = {1, 1, 1, 1, 1, 1, 1, 1, 3, 1, 1};
 
 struct _p_Output {
   MPI_Comm    comm;
@@ -387,7 +388,8 @@ PetscErrorCode OutputWriteFrame(Output o, Cloth cloth, PetscInt step, PetscReal 
   ctx.values[6][0] = en->contact_depth;
   ctx.values[7][0] = (PetscReal) en->contact_count;
   for (PetscInt d = 0; d < 3; d++) ctx.values[8][d] = en->contact_force[d];
-  ctx.values[9][0] = t;
+  ctx.values[9][0]  = en->strain_max;
+  ctx.values[10][0] = t;
   PetscCall(ClothToDMDA(cloth, x, o->X));
   PetscCall(ClothToDMDA(cloth, v, o->V));
   PetscCall(PetscSNPrintf(what, sizeof what, "Cannot write frame %" PetscInt_FMT " to -output_file %s (is the disk full?)", o->nframes, o->file));

@@ -1,5 +1,5 @@
-/* Particle-solid contact: projection and velocity constraints (all schemes), and
- * the per-particle constraints the implicit solve removes from its system. */
+/* Particle-solid contact: projection and velocity constraints after a step (all
+ * schemes), and the cached distance queries the implicit step's constraints use. */
 #include <solid.h>
 #include <drape.h>
 #include <petscviewer.h>
@@ -19,8 +19,8 @@ struct _p_Contact {
   MPI_Comm     comm;
   Solid        solid;
   ContactMode  mode;
-  PetscReal    thickness, mu;
-  ContactCache owned, local; /* post-step (owned particles), constraints (local) */
+  PetscReal    thickness, mu, stick_velocity;
+  ContactCache owned; /* one entry per owned particle */
 };
 
 static PetscErrorCode CacheQuery(Contact c, ContactCache *cache, PetscInt idx, PetscInt n, const PetscReal p[3], PetscReal *dist, PetscReal nrm[3])
@@ -60,12 +60,13 @@ PetscErrorCode ContactCreate(MPI_Comm comm, Solid solid, Contact *contact)
 
   PetscFunctionBeginUser;
   PetscCall(PetscNew(&c));
-  c->comm      = comm;
-  c->solid     = solid;
-  c->mode      = CONTACT_STICKY;
-  c->thickness = 2e-3;
-  c->mu        = 0.3;
-  *contact     = c;
+  c->comm           = comm;
+  c->solid          = solid;
+  c->mode           = CONTACT_STICKY;
+  c->thickness      = 2e-3;
+  c->mu             = 0.3;
+  c->stick_velocity = 1e-5;
+  *contact          = c;
   PetscFunctionReturn(0);
 }
 
@@ -78,10 +79,13 @@ PetscErrorCode ContactSetFromOptions(Contact c)
   PetscCall(PetscOptionsEList("-contact_mode", "sticky (the paper: v = 0 on the surface), friction (Coulomb), frictionless", "ContactSetFromOptions", mode_names, 3, mode_names[imode], &imode, NULL));
   PetscCall(PetscOptionsReal("-contact_thickness", "Distance from the solid at which particles are in contact (m)", "ContactSetFromOptions", c->thickness, &c->thickness, NULL));
   PetscCall(PetscOptionsReal("-contact_friction", "Coulomb friction coefficient mu (static = kinetic)", "ContactSetFromOptions", c->mu, &c->mu, NULL));
+  PetscCall(PetscOptionsReal("-contact_stick_velocity", "Backward Euler: sliding speed below which friction is static friction smoothed into a viscous force (it creeps at most this fast, m/s)", "ContactSetFromOptions", c->stick_velocity,
+                             &c->stick_velocity, NULL));
   PetscOptionsEnd();
   c->mode = (ContactMode) imode;
   PetscCall(DrapeCheckReal(c->comm, "-contact_thickness", 1, &c->thickness, 0, 1, "m"));
   PetscCall(DrapeCheckReal(c->comm, "-contact_friction", 1, &c->mu, 0, 10, ""));
+  PetscCall(DrapeCheckReal(c->comm, "-contact_stick_velocity", 1, &c->stick_velocity, 1e-12, 1, "m/s"));
   PetscFunctionReturn(0);
 }
 
@@ -99,16 +103,16 @@ PetscErrorCode ContactDestroy(Contact *c)
   PetscFunctionBeginUser;
   if (!*c) PetscFunctionReturn(0);
   PetscCall(PetscFree3((*c)->owned.x, (*c)->owned.d, (*c)->owned.nrm));
-  PetscCall(PetscFree3((*c)->local.x, (*c)->local.d, (*c)->local.nrm));
   PetscCall(PetscFree(*c));
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode ContactGetMode(Contact c, ContactMode *mode, PetscReal *mu)
+PetscErrorCode ContactGetMode(Contact c, ContactMode *mode, PetscReal *mu, PetscReal *stick_velocity)
 {
   PetscFunctionBeginUser;
   if (mode) *mode = c->mode;
   if (mu) *mu = c->mode == CONTACT_FRICTION ? c->mu : 0;
+  if (stick_velocity) *stick_velocity = c->stick_velocity;
   PetscFunctionReturn(0);
 }
 
@@ -177,16 +181,21 @@ PetscErrorCode ContactProject(Contact c, PetscInt n, PetscScalar *x, PetscScalar
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode ContactConstraint(void *ctx, PetscInt l, PetscInt nlocal, const PetscReal x[3], PetscInt *type, PetscReal n[3])
+PetscErrorCode ContactGetThickness(Contact c, PetscReal *thickness)
 {
-  Contact   c = (Contact) ctx;
-  PetscReal dist;
-
   PetscFunctionBeginUser;
-  *type = 0;
-  if (!SolidBoxNear(c->solid, x, x, c->thickness * 1.01 + PETSC_SMALL)) PetscFunctionReturn(0);
-  PetscCall(CacheQuery(c, &c->local, l, nlocal, x, &dist, n));
-  if (dist <= c->thickness * (1 + 1e-6) + PETSC_SMALL) *type = c->mode == CONTACT_STICKY ? 2 : 1;
+  *thickness = c->thickness;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ContactDistance(Contact c, PetscInt k, PetscInt n, const PetscReal x[3], PetscReal *dist, PetscReal normal[3])
+{
+  PetscFunctionBeginUser;
+  if (!SolidBoxNear(c->solid, x, x, 2 * c->thickness)) {
+    *dist = 2 * c->thickness; /* a lower bound */
+    PetscFunctionReturn(0);
+  }
+  PetscCall(CacheQuery(c, &c->owned, k, n, x, dist, normal));
   PetscFunctionReturn(0);
 }
 
