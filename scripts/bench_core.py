@@ -7,7 +7,7 @@ corners) for a fixed number of steps:
                      printed limit is for the unloaded sheet; tension raises
                      Omega as the cloth hangs, and 0.9 x diverges in long runs)
   explicit Euler     -ts_type euler at 0.9 x its own (damping-set) stability limit
-  backward Euler     -ts_type beuler at 10 x the symplectic limit
+  backward Euler     -ts_type drapebe at 10 x the symplectic limit
 The limit is the one drape prints at start-up. Each timed run is repeated and the
 median of drape's own "particle-steps/s" (wall time of the time loop) is reported,
 with CG iterations per step for backward Euler.
@@ -29,7 +29,7 @@ from bench_common import machine
 ROOT = Path(__file__).resolve().parent.parent
 # (name, options, step as a multiple of the limit, which printed limit)
 SCHEMES = [("symplectic", "-ts_type basicsymplectic", 0.5, "symplectic"), ("explicit", "-ts_type euler", 0.9, "explicit"),
-           ("beuler", "-ts_type beuler", 10.0, "symplectic")]
+           ("beuler", "-ts_type drapebe", 10.0, "symplectic")]
 
 
 def launcher(np_):

@@ -6,7 +6,7 @@ Both tables use the paper's scene, the falling cloth of its Fig. 8
 contact), with the at-rest stop switched off so every run covers the same
 simulated span T.
 
-Table 1: backward Euler (-ts_type beuler, the paper's linearised scheme (4))
+Table 1: backward Euler (-ts_type drapebe, the paper's linearised scheme (4))
 time against particle count, 400 to 2400 particles, with a dense matrix and with
 a sparse one. The paper's CG (its Fig. 3) has no preconditioner and starts from
 zero, so both columns use -pc_type none -ksp_initial_guess_nonzero 0:
@@ -98,7 +98,7 @@ def table1(drape, a, tmp):
     rows = []
     for mx, my in a.lattices1:
         n = mx * my
-        base = FALL + ["-ts_type", "beuler", "-ts_dt", repr(h), "-ts_max_time", repr(a.time1), "-da_grid_x", str(mx), "-da_grid_y", str(my),
+        base = FALL + ["-ts_type", "drapebe", "-ts_dt", repr(h), "-ts_max_time", repr(a.time1), "-da_grid_x", str(mx), "-da_grid_y", str(my),
                        "-cloth_size", f"{(mx - 1) * s!r},{(my - 1) * s!r}", "-drape_stability_its", "0"]
         res = {}
         for name, opts in CONFIGS1[1:]:
@@ -183,7 +183,7 @@ def table2(drape, a):
         lim = drape.limits(base + ["-ts_type", "basicsymplectic"])
         quiet = ["-drape_stability_its", "0"]
         symp = base + quiet + ["-ts_type", "basicsymplectic"]
-        beul = base + quiet + ["-ts_type", "beuler"]
+        beul = base + quiet + ["-ts_type", "drapebe"]
         h_exp, nexp, _ = bisect(drape, symp, 0.7 * lim["symplectic"], 1.3 * lim["symplectic"], a.bisect_tol, True)
         cap = T / 10
         lo = 10 * h_exp

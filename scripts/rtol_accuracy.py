@@ -60,7 +60,7 @@ def main():
             for rtol, start in [(1e-12, "zero")] + [(t, s) for t in rtols for s in ("last step", "zero")]:
                 h5 = Path(tmp) / "be.h5"
                 guess = ["-ksp_initial_guess_nonzero", "0"] if start == "zero" else []
-                r = drape.must(base + ["-ts_type", "beuler", "-ts_dt", repr(h), "-ksp_rtol", f"{rtol:g}", "-output_file", h5] + guess,
+                r = drape.must(base + ["-ts_type", "drapebe", "-ts_dt", repr(h), "-ksp_rtol", f"{rtol:g}", "-output_file", h5] + guess,
                                f"backward Euler rtol {rtol:g}")
                 steps, _, wall, its = r.summary()
                 err = max(float(abs(positions(h5, k + 1)[0] - xref[k]).max()) for k in range(4))

@@ -6,7 +6,7 @@ rank, each scheme at the same factor of its own limit as scripts/bench_core.py:
 
   symplectic   -ts_type basicsymplectic at 0.5 x its printed limit
   explicit     -ts_type euler at 0.9 x its own (damping-set) printed limit
-  beuler       -ts_type beuler at 10 x the symplectic limit (drape's default solver)
+  beuler       -ts_type drapebe at 10 x the symplectic limit (drape's default solver)
 
 on N x N lattices, N in --sizes (32..512) and, for the explicit schemes only,
 --big (1024). Step counts shrink with the size (about --work particle-steps per
@@ -44,7 +44,7 @@ from bench_common import ROOT, Drape, fail, machine, md_table, median, write_csv
 PROG = "scaling"
 # (name, options, step as a multiple of the limit, which printed limit, explicit?)
 SCHEMES = [("symplectic", ["-ts_type", "basicsymplectic"], 0.5, "symplectic", True), ("explicit", ["-ts_type", "euler"], 0.9, "explicit", True),
-           ("beuler", ["-ts_type", "beuler"], 10.0, "symplectic", False)]
+           ("beuler", ["-ts_type", "drapebe"], 10.0, "symplectic", False)]
 
 
 def base(n):

@@ -394,7 +394,7 @@ def backward_euler(steps, t_end, interval):
     for h in steps:
         out = {}
         for snes in ("ksponly", "newtonls"):
-            res, data = be_run(["-ts_type", "beuler", "-snes_type", snes, "-ts_dt", repr(h)], t_end, interval)
+            res, data = be_run(["-ts_type", "drapebe", "-snes_type", snes, "-ts_dt", repr(h)], t_end, interval)
             out[snes] = (res, data)
         row = dict(h=h, h_over_sym_limit=h / psym)
         for snes, (res, data) in out.items():

@@ -25,7 +25,7 @@ limits drape prints at start-up, read with -ts_max_steps 0):
 
   explicit Euler     -ts_type euler                        from 0.1 x the symplectic limit
   symplectic Euler   -ts_type basicsymplectic              from 0.9 x the symplectic limit
-  backward Euler     -ts_type beuler -ksp_rtol 1e-10       from 10 x the symplectic limit
+  backward Euler     -ts_type drapebe -ksp_rtol 1e-10       from 10 x the symplectic limit
   RK2                -ts_type rk -ts_rk_type 2a -ts_adapt_type none   from 0.2 x
   RK4                -ts_type rk -ts_rk_type 4 -ts_adapt_type none    from 1.4 x (2.83/Omega_max)
   RK5DP adaptive     -ts_type rk -ts_rk_type 5dp -ts_adapt_type basic -ts_rtol R -ts_atol R,
@@ -86,7 +86,7 @@ RK = ["-ts_type", "rk", "-ts_adapt_type", "none", "-ts_rk_type"]
 FIXED = [
     ("explicit Euler", ["-ts_type", "euler"], 1, 0.1, 2.0),
     ("symplectic Euler", ["-ts_type", "basicsymplectic"], 1, 0.9, 2.0),
-    ("backward Euler", ["-ts_type", "beuler", "-ksp_rtol", "1e-10"], 1, 10.0, 2.0),
+    ("backward Euler", ["-ts_type", "drapebe", "-ksp_rtol", "1e-10"], 1, 10.0, 2.0),
     ("RK2", RK + ["2a"], 2, 0.2, 2.0),
     ("RK4", RK + ["4"], 4, 1.4, 1.0),
 ]

@@ -12,7 +12,7 @@ THICK = 2e-3
 SCHEMES = {
     "euler": "-ts_type euler -ts_dt 1e-4 -cloth_stretch 5 -cloth_shear 1 -cloth_bend 1e-5 -cloth_damping 5",
     "symplectic": "-ts_type basicsymplectic -ts_dt 2e-4",
-    "beuler": "-ts_type beuler -ts_dt 1e-3 -ksp_rtol 1e-12",
+    "beuler": "-ts_type drapebe -ts_dt 1e-3 -ksp_rtol 1e-12",
 }
 
 
@@ -49,7 +49,10 @@ def tilted_gravity(alpha):
 def test_friction_on_an_inclined_plane(tmp, scheme, tan_alpha):
     """Coulomb friction mu = 0.45 (the incline is modelled by tilting gravity): the
     cloth sticks when tan(alpha) < mu and slides with acceleration
-    g (sin alpha - mu cos alpha) when above."""
+    g (sin alpha - mu cos alpha) when above. Sticking is exact in symplectic Euler;
+    backward Euler smooths static friction into a viscous force below the sliding
+    speed eps (-contact_stick_velocity, 1e-5 m/s), so the cloth creeps at exactly
+    eps tan(alpha) / mu."""
     mu, alpha, T = 0.45, math.atan(tan_alpha), 0.4
     out = tmp / "incline.h5"
     args = SCHEMES[scheme].replace("-ts_dt 1e-3", "-ts_dt 2e-4")
@@ -59,8 +62,11 @@ def test_friction_on_an_inclined_plane(tmp, scheme, tan_alpha):
     fr = Frames(out)
     xc = fr.x[..., 0].mean(axis=(1, 2)) - fr.x[0, ..., 0].mean()
     expect = 0.5 * 9.81 * max(math.sin(alpha) - mu * math.cos(alpha), 0) * fr.time ** 2
-    if tan_alpha < mu:
+    if tan_alpha < mu and scheme == "symplectic":
         assert np.abs(xc).max() < 1e-9
+    elif tan_alpha < mu:
+        creep = 1e-5 * tan_alpha / mu * fr.time
+        assert np.abs(xc - creep).max() < 1e-3 * creep[-1], (xc, creep)
     else:
         assert np.abs(xc[-1] - expect[-1]) < 0.02 * expect[-1], (xc[-1], expect[-1])
     assert np.abs(fr.x[..., 2] - THICK).max() < 1e-9
@@ -68,7 +74,10 @@ def test_friction_on_an_inclined_plane(tmp, scheme, tan_alpha):
     # holding M g sin(alpha) when sticking, kinetic -mu M g cos(alpha) when sliding
     Mg = 0.15 * 0.3 * 0.3 * 9.81
     expect_force = [-min(math.sin(alpha), mu * math.cos(alpha)) * Mg, 0, math.cos(alpha) * Mg]
-    assert np.abs(fr.contact_force[1:] - expect_force).max() < 1e-9 * Mg, (fr.contact_force[-1], expect_force)
+    # (backward Euler's creep starts in the first frame interval: its momentum, 1e-5 of
+    # the force, is in that frame's average)
+    first = 2 if tan_alpha < mu and scheme != "symplectic" else 1
+    assert np.abs(fr.contact_force[first:] - expect_force).max() < 1e-9 * Mg, (fr.contact_force[-1], expect_force)
 
 
 def test_sticky_contact_has_zero_velocity(tmp):
@@ -79,9 +88,11 @@ def test_sticky_contact_has_zero_velocity(tmp):
         f"-ts_max_time 0.5 -output_interval 0.05 -output_file {out}")
     fr = Frames(out)
     r = np.linalg.norm(fr.x, axis=-1)
-    inscribed = 0.2 * math.cos(math.pi / 64) ** 2  # closer than this to the centre: surely on a face
-    touching = (r <= inscribed + THICK) | (fr.x[..., 2] <= -0.1 + THICK + 1e-12)
-    assert touching[-1].sum() >= 4
+    # the generated sphere's contact surface is exact; a sticky particle is held where
+    # it first reached it, up to the step's tangential motion lifting it (h v)^2 / 2 R
+    on_sphere = r <= 0.2 + THICK + 1e-6
+    touching = on_sphere | (fr.x[..., 2] <= -0.1 + THICK + 1e-12)
+    assert on_sphere[-1].sum() >= 4 and r.min() >= 0.2 + THICK - 1e-12
     speed = np.linalg.norm(fr.v, axis=-1)
     assert speed[touching].max() == 0.0
 
@@ -98,8 +109,7 @@ def test_sphere_drape_no_penetration_and_fourfold_symmetry(tmp, scheme, sym_tol)
         f"-output_interval 0.05 -output_file {out} {SCHEMES[scheme]}")
     fr = Frames(out)
     r = np.linalg.norm(fr.x - np.array([0, 0, 0.2]), axis=-1)
-    inscribed = 0.2 * math.cos(math.pi / 48) ** 2  # no face of the mesh is closer to the centre
-    assert r.min() >= inscribed + THICK - 1e-9
+    assert r.min() >= 0.2 + THICK - 1e-9  # the generated sphere's contact surface is exact
     assert fr.attrs and fr.x[-1, ..., 2].min() < 0.2  # it did drape below the equator
     X = fr.x[-1]
     n = X.shape[0]
@@ -132,7 +142,7 @@ def test_malformed_mesh_is_refused(tmp, name):
 
 
 @pytest.mark.parametrize("args,tol", [("-ts_type basicsymplectic -ts_dt 2e-4", ROUNDOFF),
-                                      ("-ts_type beuler -ts_dt 1e-3 -ksp_rtol 1e-12", 1e-8)])
+                                      ("-ts_type drapebe -ts_dt 1e-3 -ksp_rtol 1e-12", 1e-8)])
 def test_same_frames_with_contact_on_1_and_2_ranks(tmp, args, tol):
     frames = []
     for np_ in (1, 2):

@@ -135,7 +135,7 @@ def test_failure_only_one_rank_sees_aborts_the_job(tmp):
 def test_metis_leaves_no_rank_without_particles():
     """-cloth_partition metis on a 2 x 2 lattice and 2 ranks left one rank empty, and
     backward Euler's ICC crashed on its empty block."""
-    res = run("-da_grid_x 2 -da_grid_y 2 -cloth_partition metis -ts_type beuler -ts_dt 1e-3 -ts_max_steps 3", np_=2)
+    res = run("-da_grid_x 2 -da_grid_y 2 -cloth_partition metis -ts_type drapebe -ts_dt 1e-3 -ts_max_steps 3", np_=2)
     assert "metis on 2 ranks, 1 to 3 active particles per rank" in res.stdout
 
 

@@ -11,7 +11,7 @@ CIRCLE = ("-da_grid_x 25 -da_grid_y 25 -cloth_shape circle -cloth_size 0.3 -clot
 
 
 @pytest.mark.parametrize("scheme,tol", [("-ts_type basicsymplectic -ts_dt 2e-4", ROUNDOFF),
-                                        ("-ts_type beuler -ts_dt 2e-3 -ksp_rtol 1e-12", 1e-9)])
+                                        ("-ts_type drapebe -ts_dt 2e-3 -ksp_rtol 1e-12", 1e-9)])
 def test_same_frames_for_every_partition_and_rank_count(tmp, scheme, tol):
     ref = tmp / "ref.h5"
     run(f"{CIRCLE} {scheme} -output_file {ref}")

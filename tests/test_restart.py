@@ -15,7 +15,7 @@ SCENE = "-da_grid_x 12 -da_grid_y 10 -cloth_pin edge_corners -output_interval 0.
 @pytest.mark.parametrize("scheme,tol,np_restart", [
     ("-ts_type basicsymplectic -ts_dt 2e-4", 0.0, 1),
     ("-ts_type basicsymplectic -ts_dt 2e-4", ROUNDOFF, 2),
-    ("-ts_type beuler -ts_dt 2e-3 -ksp_rtol 1e-12", 1e-10, 2),
+    ("-ts_type drapebe -ts_dt 2e-3 -ksp_rtol 1e-12", 1e-10, 2),
 ])
 def test_restart_matches_uninterrupted_run(tmp, scheme, tol, np_restart):
     """Stop at t = 0.05, restart (possibly on another number of ranks) to 0.1: the
