@@ -118,12 +118,11 @@ def part_contact(drape, a):
     n = a.contact_size
     lattice = ["-da_grid_x", str(n), "-da_grid_y", str(n), "-ts_max_time", str(a.time)]
     base = STIFF + SCENES["drop"] + lattice
-    dt = 0.9 * drape.limits(base)["symplectic"]
     cases = [("stiff drop, sphere (closed form)", base, STIFF + ["-cloth_center", "0,0,0.3"] + lattice),
              ("stool mesh of runs/mesh.opts (AABB tree)", MESH + ["-solid_file", "runs/meshes/stool.off", "-contact_mode", "friction"] + lattice[4:],
               MESH + lattice[4:])]
     for name, with_solid, without in cases:
-        walls = {}
+        walls, dt = {}, 0.9 * drape.limits(with_solid)["symplectic"]
         for label, args in (("with", with_solid), ("without", without)):
             r = drape.must(args + ["-ts_type", "basicsymplectic", "-ts_dt", f"{dt:.6e}", "-ts_max_steps", str(a.contact_steps), "-drape_rest_tol", "0"],
                            f"{name} {label} the solid")

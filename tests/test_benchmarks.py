@@ -1,4 +1,4 @@
-"""The benchmark scripts paper_tables.py, scaling.py, solver_study.py and rtol_accuracy.py in --quick mode:
+"""The benchmark scripts paper_tables.py, scaling.py, solver_study.py, rtol_accuracy.py and implicit_study.py in --quick mode:
 their CSV columns and contents, and the claims they rest on (a dense implicit matrix
 gives the AIJ frames, the Blender shortcut is less accurate than drape's default,
 bytes per particle are plausible); plus -drape_mat_type dense on 1 and 2 ranks."""
@@ -146,7 +146,7 @@ def test_dense_matrix_gives_aij_frames(tmp, np_):
     assert np.max(np.abs(fa.x - fd.x)) < 1e-9
 
 
-@pytest.mark.parametrize("script", ["paper_tables.py", "scaling.py", "solver_study.py"])
+@pytest.mark.parametrize("script", ["paper_tables.py", "scaling.py", "solver_study.py", "implicit_study.py"])
 def test_missing_build_is_one_sentence(tmp, script):
     proc = subprocess.run([sys.executable, str(SCRIPTS / script), "--quick", "--out", str(tmp), "--build", str(tmp / "nobuild")],
                           capture_output=True, text=True, timeout=60, cwd=ROOT)
@@ -170,3 +170,24 @@ def test_rtol_accuracy_quick(tmp_path):
     assert all(abs(err[("1e-06", s)] - exact) <= 0.01 * exact for s in ("last step", "zero"))
     assert all(its[(t, "last step")] <= its[(t, "zero")] for t in ("0.01", "0.001", "0.0001", "1e-06"))
     assert "vs rtol 1e-12" in (tmp_path / "rtol_accuracy.md").read_text()
+
+
+def test_implicit_study_quick(tmp_path):
+    """implicit_study.py --quick: every table is written; on the stiff hang smoothed
+    aggregation (ML) needs far fewer CG iterations than block Jacobi/ICC(0); every run
+    that completed rests below 3 % edge strain; contact costs are positive ratios."""
+    quick("implicit_study.py", tmp_path)
+    stiff = rows(tmp_path / "stiff.csv")
+    hang = {r["solver"]: r for r in stiff if r["scene"] == "hang" and r["scheme"].startswith("drapebe")}
+    assert set(hang) == {"bjacobi", "ml", "gamg", "default"}
+    assert hang["ml"]["status"] == hang["bjacobi"]["status"] == "completed" and hang["ml"]["pc"] == "ml"
+    assert float(hang["ml"]["cg_per_step"]) < 0.5 * float(hang["bjacobi"]["cg_per_step"])
+    drop = [r for r in stiff if r["scene"] == "drop"]
+    assert all(r["status"] == "completed" for r in drop if r["solver"] != "gamg"), drop
+    done = [r for r in stiff + rows(tmp_path / "fabrics.csv") if r["status"] == "completed"]
+    assert all(float(r["strain_percent"]) < 3 for r in done), done
+    contact = rows(tmp_path / "contact.csv")
+    assert len(contact) == 2 and all(float(r["ratio"]) > 0 for r in contact)
+    strip = {r["solver"]: r for r in rows(tmp_path / "strip.csv")}
+    assert strip["default"]["status"] == "completed"
+    assert "Stiff cloth" in (tmp_path / "implicit_study.md").read_text()

@@ -48,7 +48,9 @@
  * A step whose solve fails (SNES or KSP diverged) is rejected and retried at a
  * quarter of the step through TSAdaptCheckStage (-ts_max_reject rejections per
  * step, -ts_max_snes_failures failures per run, unlimited by default); after
- * four accepted steps the step doubles again, up to the -ts_dt asked for. */
+ * four accepted steps the step doubles again, up to the -ts_dt asked for, but
+ * back to a size that failed only after 8, 16, ... 1024 steps, doubling with each
+ * failure at that size. */
 #include <petsc/private/tsimpl.h>
 #include <drape.h>
 #include <simulation.h>
@@ -103,6 +105,9 @@ typedef struct {
   /* step control */
   PetscReal dt_nominal; /* the step asked for */
   PetscInt  accepted;   /* accepted steps since the step was last cut or grown */
+  PetscBool snes_atol_set; /* -snes_atol given: drape does not set SNES's absolute tolerance */
+  PetscReal h_failed;   /* the smallest step that failed since a step that large last succeeded */
+  PetscInt  wait;       /* accepted steps before the step grows back to h_failed or beyond */
   /* statistics */
   PetscInt nsolves, nrejected;
   char     failure[512]; /* the last failed solve, for the error message */
@@ -581,6 +586,9 @@ static PetscErrorCode BEStep(TS ts, TS_DrapeBE *be, PetscBool *ok)
     PetscCall(SNESGetKSP(snes, &ksp));
     PetscCall(KSPGetTolerances(ksp, &rtol, NULL, NULL, NULL));
     PetscCall(KSPSetTolerances(ksp, rtol, rtol * be->h * be->weight, PETSC_DEFAULT, PETSC_DEFAULT));
+    /* Newton (-snes_type newtonls) cannot make the residual smaller than the linear
+     * solves do: it stops there too, unless -snes_atol says otherwise */
+    if (!be->snes_atol_set) PetscCall(SNESSetTolerances(snes, rtol * be->h * be->weight, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT));
   }
   if (be->contact) {
     PetscCall(PetscLogEventBegin(drape_log.contact, 0, 0, 0, 0));
@@ -680,6 +688,8 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
     ts->reject++;
     be->nrejected++;
     be->accepted = 0;
+    if (be->h < be->h_failed) be->h_failed = be->h; /* be->h: the step that failed; TSAdapt has cut ts->time_step */
+    else be->wait = PetscMin(2 * be->wait, 1024); /* it failed again at that size */
     be->pc_stale = PETSC_TRUE; /* the failed preconditioner is no start for the smaller step */
     if (!ts->reason && ts->max_reject >= 0 && ++rejections > ts->max_reject) ts->reason = TS_DIVERGED_STEP_REJECTED;
     if (ts->reason) {
@@ -692,8 +702,14 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
   PetscCall(VecRestoreArrayRead(be->U0, &u0));
   ts->ptime += ts->time_step;
   PetscCall(TSPostStage(ts, ts->ptime, 0, &ts->vec_sol));
-  /* a step cut after a failure grows back, doubling after four accepted steps */
-  if (ts->time_step < be->dt_nominal && ++be->accepted >= 4) {
+  /* a step cut after a failure grows back, doubling after four accepted steps; back
+   * to a size that failed only after be->wait steps, which doubles with every failure
+   * there (a step that cannot be taken is not tried again every few steps) */
+  if (ts->time_step >= be->h_failed) {
+    be->h_failed = PETSC_MAX_REAL;
+    be->wait     = 4;
+  }
+  if (ts->time_step < be->dt_nominal && ++be->accepted >= (2 * ts->time_step >= be->h_failed ? be->wait : 4)) {
     ts->time_step = PetscMin(2 * ts->time_step, be->dt_nominal);
     be->accepted  = 0;
   }
@@ -720,6 +736,8 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
    * a step, such a particle does not make the iterations cycle */
   be->release    = 0.1 * PetscSqrtReal(PetscSqr(info.gravity[0]) + PetscSqr(info.gravity[1]) + PetscSqr(info.gravity[2]));
   be->dt_nominal = ts->time_step;
+  be->h_failed   = PETSC_MAX_REAL;
+  be->wait       = 4;
   PetscCall(TSGetAdapt(ts, &adapt));
   PetscCall(ClothCreateVector(be->cloth, &be->DV));
   PetscCall(VecDuplicate(be->DV, &be->R));
@@ -765,6 +783,7 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
       PetscReal msq = 0, sum;
       PetscCall(PetscOptionsHasName(NULL, ((PetscObject) ksp)->prefix, "-ksp_atol", &set_atol));
       PetscCall(PetscOptionsHasName(NULL, ((PetscObject) ksp)->prefix, "-ksp_norm_type", &set_norm));
+      PetscCall(PetscOptionsHasName(NULL, ((PetscObject) snes)->prefix, "-snes_atol", &be->snes_atol_set));
       for (PetscInt k = 0; k < be->n / 3; k++)
         if (!be->pinned[k]) msq += PetscSqr(be->mass[k]);
       PetscCall(MPIU_Allreduce(&msq, &sum, 1, MPIU_REAL, MPI_SUM, PetscObjectComm((PetscObject) ts)));
