@@ -1,0 +1,134 @@
+"""Trustworthy drapes: the rest shape of a measured fabric on a solid does not
+stretch the cloth beyond what its landing and weight can, and does not depend on
+the scheme. These runs take about a minute in all."""
+import re
+
+import h5py
+import numpy as np
+import pytest
+
+from conftest import Frames, run
+
+G = 9.81
+FABRICS = ["polyester", "royal-target", "denim"]
+MATERIAL = re.compile(r"stretch ([0-9.e+-]+),([0-9.e+-]+) N/m, .* density ([0-9.e+-]+) kg/m\^2")
+LIMIT = re.compile(r"symplectic Euler: stable for h < (\S+) s")
+
+
+def scheme_args(base, scheme, fraction):
+    """drapebe at the scene's step, or symplectic Euler at `fraction` of the limit drape prints."""
+    if scheme == "drapebe":
+        return base
+    lim = run(f"{base} -ts_max_steps 0", checks=False).value(LIMIT.pattern)
+    return f"{base} -ts_type basicsymplectic -ts_dt {fraction * lim:.6e}"
+
+
+@pytest.fixture(scope="module")
+def sphere_rest(tmp_path_factory):
+    """The sphere scene (runs/sphere.opts, 41^2, 3 s) with a measured fabric, one run per
+    fabric and scheme, cached for the tests of this module."""
+    out, cache = tmp_path_factory.mktemp("sphere_rest"), {}
+
+    def get(fabric, scheme):
+        if (fabric, scheme) not in cache:
+            h5 = out / f"{fabric}-{scheme}.h5"
+            args = scheme_args(f"-options_file runs/sphere.opts -cloth_fabric {fabric}", scheme, 0.9)
+            res = run(f"{args} -output_interval 1 -output_file {h5}", checks=False)
+            fr = Frames(h5)
+            fr.path = h5
+            cache[fabric, scheme] = (res, fr)
+        return cache[fabric, scheme]
+    return get
+
+
+@pytest.mark.parametrize("scheme", ["drapebe", "symplectic"])
+@pytest.mark.parametrize("fabric", FABRICS)
+def test_sphere_scene_rests_without_stretch(sphere_rest, fabric, scheme):
+    """The cloth lands on the sphere at v = sqrt(2 g 0.098 m) and sticks. A sticky
+    landing freezes at most the strain of a wave reflected at a fixed end, 2 v / c with
+    c = sqrt(Y / rho) the fabric's slowest stretch-wave speed; the weight strains it by
+    rho g L / Y, about 1e-4. Measured: polyester 0.27 % (drapebe) and 1.58 % (symplectic,
+    2v/c = 1.57 %), royal-target 0.44 % / 1.39 %, denim (warp Y = 411 N/m, 2v/c = 7.8 %)
+    3.6 % / 5.3 %; before contact entered the implicit solve polyester rested at 29 %
+    with three times the released gravitational energy stored as stretch. So: max edge
+    strain under 3 % for the two stiff wovens, within 2v/c (+10 %) for all three, and
+    the stretch energy at rest under 2 % of the gravitational energy released."""
+    res, fr = sphere_rest(fabric, scheme)
+    m = MATERIAL.search(res.stdout)
+    ymin, rho = min(float(m.group(1)), float(m.group(2))), float(m.group(3))
+    v = np.sqrt(2 * G * (0.6 - 0.5 - 0.002))
+    bound = 2 * v / np.sqrt(ymin / rho)
+    strain = res.value(r"largest edge strain (\S+) %") / 100
+    with h5py.File(fr.path, "r") as f:  # the HDF5 file reports it per frame
+        assert f["strain_max"][len(fr.time) - 1, 0] == pytest.approx(strain, rel=1e-2, abs=1e-7)
+    assert strain <= 1.1 * bound, (strain, bound)
+    if fabric != "denim":
+        assert strain < 0.03
+    released = fr.energy["gravity"][0] - fr.energy["gravity"][-1]
+    assert released > 0.3 and fr.energy["stretch"][-1] < 0.02 * released, (fr.energy["stretch"][-1], released)
+    # and it did drape: on the sphere, nothing inside it, the corners hanging below its top
+    r = np.linalg.norm(fr.x[-1] - np.array([0, 0, 0.25]), axis=-1)
+    assert r.min() >= 0.25 + 0.002 - 1e-9 and fr.x[-1, ..., 2].min() < 0.25
+
+
+STRIP = ("-cloth_size 1,0.1 -da_grid_x 41 -da_grid_y 5 -cloth_center 0,0,0.52 -solid_type box -solid_size 0.4,0.4,0.01 "
+         "-solid_translate 0,0,0.495 -contact_mode sticky -cloth_damping 3 -ts_max_time 8 -drape_rest_tol 1e-6 -output_interval 1")
+
+
+@pytest.mark.parametrize("fabric", FABRICS)
+def test_rest_shape_does_not_depend_on_the_scheme(tmp, fabric):
+    """A 1 m x 10 cm strip dropped 2 cm onto a thin 40 cm plate: the middle sticks flat,
+    the ends hang, a rest shape with a unique equilibrium (on the sphere the folds
+    buckle, a symmetry-breaking choice the schemes need not make alike). drapebe at
+    2e-3 s and symplectic Euler at half its limit (the hanging ends' tension raises
+    Omega_max) rest within 3 mm of each other everywhere (measured: 0.2-0.9 mm; the
+    issue's floor is 1 % of the cloth, 1 cm), and at rest both."""
+    x = {}
+    for scheme in ("drapebe", "symplectic"):
+        out = tmp / f"{scheme}.h5"
+        args = scheme_args(f"{STRIP} -cloth_fabric {fabric} -ts_type drapebe -ts_dt 2e-3", scheme, 0.5)
+        res = run(f"{args} -output_file {out}", checks=False)
+        assert "At rest" in res.stdout, res.stdout
+        x[scheme] = Frames(out).x[-1]
+    assert x["drapebe"][..., 2].min() < 0.5 - 0.25  # the ends hang
+    assert np.linalg.norm(x["drapebe"] - x["symplectic"], axis=-1).max() < 3e-3
+
+
+STIFF = ("-cloth_size 1 -cloth_density 0.1 -cloth_stretch 1333 -cloth_shear 500 -cloth_bend 1e-5 -cloth_damping 0 "
+         "-da_grid_x 32 -da_grid_y 32 -ts_type drapebe -ts_dt 1e-2 -ts_max_time 1")
+
+
+@pytest.mark.parametrize("scene", ["-cloth_pin edge_corners",
+                                   "-solid_type sphere -solid_radius 0.25 -contact_mode friction -contact_thickness 0.005 -cloth_center 0,0,0.3"],
+                         ids=["hang", "drop"])
+def test_stiff_light_cloth_at_a_10ms_step(scene):
+    """A peer benchmark's cloth (1333 N/m on 0.1 kg/m^2, (h Omega_max)^2 = 7e3 at 1e-2 s),
+    hanging from two corners and dropped onto a sphere: drape chooses smoothed
+    aggregation (block Jacobi's ICC(0) needed 63 CG iterations and 19 retried steps
+    on the hang), the run completes without a retried step, every solve takes at most
+    25 CG iterations (the drop takes 2-3 solves a step while the cloth lands:
+    constraints come and go), and the cloth stays within 3 % strain."""
+    res = run(f"{STIFF} {scene}", checks=False)
+    assert "PC ml" in res.stdout or "PC gamg" in res.stdout, res.stdout
+    assert "retried" not in res.stdout.split("Summary:")[1]
+    cg = res.value(r"([0-9.]+) CG iterations per step")
+    solves = res.value(r"([0-9.]+) solves per step") if "solves per step" in res.stdout else 1.0
+    assert cg / solves <= 25, (cg, solves)
+    assert res.value(r"largest edge strain (\S+) %") < 3
+
+
+def test_blow_up_is_caught(tmp):
+    """Explicit Euler far above its limit (the fastest mode grows by 1.00016 a step):
+    the growth, mostly elastic, is caught by the total-energy check with one sentence
+    and a non-zero exit, and the frames written before it are finite; a strain bound
+    stops a run whose edges stretch beyond it."""
+    out = tmp / "blow.h5"
+    res = run(f"-cloth_pin edge_corners -da_grid_x 16 -da_grid_y 16 -ts_type euler -ts_dt 1e-5 -ts_max_time 2 "
+              f"-output_interval 0.1 -output_file {out}", check=False)
+    lines = [l for l in res.stderr.splitlines() if l.strip()]
+    assert res.returncode != 0 and len(lines) == 1, res.stderr
+    assert "diverged at step" in lines[0] and "(kinetic, gravitational and elastic) grew" in lines[0], lines[0]
+    fr = Frames(out)
+    assert fr.time[-1] < 2 and np.all(np.isfinite(fr.x))
+    res = run("-cloth_pin edge_corners -da_grid_x 16 -da_grid_y 16 -drape_max_strain 1e-3 -ts_max_time 1", check=False)
+    assert res.returncode != 0 and "a lattice edge is stretched by" in res.stderr and "beyond -drape_max_strain 0.1 %" in res.stderr
