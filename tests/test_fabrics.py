@@ -50,8 +50,13 @@ def test_unknown_fabric_is_refused_with_the_list(name):
 def test_fabric_rest_shape_is_resolution_independent(tmp):
     """Denim hanging from two corners comes to rest in the same shape on a 41 x 41
     and an 81 x 81 lattice: matched particles within 2.5 mm (1.3 mm measured) and
-    2 mm RMS (1.2 mm) on the 1 m cloth."""
-    shapes = {n: rest_shape(tmp, n, "-options_file runs/hang.opts -cloth_fabric denim -cloth_orientation vertical -ts_dt 4e-3") for n in (41, 81)}
+    2 mm RMS (1.2 mm) on the 1 m cloth. Block Jacobi/ICC(0) on both: it keeps the
+    hanging sheet exactly in its plane (the out-of-plane components decouple), while
+    smoothed aggregation, which drape picks at 81 x 81 ((h Omega_max)^2 = 5500), mixes
+    them at round-off, and the sagging top edge, in compression, then buckles 4.7 cm
+    out of the plane: another equilibrium, not a resolution effect."""
+    shapes = {n: rest_shape(tmp, n, "-options_file runs/hang.opts -cloth_fabric denim -cloth_orientation vertical -ts_dt 4e-3 -pc_type bjacobi")
+              for n in (41, 81)}
     d = shapes[41] - shapes[81][::2, ::2]
     assert np.abs(d).max() < 2.5e-3 and np.sqrt((d ** 2).sum(-1).mean()) < 2e-3, (np.abs(d).max(), np.sqrt((d ** 2).sum(-1).mean()))
     z = shapes[41][..., 2]
