@@ -105,15 +105,14 @@ def test_stiff_light_cloth_at_a_10ms_step(scene):
     """A peer benchmark's cloth (1333 N/m on 0.1 kg/m^2, (h Omega_max)^2 = 7e3 at 1e-2 s),
     hanging from two corners and dropped onto a sphere: drape chooses smoothed
     aggregation (block Jacobi's ICC(0) needed 63 CG iterations and 19 retried steps
-    on the hang), the run completes without a retried step, every solve takes at most
-    25 CG iterations (the drop takes 2-3 solves a step while the cloth lands:
-    constraints come and go), and the cloth stays within 3 % strain."""
+    on the hang), the run completes without a retried step, at most 25 CG iterations a
+    step (measured 6.3 on the hang; 20.8 on the drop, whose steps take up to two
+    solves while the cloth lands: constraints come and go), and the cloth stays
+    within 3 % strain."""
     res = run(f"{STIFF} {scene}", checks=False)
     assert "PC ml" in res.stdout or "PC gamg" in res.stdout, res.stdout
     assert "retried" not in res.stdout.split("Summary:")[1]
-    cg = res.value(r"([0-9.]+) CG iterations per step")
-    solves = res.value(r"([0-9.]+) solves per step") if "solves per step" in res.stdout else 1.0
-    assert cg / solves <= 25, (cg, solves)
+    assert res.value(r"([0-9.]+) CG iterations per step") <= 25
     assert res.value(r"largest edge strain (\S+) %") < 3
 
 

@@ -1015,7 +1015,7 @@ static PetscErrorCode TSCreate_DrapeBE(TS ts)
   ts->ops->view           = TSView_DrapeBE;
   ts->ops->setfromoptions = TSSetFromOptions_DrapeBE;
   be->pc_lag              = 5;
-  be->contact_its         = 3;
+  be->contact_its         = 2; /* a third solve cost 30 % more CG iterations on the stiff drop and changed the rest strain on the sphere scene by under 0.02 % (polyester 0.25 against 0.27 %, denim 3.62 % both) */
   ts->usessnes            = PETSC_TRUE;
   ts->default_adapt_type  = TSADAPTNONE;
   ts->max_snes_failures   = -1; /* a failed solve is retried at a smaller step */
