@@ -76,7 +76,7 @@ typedef struct {
   const PetscBool   *pinned;
   PetscInt           n;          /* 3 x owned particles */
   PetscInt           nparticles; /* on all ranks */
-  PetscReal          h, damping, gravity[3];
+  PetscReal          h, damping, g; /* g: |gravity|, m/s^2 */
   PetscReal          weight; /* |M g| over the free particles (CG's absolute tolerance: rtol h weight), N */
   PetscReal          omega;  /* Omega_max of the cloth at the start, rad/s (0: unknown) */
   /* contact constraints of the step, per owned particle */
@@ -773,15 +773,15 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
   be->damping    = info.damping;
   be->n          = 3 * info.nowned;
   be->nparticles = info.nparticles;
-  for (PetscInt d = 0; d < 3; d++) be->gravity[d] = info.gravity[d];
+  be->g          = PetscSqrtReal(PetscSqr(info.gravity[0]) + PetscSqr(info.gravity[1]) + PetscSqr(info.gravity[2]));
   /* a particle at the edge of a contact region is pulled off and pushed on by turns:
    * released only when it would lift faster than a tenth of what gravity gives it in
    * a step, such a particle does not make the iterations cycle */
-  be->release    = 0.1 * PetscSqrtReal(PetscSqr(info.gravity[0]) + PetscSqr(info.gravity[1]) + PetscSqr(info.gravity[2]));
+  be->release    = 0.1 * be->g;
   be->dt_nominal = ts->time_step;
   be->h_failed   = PETSC_MAX_REAL;
   be->wait       = 4;
-  be->energy_scale = info.mass * PetscSqrtReal(PetscSqr(info.gravity[0]) + PetscSqr(info.gravity[1]) + PetscSqr(info.gravity[2])) * PetscMax(info.size[0], info.size[1]);
+  be->energy_scale = info.mass * be->g * PetscMax(info.size[0], info.size[1]);
   be->have_energy  = PETSC_FALSE;
   PetscCall(TSGetAdapt(ts, &adapt));
   PetscCall(ClothCreateVector(be->cloth, &be->DV));
@@ -832,7 +832,7 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
       for (PetscInt k = 0; k < be->n / 3; k++)
         if (!be->pinned[k]) msq += PetscSqr(be->mass[k]);
       PetscCall(MPIU_Allreduce(&msq, &sum, 1, MPIU_REAL, MPI_SUM, PetscObjectComm((PetscObject) ts)));
-      be->weight = set_atol || set_norm || preonly ? 0 : PetscSqrtReal(sum * (PetscSqr(be->gravity[0]) + PetscSqr(be->gravity[1]) + PetscSqr(be->gravity[2])));
+      be->weight = set_atol || set_norm || preonly ? 0 : PetscSqrtReal(sum) * be->g;
       if (be->weight > 0) PetscCall(KSPSetNormType(ksp, KSP_NORM_UNPRECONDITIONED));
     }
   }
