@@ -30,6 +30,7 @@ typedef struct {
   PetscInt  nstretch, nshear, nbend;    /* global element counts                */
   PetscInt  nowned;                     /* particles owned by this rank         */
   PetscReal mass;                       /* total mass, kg                       */
+  PetscReal density;                    /* areal density, kg/m^2                */
   PetscReal damping;                    /* mass-proportional damping, 1/s       */
   PetscReal gravity[3];                 /* m/s^2                                */
   PetscReal size[2], spacing[2];        /* cloth size and lattice spacing, m    */

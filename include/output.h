@@ -3,6 +3,7 @@
 
 #include <cloth.h>
 #include <solid.h>
+#include <report.h>
 
 typedef struct _p_Output *Output;
 
@@ -14,9 +15,9 @@ PETSC_EXTERN PetscErrorCode OutputCreate(MPI_Comm, Output *);
 PETSC_EXTERN PetscErrorCode OutputSetFromOptions(Output);
 /* Not collective. */
 PETSC_EXTERN PetscErrorCode OutputEnabled(Output, PetscBool *);
-/* Open the file and write the run's description (every option, version, lattice).
- * Collective (MPI-IO). */
-PETSC_EXTERN PetscErrorCode OutputOpen(Output, Cloth, Solid, const char *description);
+/* Open the file and write every option as given, the version and the solid's
+ * triangles. Collective (MPI-IO). */
+PETSC_EXTERN PetscErrorCode OutputOpen(Output, Cloth, Solid);
 /* Is a frame due at (step, t)? The first frame is always due. Not collective. */
 PETSC_EXTERN PetscErrorCode OutputFrameDue(Output, PetscInt step, PetscReal t, PetscBool *);
 /* Write one frame and flush it to disk: a run killed later keeps it readable.
@@ -24,9 +25,10 @@ PETSC_EXTERN PetscErrorCode OutputFrameDue(Output, PetscInt step, PetscReal t, P
 PETSC_EXTERN PetscErrorCode OutputWriteFrame(Output, Cloth, PetscInt step, PetscReal t, const PetscScalar *x, const PetscScalar *v, const ClothEnergies *);
 /* Step of the last frame written (-1: none). Not collective. */
 PETSC_EXTERN PetscErrorCode OutputLastStep(Output, PetscInt *);
-/* A real attribute of the file's root (results such as the drape coefficient).
- * Collective (MPI-IO), as is OutputDestroy (it closes the file). */
-PETSC_EXTERN PetscErrorCode OutputWriteResult(Output, const char *name, PetscReal value);
+/* Every entry of the report as an attribute of the file's root (replacing the
+ * ones of the same name). Collective (MPI-IO), as is OutputDestroy (it closes the
+ * file). */
+PETSC_EXTERN PetscErrorCode OutputWriteReport(Output, Report);
 PETSC_EXTERN PetscErrorCode OutputDestroy(Output *);
 
 /* Restart (src/io/restart.c). RestartInsertOptions puts the options stored in a

@@ -714,6 +714,7 @@ PetscErrorCode ClothGetInfo(Cloth c, ClothInfo *info)
   info->nbend      = c->nbend;
   info->nowned     = c->nowned;
   info->mass       = c->total_mass;
+  info->density    = c->density;
   info->damping    = c->damping;
   info->shear      = c->shear;
   for (PetscInt d = 0; d < 3; d++) info->gravity[d] = c->gravity[d];

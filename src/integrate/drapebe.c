@@ -74,11 +74,11 @@ typedef struct {
   const PetscScalar *x0, *v0;
   const PetscReal   *mass;
   const PetscBool   *pinned;
-  PetscInt           n;          /* 3 x owned particles */
-  PetscInt           nparticles; /* on all ranks */
+  PetscInt           n;             /* 3 x owned particles */
+  PetscInt           nparticles;    /* on all ranks */
   PetscReal          h, damping, g; /* g: |gravity|, m/s^2 */
-  PetscReal          weight; /* |M g| over the free particles (CG's absolute tolerance: rtol h weight), N */
-  PetscReal          omega;  /* Omega_max of the cloth at the start, rad/s (0: unknown) */
+  PetscReal          weight;        /* |M g| over the free particles (CG's absolute tolerance: rtol h weight), N */
+  PetscReal          omega;         /* Omega_max of the cloth at the start, rad/s (0: unknown) */
   /* contact constraints of the step, per owned particle */
   ContactMode      mode;
   PetscReal        mu, thickness, stick_velocity;
@@ -103,14 +103,14 @@ typedef struct {
   /* preconditioner */
   PetscInt pc_lag, lag; /* rebuild every pc_lag steps (ksponly, iterative KSP); lag: where it applies */
   /* step control */
-  PetscReal dt_nominal; /* the step asked for */
-  PetscInt  accepted;   /* accepted steps since the step was last cut or grown */
-  PetscBool snes_atol_set; /* -snes_atol given: drape does not set SNES's absolute tolerance */
+  PetscReal dt_nominal;                                           /* the step asked for */
+  PetscInt  accepted;                                             /* accepted steps since the step was last cut or grown */
+  PetscBool snes_atol_set;                                        /* -snes_atol given: drape does not set SNES's absolute tolerance */
   PetscReal energy, energy_free, energy_trial, energy_free_trial; /* BECheckEnergy */
-  PetscReal energy_scale;                                           /* M g L */
+  PetscReal energy_scale;                                         /* M g L */
   PetscBool have_energy;
-  PetscReal h_failed;   /* the smallest step that failed since a step that large last succeeded */
-  PetscInt  wait;       /* accepted steps before the step grows back to h_failed or beyond */
+  PetscReal h_failed; /* the smallest step that failed since a step that large last succeeded */
+  PetscInt  wait;     /* accepted steps before the step grows back to h_failed or beyond */
   /* statistics */
   PetscInt nsolves, nrejected;
   char     failure[512]; /* the last failed solve, for the error message */
@@ -602,7 +602,8 @@ static PetscErrorCode BECheckEnergy(TS ts, TS_DrapeBE *be, PetscBool *ok)
   if (!(rise <= 0.01 * (be->energy_scale + be->energy_free))) { /* NaN fails too */
     SNES snes;
     PetscCall(TSGetSNES(ts, &snes));
-    PetscCall(PetscSNPrintf(be->failure, sizeof be->failure, "the backward-Euler step %" PetscInt_FMT " (t = %g s, h = %g s) added %.3g J of mechanical energy (its single linearisation is poor at this step)", ts->steps, (double) ts->ptime, (double) ts->time_step, (double) rise));
+    PetscCall(PetscSNPrintf(be->failure, sizeof be->failure, "the backward-Euler step %" PetscInt_FMT " (t = %g s, h = %g s) added %.3g J of mechanical energy (its single linearisation is poor at this step)", ts->steps, (double) ts->ptime,
+                            (double) ts->time_step, (double) rise));
     PetscCall(SNESSetConvergedReason(snes, SNES_DIVERGED_DTOL));
     *ok = PETSC_FALSE;
     PetscFunctionReturn(0);
@@ -729,9 +730,11 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
     ts->reject++;
     be->nrejected++;
     be->accepted = 0;
-    if (be->h < be->h_failed) be->h_failed = be->h; /* be->h: the step that failed; TSAdapt has cut ts->time_step */
-    else be->wait = PetscMin(2 * be->wait, 1024); /* it failed again at that size */
-    be->pc_stale = PETSC_TRUE; /* the failed preconditioner is no start for the smaller step */
+    if (be->h < be->h_failed)
+      be->h_failed = be->h; /* be->h: the step that failed; TSAdapt has cut ts->time_step */
+    else
+      be->wait = PetscMin(2 * be->wait, 1024); /* it failed again at that size */
+    be->pc_stale = PETSC_TRUE;                 /* the failed preconditioner is no start for the smaller step */
     if (!ts->reason && ts->max_reject >= 0 && ++rejections > ts->max_reject) ts->reason = TS_DIVERGED_STEP_REJECTED;
     if (ts->reason) {
       PetscCall(VecRestoreArrayRead(be->U0, &u0));
@@ -777,10 +780,10 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
   /* a particle at the edge of a contact region is pulled off and pushed on by turns:
    * released only when it would lift faster than a tenth of what gravity gives it in
    * a step, such a particle does not make the iterations cycle */
-  be->release    = 0.1 * be->g;
-  be->dt_nominal = ts->time_step;
-  be->h_failed   = PETSC_MAX_REAL;
-  be->wait       = 4;
+  be->release      = 0.1 * be->g;
+  be->dt_nominal   = ts->time_step;
+  be->h_failed     = PETSC_MAX_REAL;
+  be->wait         = 4;
   be->energy_scale = info.mass * be->g * PetscMax(info.size[0], info.size[1]);
   be->have_energy  = PETSC_FALSE;
   PetscCall(TSGetAdapt(ts, &adapt));

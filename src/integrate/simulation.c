@@ -11,6 +11,7 @@
 #include <petsc/private/tsimpl.h>
 #include <simulation.h>
 #include <output.h>
+#include <report.h>
 #include <solid.h>
 #include <analysis.h>
 #include <drape.h>
@@ -26,6 +27,8 @@ struct _p_Simulation {
   MPI_Comm        comm;
   Cloth           cloth;
   Output          output;
+  Report          report; /* start-up numbers and summary by name (HDF5 attributes, -drape_json) */
+  PetscBool       json;
   Solid           solid;
   Contact         contact; /* NULL when the scene has no solid */
   PetscReal       depth;   /* deepest penetration since the last frame, m */
@@ -38,7 +41,7 @@ struct _p_Simulation {
   StabilityLimits limits;
   PetscInt        stability_its;
   PetscReal       divergence_factor;
-  PetscReal       max_strain, strain_last; /* bound, and the largest strain at the last full check */
+  PetscReal       max_strain, strain_last;         /* bound, and the largest strain at the last full check */
   PetscReal       rest_tol, rest_time, rest_since; /* stop at rest */
   PetscReal       cusick_radius, cusick_center[2]; /* Cusick analysis      */
   PetscScalar    *x0;                              /* flat initial state   */
@@ -220,6 +223,7 @@ PetscErrorCode SimulationCreate(MPI_Comm comm, Simulation *sim)
   PetscCall(ClothCreate(comm, &s->cloth));
   PetscCall(SolidCreate(comm, &s->solid));
   PetscCall(OutputCreate(comm, &s->output));
+  PetscCall(ReportCreate(comm, &s->report));
   *sim = s;
   PetscFunctionReturn(0);
 }
@@ -244,7 +248,8 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
   }
   PetscOptionsBegin(s->comm, NULL, "drape run control", "Simulation");
   PetscCall(PetscOptionsInt("-drape_stability_its", "Power iterations for the Omega_max estimate printed at start-up (0: skip)", "StabilityEstimate", s->stability_its, &s->stability_its, NULL));
-  PetscCall(PetscOptionsReal("-drape_divergence_factor", "Stop when the mechanical energy exceeds its initial value by this many times the run's energy scale (M g L + initial energy)", "SimulationRun", s->divergence_factor, &s->divergence_factor, NULL));
+  PetscCall(
+    PetscOptionsReal("-drape_divergence_factor", "Stop when the mechanical energy exceeds its initial value by this many times the run's energy scale (M g L + initial energy)", "SimulationRun", s->divergence_factor, &s->divergence_factor, NULL));
   PetscCall(PetscOptionsReal("-drape_max_strain", "Stop when a lattice edge is stretched by more than this (relative; 1: twice its length)", "SimulationRun", s->max_strain, &s->max_strain, NULL));
   PetscCall(PetscOptionsBool("-drape_progress", "One updating progress line (default: on for a terminal, off in CI)", "SimulationRun", s->progress, &s->progress, NULL));
   PetscCall(PetscOptionsReal("-drape_rest_tol", "Stop when the kinetic energy per unit mass (J/kg) stays below this for -drape_rest_time (0: never)", "SimulationRun", s->rest_tol, &s->rest_tol, NULL));
@@ -257,6 +262,7 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
     PetscCheck(!set || n == 2, s->comm, PETSC_ERR_USER_INPUT, "-cusick_center needs two coordinates x,y");
   }
   PetscCall(PetscOptionsBool("-drape_summary", "One-line summary at the end of the run", "SimulationRun", s->summary, &s->summary, NULL));
+  PetscCall(PetscOptionsBool("-drape_json", "Print the run's start-up numbers and summary as one JSON line at the end (the HDF5 file has them as attributes of /)", "SimulationRun", s->json, &s->json, NULL));
   PetscOptionsEnd();
   PetscCall(DrapeCheckInt(s->comm, "-drape_stability_its", s->stability_its, 0, 100000));
   PetscCall(DrapeCheckReal(s->comm, "-cusick_pedestal_radius", 1, &s->cusick_radius, 0, 1e3, "m (0: no analysis)"));
@@ -430,6 +436,7 @@ PetscErrorCode SimulationDestroy(Simulation *sim)
   PetscCall(ISDestroy(&s->is_x));
   PetscCall(ISDestroy(&s->is_v));
   PetscCall(OutputDestroy(&s->output));
+  PetscCall(ReportDestroy(&s->report));
   PetscCall(ContactDestroy(&s->contact));
   PetscCall(SolidDestroy(&s->solid));
   PetscCall(PetscFree(s->x0));
@@ -534,10 +541,12 @@ static PetscErrorCode CheckDivergence(Simulation s, TS ts, PetscInt step, PetscR
   else if (e - s->energy0 > s->divergence_factor * s->energy_scale)
     PetscCall(PetscSNPrintf(what, sizeof what, "the mechanical energy (kinetic, gravitational and elastic) grew by %.3g J, beyond what the start can supply (%.3g J)", (double) (e - s->energy0), (double) (s->divergence_factor * s->energy_scale)));
   else
-    PetscCall(PetscSNPrintf(what, sizeof what, "a lattice edge is stretched by %.3g %%, beyond -drape_max_strain %g %% (no fabric in the model's linear range stretches so far; raise the bound if this one really does)", (double) (100 * strain), (double) (100 * s->max_strain)));
+    PetscCall(PetscSNPrintf(what, sizeof what, "a lattice edge is stretched by %.3g %%, beyond -drape_max_strain %g %% (no fabric in the model's linear range stretches so far; raise the bound if this one really does)", (double) (100 * strain),
+                            (double) (100 * s->max_strain)));
   PetscCall(PetscObjectTypeCompare((PetscObject) ts, TSDRAPEBE, &implicit));
   SETERRQ(s->comm, PETSC_ERR_NOT_CONVERGED, "The run diverged at step %" PetscInt_FMT " (t = %g s): %s. Estimated stability limits: symplectic Euler h < %.4e s, explicit Euler %s; this run used -ts_type %s -ts_dt %g. %s", step, (double) t, what,
-          (double) s->limits.symplectic, euler, type, (double) dt, implicit ? "Reduce -ts_dt: the single linearisation of -snes_type ksponly fails at steps this large for this fabric (or use -snes_type newtonls)" : "Reduce -ts_dt or use -ts_type drapebe");
+          (double) s->limits.symplectic, euler, type, (double) dt,
+          implicit ? "Reduce -ts_dt: the single linearisation of -snes_type ksponly fails at steps this large for this fabric (or use -snes_type newtonls)" : "Reduce -ts_dt or use -ts_type drapebe");
 }
 
 /* Divergence checks: the cheap one every DIVERGENCE_EVERY steps, the full one (an
@@ -559,8 +568,8 @@ static PetscErrorCode ProgressLine(Simulation s, TS ts, PetscInt step, PetscReal
   if (!last && (now - s->wall_last <= 0.5 || steps <= 0)) PetscFunctionReturn(0);
   PetscCall(TSGetMaxTime(ts, &tmax));
   s->wall_last = now;
-  PetscCall(PetscPrintf(s->comm, "\r  t = %.4g / %.4g s, step %" PetscInt_FMT ", %.0f steps/s, %.0f s left   ", (double) t, (double) tmax, step, steps / PetscMax(now - s->wall0, 1e-9),
-                        (double) (t > t0 ? (now - s->wall0) * (tmax - t) / (t - t0) : 0)));
+  PetscCall(
+    PetscPrintf(s->comm, "\r  t = %.4g / %.4g s, step %" PetscInt_FMT ", %.0f steps/s, %.0f s left   ", (double) t, (double) tmax, step, steps / PetscMax(now - s->wall0, 1e-9), (double) (t > t0 ? (now - s->wall0) * (tmax - t) / (t - t0) : 0)));
   PetscFunctionReturn(0);
 }
 
@@ -681,6 +690,71 @@ static PetscErrorCode SimulationViewStart(Simulation s)
   PetscFunctionReturn(0);
 }
 
+/* The start-up numbers by name (report.h): lattice, material, stability limits,
+ * integrator and, for drapebe, its solver. */
+static PetscErrorCode SimulationReportStart(Simulation s)
+{
+  Report      r = s->report;
+  ClothInfo   info;
+  TSType      type;
+  PetscReal   dt, tmax;
+  PetscMPIInt size;
+
+  PetscFunctionBeginUser;
+  PetscCall(ClothGetInfo(s->cloth, &info));
+  PetscCallMPI(MPI_Comm_size(s->comm, &size));
+  PetscCall(TSGetType(s->ts, &type));
+  PetscCall(TSGetTimeStep(s->ts, &dt));
+  PetscCall(TSGetMaxTime(s->ts, &tmax));
+  PetscCall(ReportSetString(r, "drape_version", DRAPE_VERSION));
+  PetscCall(ReportSetInt(r, "ranks", size));
+  PetscCall(ReportSetInt(r, "lattice_mx", info.Mx));
+  PetscCall(ReportSetInt(r, "lattice_my", info.My));
+  PetscCall(ReportSetInt(r, "particles", info.nparticles));
+  PetscCall(ReportSetInt(r, "pinned", info.npinned));
+  PetscCall(ReportSetReal(r, "size_warp", info.size[0]));
+  PetscCall(ReportSetReal(r, "size_weft", info.size[1]));
+  PetscCall(ReportSetReal(r, "mass", info.mass));
+  PetscCall(ReportSetReal(r, "density", info.density));
+  PetscCall(ReportSetReal(r, "damping", info.damping));
+  PetscCall(ReportSetReal(r, "stretch_warp", info.stretch[0]));
+  PetscCall(ReportSetReal(r, "stretch_weft", info.stretch[1]));
+  PetscCall(ReportSetReal(r, "shear", info.shear));
+  PetscCall(ReportSetReal(r, "bend_warp", info.bend[0]));
+  PetscCall(ReportSetReal(r, "bend_weft", info.bend[1]));
+  if (s->stability_its > 0) {
+    PetscCall(ReportSetReal(r, "omega_max", s->limits.omega));
+    PetscCall(ReportSetReal(r, "symplectic_limit", s->limits.symplectic));
+    PetscCall(ReportSetReal(r, "euler_limit", s->limits.euler)); /* 0: unstable at every step */
+  }
+  PetscCall(ReportSetString(r, "ts_type", type));
+  PetscCall(ReportSetReal(r, "dt", dt));
+  PetscCall(ReportSetReal(r, "t_max", tmax));
+  if (!strcmp(type, TSDRAPEBE)) {
+    SNES     snes;
+    KSP      ksp;
+    PC       pc;
+    KSPType  kt;
+    PCType   pt;
+    SNESType st;
+    MatType  mt = NULL;
+    Mat      J;
+    PetscCall(TSGetSNES(s->ts, &snes));
+    PetscCall(SNESGetType(snes, &st));
+    PetscCall(SNESGetKSP(snes, &ksp));
+    PetscCall(KSPGetType(ksp, &kt));
+    PetscCall(KSPGetPC(ksp, &pc));
+    PetscCall(PCGetType(pc, &pt));
+    PetscCall(SNESGetJacobian(snes, &J, NULL, NULL, NULL));
+    if (J) PetscCall(MatGetType(J, &mt));
+    PetscCall(ReportSetString(r, "snes_type", st));
+    PetscCall(ReportSetString(r, "ksp_type", kt));
+    PetscCall(ReportSetString(r, "pc_type", pt));
+    PetscCall(ReportSetString(r, "mat_type", mt ? mt : MATAIJ));
+  }
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode SimulationRun(Simulation s)
 {
   PetscLogDouble     t1;
@@ -688,22 +762,18 @@ PetscErrorCode SimulationRun(Simulation s)
   PetscInt           steps, last, its;
   PetscReal          t;
   ClothInfo          info;
-  char               description[1024];
   PetscBool          enabled;
 
   PetscFunctionBeginUser;
   PetscCall(ClothGetInfo(s->cloth, &info));
   PetscCall(SimulationViewStart(s));
+  PetscCall(SimulationReportStart(s));
   PetscCall(DrapeCheckUnusedOptions(s->comm));
   if (s->help) PetscFunctionReturn(0);
   PetscCall(OutputEnabled(s->output, &enabled));
   if (enabled) {
-    TSType    type;
-    PetscReal dt;
-    PetscCall(TSGetType(s->ts, &type));
-    PetscCall(TSGetTimeStep(s->ts, &dt));
-    PetscCall(PetscSNPrintf(description, sizeof description, "ts_type=%s dt=%g omega_max=%g symplectic_limit=%g euler_limit=%g", type, (double) dt, (double) s->limits.omega, (double) s->limits.symplectic, (double) s->limits.euler));
-    PetscCall(OutputOpen(s->output, s->cloth, s->solid, description));
+    PetscCall(OutputOpen(s->output, s->cloth, s->solid));
+    PetscCall(OutputWriteReport(s->output, s->report));
   }
   PetscCall(TSMonitorSet(s->ts, Monitor, s, NULL));
   signal(SIGTERM, SignalHandler);
@@ -753,22 +823,36 @@ PetscErrorCode SimulationRun(Simulation s)
     PetscCall(VecRestoreArrayRead(s->U, &u));
     PetscCall(PetscPrintf(s->comm, "Cusick drape test: drape coefficient DC = %.4f, %" PetscInt_FMT " folds (pedestal radius %g m)%s\n", (double) dc, folds, (double) s->cusick_radius,
                           s->at_rest ? "" : "; WARNING: the run ended before the cloth came to rest (set -drape_rest_tol and a longer -ts_max_time)"));
-    PetscCall(OutputWriteResult(s->output, "drape_coefficient", dc));
-    PetscCall(OutputWriteResult(s->output, "drape_folds", (PetscReal) folds));
+    PetscCall(ReportSetReal(s->report, "drape_coefficient", dc));
+    PetscCall(ReportSetInt(s->report, "drape_folds", folds));
   }
-  if (s->summary) {
-    PetscReal wall = (PetscReal) (t1 - s->wall0);
+  {
+    const PetscReal wall = (PetscReal) (t1 - s->wall0);
+    const PetscInt  run  = steps - s->restart_step; /* steps taken by this run */
+    PetscInt        solves, rejected;
+    Report          r = s->report;
     PetscCall(TSGetKSPIterations(s->ts, &its));
-    PetscInt run = steps - s->restart_step; /* steps taken by this run */
-    PetscCall(PetscPrintf(s->comm, "Summary: %" PetscInt_FMT " steps to t = %g s in %.3f s wall, %.4e particle-steps/s", run, (double) t, (double) wall, wall > 0 ? ((double) run * info.nparticles / wall) : 0.0));
-    if (its > 0) PetscCall(PetscPrintf(s->comm, ", %.2f CG iterations per step", (double) its / PetscMax(run, 1)));
-    {
-      PetscInt solves, rejected;
-      PetscCall(TSDrapeBEGetStatistics(s->ts, &solves, &rejected, NULL));
+    PetscCall(TSDrapeBEGetStatistics(s->ts, &solves, &rejected, NULL));
+    PetscCall(ReportSetInt(r, "steps", run));
+    PetscCall(ReportSetInt(r, "step", steps));
+    PetscCall(ReportSetReal(r, "t", t));
+    PetscCall(ReportSetReal(r, "wall", wall));
+    PetscCall(ReportSetReal(r, "particle_steps_per_s", wall > 0 ? (PetscReal) run * info.nparticles / wall : 0));
+    PetscCall(ReportSetReal(r, "cg_per_step", (PetscReal) its / PetscMax(run, 1)));
+    PetscCall(ReportSetReal(r, "solves_per_step", (PetscReal) solves / PetscMax(run, 1)));
+    PetscCall(ReportSetInt(r, "steps_retried", rejected));
+    PetscCall(ReportSetReal(r, "strain_max", s->strain_last));
+    PetscCall(ReportSetBool(r, "at_rest", s->at_rest));
+    PetscCall(ReportSetString(r, "stopped_by", s->interrupted == SIGTERM ? "SIGTERM" : s->interrupted ? "SIGINT" : ""));
+    if (s->summary) {
+      PetscCall(PetscPrintf(s->comm, "Summary: %" PetscInt_FMT " steps to t = %g s in %.3f s wall, %.4e particle-steps/s", run, (double) t, (double) wall, wall > 0 ? ((double) run * info.nparticles / wall) : 0.0));
+      if (its > 0) PetscCall(PetscPrintf(s->comm, ", %.2f CG iterations per step", (double) its / PetscMax(run, 1)));
       if (solves > run) PetscCall(PetscPrintf(s->comm, ", %.2f solves per step", (double) solves / PetscMax(run, 1)));
       if (rejected) PetscCall(PetscPrintf(s->comm, ", %" PetscInt_FMT " steps retried at a smaller step", rejected));
+      PetscCall(PetscPrintf(s->comm, "; largest edge strain %.3g %%\n", (double) (100 * s->strain_last)));
     }
-    PetscCall(PetscPrintf(s->comm, "; largest edge strain %.3g %%\n", (double) (100 * s->strain_last)));
+    if (enabled) PetscCall(OutputWriteReport(s->output, r));
+    if (s->json) PetscCall(ReportPrintJSON(r));
   }
   PetscFunctionReturn(0);
 }

@@ -10,7 +10,9 @@
  *                            previous frame (N; 0 in the first frame)
  *   /strain_max      [t][1]  largest stretch of a lattice edge, (l - L)/L
  *   /solid_triangles  [9 x triangles]       (m) the solid's mesh, for pictures
- *   attributes of /: drape_version, options (as given), description, lattice.
+ *   attributes of /: options (as given) and the run's report (report.h): the
+ *                    start-up numbers when the file is opened (drape_version,
+ *                    lattice, material, limits), the summary at the end.
  * /time is written last in each frame, so its length counts the complete frames;
  * every frame is flushed, so a run killed later leaves them readable. */
 #include <output.h>
@@ -182,21 +184,18 @@ PetscErrorCode OutputLastStep(Output o, PetscInt *step)
 }
 
 typedef struct {
-  Output      o;
-  ClothInfo   info;
-  Solid       solid;
-  const char *description;
+  Output    o;
+  ClothInfo info;
+  Solid     solid;
 } OutputOpenContext;
 
-/* Create (or, for a restart, reopen) the file and write the run's description. */
+/* Create (or, for a restart, reopen) the file and write what describes the run. */
 static PetscErrorCode OutputCreateFile(void *ctx)
 {
   OutputOpenContext *c = (OutputOpenContext *) ctx;
   Output             o = c->o;
   char              *given;
   PetscMPIInt        rank;
-  PetscInt           lattice[2];
-  PetscReal          material[9];
 
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_rank(o->comm, &rank));
@@ -210,27 +209,8 @@ static PetscErrorCode OutputCreateFile(void *ctx)
   PetscCall(PetscViewerHDF5Open(o->comm, o->file, FILE_MODE_WRITE, &o->viewer));
   PetscCall(PetscViewerHDF5SetCollective(o->viewer, PETSC_TRUE)); /* collective MPI-IO */
   PetscCall(PetscOptionsGetAll(NULL, &given));
-  PetscCall(PetscViewerHDF5WriteAttribute(o->viewer, "/", "drape_version", PETSC_STRING, DRAPE_VERSION));
   PetscCall(PetscViewerHDF5WriteAttribute(o->viewer, "/", "options", PETSC_STRING, given));
-  PetscCall(PetscViewerHDF5WriteAttribute(o->viewer, "/", "description", PETSC_STRING, c->description));
   PetscCall(PetscFree(given));
-  lattice[0] = c->info.Mx;
-  lattice[1] = c->info.My;
-  PetscCall(PetscViewerHDF5WriteAttribute(o->viewer, "/", "lattice_Mx", PETSC_INT, &lattice[0]));
-  PetscCall(PetscViewerHDF5WriteAttribute(o->viewer, "/", "lattice_My", PETSC_INT, &lattice[1]));
-  material[0] = c->info.size[0];
-  material[1] = c->info.size[1];
-  material[2] = c->info.mass;
-  material[3] = c->info.damping;
-  material[4] = c->info.stretch[0];
-  material[5] = c->info.stretch[1];
-  material[6] = c->info.shear;
-  material[7] = c->info.bend[0];
-  material[8] = c->info.bend[1];
-  {
-    const char *names[9] = {"size_warp", "size_weft", "mass", "damping", "stretch_warp", "stretch_weft", "shear", "bend_warp", "bend_weft"};
-    for (PetscInt k = 0; k < 9; k++) PetscCall(PetscViewerHDF5WriteAttribute(o->viewer, "/", names[k], PETSC_REAL, &material[k]));
-  }
   {
     PetscInt   ntri;
     PetscReal *xyz;
@@ -252,11 +232,11 @@ static PetscErrorCode OutputCreateFile(void *ctx)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode OutputOpen(Output o, Cloth cloth, Solid solid, const char *description)
+PetscErrorCode OutputOpen(Output o, Cloth cloth, Solid solid)
 {
   DM                da;
   PetscMPIInt       rank;
-  OutputOpenContext ctx = {.o = o, .solid = solid, .description = description};
+  OutputOpenContext ctx = {.o = o, .solid = solid};
   char              what[PETSC_MAX_PATH_LEN + 64];
 
   PetscFunctionBeginUser;
@@ -398,32 +378,42 @@ PetscErrorCode OutputWriteFrame(Output o, Cloth cloth, PetscInt step, PetscReal 
 }
 
 typedef struct {
-  Output      o;
-  const char *name;
-  PetscReal   value;
-} OutputResultContext;
+  Output o;
+  Report report;
+} OutputReportContext;
 
-static PetscErrorCode OutputWriteResultFile(void *ctx)
+static PetscErrorCode OutputWriteReportFile(void *ctx)
 {
-  OutputResultContext *c = (OutputResultContext *) ctx;
+  OutputReportContext *c = (OutputReportContext *) ctx;
+  PetscInt             n;
   hid_t                fid;
 
   PetscFunctionBeginUser;
-  PetscCall(PetscViewerHDF5WriteAttribute(c->o->viewer, "/", c->name, PETSC_REAL, &c->value));
+  PetscCall(ReportGetSize(c->report, &n));
+  for (PetscInt k = 0; k < n; k++) {
+    const char   *name, *s;
+    PetscDataType type;
+    PetscReal     r;
+    PetscInt      i;
+    PetscBool     b;
+    PetscCall(ReportGetEntry(c->report, k, &name, &type, &r, &i, &s));
+    b = (PetscBool) (i != 0);
+    PetscCall(PetscViewerHDF5WriteAttribute(c->o->viewer, "/", name, type, type == PETSC_REAL ? (const void *) &r : type == PETSC_INT ? (const void *) &i : type == PETSC_BOOL ? (const void *) &b : (const void *) s));
+  }
   PetscCall(PetscViewerHDF5GetFileId(c->o->viewer, &fid));
   PetscCheck(H5Fflush(fid, H5F_SCOPE_GLOBAL) >= 0, PETSC_COMM_SELF, PETSC_ERR_FILE_WRITE, "HDF5 cannot flush the file");
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode OutputWriteResult(Output o, const char *name, PetscReal value)
+PetscErrorCode OutputWriteReport(Output o, Report report)
 {
-  OutputResultContext ctx = {.o = o, .name = name, .value = value};
+  OutputReportContext ctx = {.o = o, .report = report};
   char                what[PETSC_MAX_PATH_LEN + 64];
 
   PetscFunctionBeginUser;
   if (!o->enabled) PetscFunctionReturn(0);
-  PetscCall(PetscSNPrintf(what, sizeof what, "Cannot write %s to -output_file %s", name, o->file));
-  PetscCall(DrapeCollectiveWrite(o->comm, OutputWriteResultFile, &ctx, what));
+  PetscCall(PetscSNPrintf(what, sizeof what, "Cannot write the run's report to -output_file %s", o->file));
+  PetscCall(DrapeCollectiveWrite(o->comm, OutputWriteReportFile, &ctx, what));
   PetscFunctionReturn(0);
 }
 

@@ -1,0 +1,27 @@
+/* The numbers a run reports about itself (start-up: lattice, material, stability
+ * limits, integrator; end: steps, wall time, solver statistics, strain, drape
+ * coefficient), by name, for programs rather than people: written as attributes of
+ * the output file's root (OutputWriteReport) and, with -drape_json, as one JSON
+ * line on standard output. The printed prose says the same for people. */
+#pragma once
+
+#include <petscsys.h>
+
+typedef struct _p_Report *Report;
+
+/* Not collective: every rank keeps the same entries, rank 0 prints them. */
+PETSC_EXTERN PetscErrorCode ReportCreate(MPI_Comm, Report *);
+PETSC_EXTERN PetscErrorCode ReportDestroy(Report *);
+/* Set (or replace) an entry; names are [a-z0-9_], entries keep the order of their
+ * first setting. Not collective. */
+PETSC_EXTERN PetscErrorCode ReportSetReal(Report, const char name[], PetscReal);
+PETSC_EXTERN PetscErrorCode ReportSetInt(Report, const char name[], PetscInt);
+PETSC_EXTERN PetscErrorCode ReportSetBool(Report, const char name[], PetscBool);
+PETSC_EXTERN PetscErrorCode ReportSetString(Report, const char name[], const char value[]);
+/* Entry k (0 <= k < n): its name and type (PETSC_REAL, PETSC_INT, PETSC_BOOL or
+ * PETSC_STRING) and value (the one of its type). Not collective. */
+PETSC_EXTERN PetscErrorCode ReportGetSize(Report, PetscInt *n);
+PETSC_EXTERN PetscErrorCode ReportGetEntry(Report, PetscInt k, const char **name, PetscDataType *, PetscReal *r, PetscInt *i, const char **s);
+/* One line: a JSON object of every entry (non-finite reals as null), printed by
+ * rank 0. Collective. */
+PETSC_EXTERN PetscErrorCode ReportPrintJSON(Report);
