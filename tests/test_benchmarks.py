@@ -1,4 +1,4 @@
-"""The benchmark scripts paper_tables.py, scaling.py, solver_study.py, rtol_accuracy.py and implicit_study.py in --quick mode:
+"""The benchmark scripts paper_tables.py, scaling.py, solver_study.py, rtol_accuracy.py, implicit_study.py and bench_assembly.py in --quick mode:
 their CSV columns and contents, and the claims they rest on (a dense implicit matrix
 gives the AIJ frames, the Blender shortcut is less accurate than drape's default,
 bytes per particle are plausible); plus -drape_mat_type dense on 1 and 2 ranks."""
@@ -191,3 +191,15 @@ def test_implicit_study_quick(tmp_path):
     strip = {r["solver"]: r for r in rows(tmp_path / "strip.csv")}
     assert strip["default"]["status"] == "completed"
     assert "Stiff cloth" in (tmp_path / "implicit_study.md").read_text()
+
+
+def test_bench_assembly_quick_measures_every_way_into_every_matrix(tmp_path):
+    """bench_assembly.py --quick: a positive assembly time for AIJ and SBAIJ by COO and
+    by rows, MatSetValuesCOO's share only where COO was used and below the whole."""
+    quick("bench_assembly.py", tmp_path)
+    got = {(r["mat"], r["assembly"]): r for r in rows(tmp_path / "bench_assembly.csv")}
+    assert set(got) == {("aij", "coo"), ("aij", "rows"), ("sbaij", "rows"), ("sbaij", "coo")}
+    for (mat, mode), r in got.items():
+        t, h = float(r["ms_per_assembly"]), float(r["ms_handoff"])
+        assert t > 0, r
+        assert (0 < h < t) if mode == "coo" else np.isnan(h), r

@@ -686,8 +686,6 @@ PetscErrorCode ClothDestroy(Cloth *cloth)
     PetscCall(PetscFree2(c->natural, c->global));
     PetscCall(PetscFree3(c->ctype, c->cnormal, c->cblock));
     PetscCall(PetscFree(c->hdiag));
-    PetscCall(PetscFree(c->map));
-    PetscCall(PetscFree(c->map_diag));
     PetscCall(PetscFree6(c->rb_start, c->rb_ncols, c->rb_colstart, c->rb_cols, c->rb_map, c->rb_diag));
     PetscCall(PetscFree(c->rb_val));
   }

@@ -93,13 +93,12 @@ struct _p_Cloth {
   PetscReal       *cblock;      /* owned: added to a sliding particle's diagonal block, 9 each */
   PetscBool        constrained; /* any local particle constrained */
   PetscReal       *hdiag;       /* diagonal blocks of the Hessian at the last assembly (owned, 9 each) */
-  /* fast AIJ assembly (forces.c): CSR value positions for map_mat */
-  Mat       map_mat;
-  PetscInt *map, *map_diag, map_nnzA;
-  /* row-buffer assembly for block matrices (forces.c): per owned block row its sorted
-   * global block columns and a 3 x 3ncols row-major value buffer; per element block
-   * pair the position of its (0,0) entry, or -1 */
+  /* row-buffer assembly of the implicit matrix (forces.c): per owned block row its
+   * sorted global block columns and a 3 x 3ncols row-major value buffer; per element
+   * block pair the position of its (0,0) entry, or -1; rb_coo: the buffer goes to
+   * rb_mat by MatSetValuesCOO (in buffer order), else by MatSetValuesBlocked rows */
   Mat        rb_mat;
+  PetscBool  rb_coo;
   PetscInt  *rb_start, *rb_ncols, *rb_colstart, *rb_cols, *rb_map, *rb_diag;
   PetscReal *rb_val;
 };

@@ -351,167 +351,81 @@ PetscErrorCode ClothApplyHessian(Cloth c, const PetscScalar *x, const PetscScala
   PetscFunctionReturn(0);
 }
 
-/* Add b*H(xl) + a*M into J; xl == NULL inserts the pattern only (preallocation). */
-static PetscErrorCode ClothAddToMatrix(Cloth c, const PetscReal *xl, PetscReal a, PetscReal b, Mat J)
-{
-  const ClothElements *lists[3] = {&c->stretch_el, &c->shear_el, &c->bend_el};
-  PetscReal            H[81], D[9];
-
-  PetscFunctionBeginUser;
-  PetscCall(PetscArrayzero(H, 81));
-  for (PetscInt kind = 0; kind < 3; kind++) {
-    const ClothElements *el = lists[kind];
-    const PetscInt       n  = kind ? 3 : 2;
-    for (PetscInt e = 0; e < el->n; e++) {
-      const PetscInt *p = el->p + n * e;
-      PetscInt        rows[3], cols[3];
-      for (PetscInt i = 0; i < n; i++) {
-        rows[i] = c->row_map[p[i]];
-        cols[i] = c->col_map[p[i]];
-      }
-      if (xl) {
-        MatrixElementHessian(c, kind, el, e, xl, H);
-        for (PetscInt i = 0; i < 9 * n * n; i++) H[i] *= b;
-      }
-      PetscCall(MatSetValuesBlocked(J, n, rows, n, cols, H, ADD_VALUES));
-    }
-  }
-  for (PetscInt k = 0; k < c->nowned; k++) {
-    PetscInt g = c->global[c->owned_local[k]];
-    MassBlock(c, k, a, b, D);
-    PetscCall(MatSetValuesBlocked(J, 1, &g, 1, &g, D, ADD_VALUES));
-  }
-  PetscFunctionReturn(0);
-}
-
 /* The implicit matrix, of type `type` unless -drape_mat_type says otherwise, with
- * the exact nonzero pattern of the element lists. */
+ * the exact nonzero pattern of the element lists. The element blocks are summed
+ * into drape's row buffer (below); -drape_mat_assembly says how the rows reach
+ * PETSc: coo, MatSetValuesCOO with the pattern given once by
+ * MatSetPreallocationCOO (the default where the type implements COO natively: AIJ),
+ * or rows, one MatSetValuesBlocked per block row (every other type: SBAIJ, BAIJ,
+ * dense). */
+static PetscErrorCode ClothBuildRowBuffer(Cloth, Mat);
+
 PetscErrorCode ClothCreateMatrix(Cloth c, MatType type, Mat *J)
 {
-  Mat      P;
-  PetscInt n = 3 * c->nowned;
+  PetscInt  n = 3 * c->nowned;
+  PetscBool native;
+  void (*coo)(void);
+  const char *const modes[] = {"coo", "rows"};
+  PetscInt          mode;
 
   PetscFunctionBeginUser;
-  PetscCall(MatCreate(c->comm, &P));
-  PetscCall(MatSetSizes(P, n, n, PETSC_DETERMINE, PETSC_DETERMINE));
-  PetscCall(MatSetBlockSize(P, 3));
-  PetscCall(MatSetType(P, MATPREALLOCATOR));
-  PetscCall(MatSetUp(P));
-  PetscCall(ClothAddToMatrix(c, NULL, 0, 0, P));
-  PetscCall(MatAssemblyBegin(P, MAT_FINAL_ASSEMBLY));
-  PetscCall(MatAssemblyEnd(P, MAT_FINAL_ASSEMBLY));
   PetscCall(MatCreate(c->comm, J));
   PetscCall(MatSetSizes(*J, n, n, PETSC_DETERMINE, PETSC_DETERMINE));
   PetscCall(MatSetBlockSize(*J, 3));
   PetscCall(MatSetType(*J, type));
   PetscCall(MatSetOptionsPrefix(*J, "drape_"));
   PetscCall(MatSetFromOptions(*J));
-  PetscCall(MatPreallocatorPreallocate(P, PETSC_TRUE, *J));
-  PetscCall(MatDestroy(&P));
-  PetscCall(MatSetOption(*J, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
-  PetscCall(MatSetOption(*J, MAT_NO_OFF_PROC_ENTRIES, PETSC_TRUE));
+  PetscCall(PetscObjectQueryFunction((PetscObject) *J, "MatSetPreallocationCOO_C", &coo));
+  native = (PetscBool) (coo != NULL);
+  mode   = native ? 0 : 1;
+  PetscOptionsBegin(c->comm, "drape_", "Implicit matrix assembly", "ClothCreateMatrix");
+  PetscCall(
+    PetscOptionsEList("-mat_assembly", "How the summed rows reach the matrix: coo (MatSetValuesCOO; default for AIJ) or rows (MatSetValuesBlocked per block row; default for other types)", "ClothCreateMatrix", modes, 2, modes[mode], &mode, NULL));
+  PetscOptionsEnd();
+  PetscCall(ClothBuildRowBuffer(c, *J));
+  c->rb_coo = (PetscBool) (mode == 0);
+  if (c->rb_coo) {
+    /* one COO entry per row-buffer value, in the buffer's order (unique entries:
+     * drape sums the element blocks; types without a native COO take PETSc's basic
+     * implementation, MatSetValue per entry) */
+    const PetscCount ncoo = c->rb_start[c->nowned];
+    PetscInt        *ci, *cj, q = 0;
+    PetscCall(PetscMalloc2(ncoo + 1, &ci, ncoo + 1, &cj));
+    for (PetscInt k = 0; k < c->nowned; k++)
+      for (PetscInt i = 0; i < 3; i++)
+        for (PetscInt l = 0; l < c->rb_ncols[k]; l++)
+          for (PetscInt j = 0; j < 3; j++, q++) {
+            ci[q] = 3 * c->global[k] + i;
+            cj[q] = 3 * c->rb_cols[c->rb_colstart[k] + l] + j;
+          }
+    PetscCall(MatSetPreallocationCOO(*J, ncoo, ci, cj));
+    PetscCall(PetscFree2(ci, cj));
+  } else {
+    Mat P;
+    PetscCall(MatCreate(c->comm, &P));
+    PetscCall(MatSetSizes(P, n, n, PETSC_DETERMINE, PETSC_DETERMINE));
+    PetscCall(MatSetBlockSize(P, 3));
+    PetscCall(MatSetType(P, MATPREALLOCATOR));
+    PetscCall(MatSetUp(P));
+    PetscCall(PetscArrayzero(c->rb_val, c->rb_start[c->nowned]));
+    for (PetscInt k = 0; k < c->nowned; k++) PetscCall(MatSetValuesBlocked(P, 1, &c->global[k], c->rb_ncols[k], c->rb_cols + c->rb_colstart[k], c->rb_val + c->rb_start[k], INSERT_VALUES));
+    PetscCall(MatAssemblyBegin(P, MAT_FINAL_ASSEMBLY));
+    PetscCall(MatAssemblyEnd(P, MAT_FINAL_ASSEMBLY));
+    PetscCall(MatPreallocatorPreallocate(P, PETSC_TRUE, *J));
+    PetscCall(MatDestroy(&P));
+    PetscCall(MatSetOption(*J, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
+    PetscCall(MatSetOption(*J, MAT_NO_OFF_PROC_ENTRIES, PETSC_TRUE));
+  }
   PetscCall(MatSetOption(*J, MAT_SYMMETRIC, PETSC_TRUE));
   PetscCall(MatSetOption(*J, MAT_SYMMETRY_ETERNAL, PETSC_TRUE));
   PetscFunctionReturn(0);
 }
 
-/* Fast assembly for AIJ matrices: for every element block and row, the position
- * in the CSR value arrays (diagonal part first, then off-diagonal part) of the
- * first of its three column entries; -1 where the row or column is skipped.
- * Built once per matrix from its (preallocated, fixed) nonzero pattern. */
-static PetscErrorCode FindColumn(const PetscInt *ia, const PetscInt *ja, const PetscInt *garray, PetscInt row, PetscInt col, PetscInt *pos)
-{
-  PetscInt lo = ia[row], hi = ia[row + 1] - 1;
-
-  PetscFunctionBeginUser;
-  while (lo <= hi) {
-    PetscInt mid = (lo + hi) / 2, c = garray ? garray[ja[mid]] : ja[mid];
-    if (c == col) {
-      *pos = mid;
-      PetscFunctionReturn(0);
-    }
-    if (c < col)
-      lo = mid + 1;
-    else
-      hi = mid - 1;
-  }
-  SETERRQ(PETSC_COMM_SELF, PETSC_ERR_PLIB, "Column %" PetscInt_FMT " of row %" PetscInt_FMT " is not in the matrix pattern", col, row);
-}
-
-static PetscErrorCode ClothBuildAssemblyMap(Cloth c, Mat J)
-{
-  const ClothElements *lists[3] = {&c->stretch_el, &c->shear_el, &c->bend_el};
-  Mat                  Ad, Ao = NULL;
-  const PetscInt      *ia, *ja, *ib = NULL, *jb = NULL, *garray = NULL;
-  PetscInt             nrows, rstart, cstart, cend, total       = 0, nnzA;
-  PetscBool            done, ismpi, isseq;
-
-  PetscFunctionBeginUser;
-  PetscCall(PetscObjectTypeCompare((PetscObject) J, MATMPIAIJ, &ismpi));
-  PetscCall(PetscObjectTypeCompare((PetscObject) J, MATSEQAIJ, &isseq));
-  c->map_mat = J;
-  if (!ismpi && !isseq) PetscFunctionReturn(0); /* other types: MatSetValuesBlocked */
-  if (ismpi)
-    PetscCall(MatMPIAIJGetSeqAIJ(J, &Ad, &Ao, &garray));
-  else
-    Ad = J;
-  PetscCall(MatGetOwnershipRange(J, &rstart, NULL));
-  PetscCall(MatGetOwnershipRangeColumn(J, &cstart, &cend));
-  PetscCall(MatGetRowIJ(Ad, 0, PETSC_FALSE, PETSC_FALSE, &nrows, &ia, &ja, &done));
-  PetscCheck(done, PETSC_COMM_SELF, PETSC_ERR_SUP, "Cannot read the matrix pattern");
-  if (Ao) {
-    PetscCall(MatGetRowIJ(Ao, 0, PETSC_FALSE, PETSC_FALSE, &nrows, &ib, &jb, &done));
-    PetscCheck(done, PETSC_COMM_SELF, PETSC_ERR_SUP, "Cannot read the matrix pattern");
-  }
-  nnzA = ia[nrows];
-  for (PetscInt kind = 0; kind < 3; kind++) {
-    const PetscInt n = kind ? 3 : 2;
-    total += lists[kind]->n * n * n * 3;
-  }
-  PetscCall(PetscFree(c->map));
-  PetscCall(PetscMalloc1(total + 1, &c->map));
-  total = 0;
-  for (PetscInt kind = 0; kind < 3; kind++) {
-    const ClothElements *el = lists[kind];
-    const PetscInt       n  = kind ? 3 : 2;
-    for (PetscInt e = 0; e < el->n; e++) {
-      const PetscInt *p = el->p + n * e;
-      for (PetscInt a = 0; a < n; a++) {
-        for (PetscInt b = 0; b < n; b++) {
-          for (PetscInt d = 0; d < 3; d++, total++) {
-            PetscInt row = c->row_map[p[a]], col = c->col_map[p[b]], r, pos = -1;
-            c->map[total] = -1;
-            if (row < 0 || col < 0) continue;
-            r = 3 * row + d - rstart;
-            if (3 * col >= cstart && 3 * col < cend) {
-              PetscCall(FindColumn(ia, ja, NULL, r, 3 * col - cstart, &pos));
-              c->map[total] = pos;
-            } else {
-              PetscCall(FindColumn(ib, jb, garray, r, 3 * col, &pos));
-              c->map[total] = nnzA + pos;
-            }
-          }
-        }
-      }
-    }
-  }
-  PetscCall(PetscFree(c->map_diag));
-  PetscCall(PetscMalloc1(3 * c->nowned + 1, &c->map_diag));
-  for (PetscInt k = 0; k < c->nowned; k++) {
-    PetscInt g = c->global[c->owned_local[k]];
-    for (PetscInt d = 0; d < 3; d++) PetscCall(FindColumn(ia, ja, NULL, 3 * g + d - rstart, 3 * g - cstart, &c->map_diag[3 * k + d]));
-  }
-  PetscCall(MatRestoreRowIJ(Ad, 0, PETSC_FALSE, PETSC_FALSE, &nrows, &ia, &ja, &done));
-  if (Ao) PetscCall(MatRestoreRowIJ(Ao, 0, PETSC_FALSE, PETSC_FALSE, &nrows, &ib, &jb, &done));
-  c->map_nnzA = nnzA;
-  PetscFunctionReturn(0);
-}
-
-/* Row-buffer assembly for block matrices (SBAIJ, BAIJ): the element blocks are
- * summed into drape's own buffer, then each block row goes to PETSc in one
- * MatSetValuesBlocked call with sorted columns (per element and block, PETSc's
- * MPISBAIJ insertion costs more than computing the Hessians). Symmetric storage
- * keeps only the blocks with global column >= row. */
+/* Row-buffer assembly: the element blocks are summed into drape's own buffer, one
+ * block row per owned particle with sorted global block columns, which then goes
+ * to PETSc whole (MatSetValuesCOO) or row by row (MatSetValuesBlocked; element by
+ * element, PETSc's MPISBAIJ insertion cost more than computing the Hessians).
+ * Symmetric storage keeps only the blocks with global column >= row. */
 /* Does the row buffer hold the block (a, b) of local particles a, b: a owned and
  * free, b free, and in the upper half for symmetric storage? */
 static inline PetscBool RowBufferHolds(Cloth c, PetscBool sym, PetscInt a, PetscInt b)
@@ -621,65 +535,14 @@ static PetscErrorCode ClothAddToMatrixRows(Cloth c, const PetscReal *xl, PetscRe
     MassBlock(c, k, a, b, D);
     for (PetscInt i = 0; i < 3; i++)
       for (PetscInt j = 0; j < 3; j++) c->rb_val[c->rb_diag[k] + ld * i + j] += D[3 * i + j];
-    PetscCall(MatSetValuesBlocked(J, 1, &c->global[k], c->rb_ncols[k], c->rb_cols + c->rb_colstart[k], c->rb_val + c->rb_start[k], INSERT_VALUES));
   }
-  PetscFunctionReturn(0);
-}
-
-/* J = a M + b H(xl) straight into the CSR value arrays through the map. */
-static PetscErrorCode ClothAddToMatrixFast(Cloth c, const PetscReal *xl, PetscReal a, PetscReal b, Mat J)
-{
-  const ClothElements *lists[3] = {&c->stretch_el, &c->shear_el, &c->bend_el};
-  Mat                  Ad, Ao  = NULL;
-  PetscScalar         *va, *vb = NULL;
-  PetscInt             nnzB = 0, total = 0;
-  PetscReal            H[81];
-  PetscBool            ismpi;
-
-  PetscFunctionBeginUser;
-  PetscCall(PetscObjectTypeCompare((PetscObject) J, MATMPIAIJ, &ismpi));
-  if (ismpi)
-    PetscCall(MatMPIAIJGetSeqAIJ(J, &Ad, &Ao, NULL));
-  else
-    Ad = J;
-  PetscCall(MatSeqAIJGetArray(Ad, &va));
-  PetscCall(PetscArrayzero(va, c->map_nnzA));
-  if (Ao) {
-    MatInfo info;
-    PetscCall(MatGetInfo(Ao, MAT_LOCAL, &info));
-    nnzB = (PetscInt) info.nz_used;
-    PetscCall(MatSeqAIJGetArray(Ao, &vb));
-    PetscCall(PetscArrayzero(vb, nnzB));
+  if (c->rb_coo && J == c->rb_mat)
+    PetscCall(MatSetValuesCOO(J, c->rb_val, INSERT_VALUES)); /* assembled on return */
+  else {
+    for (PetscInt k = 0; k < c->nowned; k++) PetscCall(MatSetValuesBlocked(J, 1, &c->global[k], c->rb_ncols[k], c->rb_cols + c->rb_colstart[k], c->rb_val + c->rb_start[k], INSERT_VALUES));
+    PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
+    PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
   }
-  for (PetscInt kind = 0; kind < 3; kind++) {
-    const ClothElements *el = lists[kind];
-    const PetscInt       n = kind ? 3 : 2, m = 3 * n;
-    for (PetscInt e = 0; e < el->n; e++) {
-      MatrixElementHessian(c, kind, el, e, xl, H);
-      for (PetscInt pa = 0; pa < n; pa++) {
-        for (PetscInt pb = 0; pb < n; pb++) {
-          for (PetscInt d = 0; d < 3; d++, total++) {
-            const PetscInt   pos = c->map[total];
-            const PetscReal *h   = H + m * (3 * pa + d) + 3 * pb;
-            PetscScalar     *v;
-            if (pos < 0) continue;
-            v = pos < c->map_nnzA ? va + pos : vb + (pos - c->map_nnzA);
-            v[0] += b * h[0];
-            v[1] += b * h[1];
-            v[2] += b * h[2];
-          }
-        }
-      }
-    }
-  }
-  for (PetscInt k = 0; k < c->nowned; k++) {
-    PetscReal D[9];
-    MassBlock(c, k, a, b, D);
-    for (PetscInt d = 0; d < 3; d++)
-      for (PetscInt e = 0; e < 3; e++) va[c->map_diag[3 * k + d] + e] += D[3 * d + e];
-  }
-  PetscCall(MatSeqAIJRestoreArray(Ad, &va));
-  if (Ao) PetscCall(MatSeqAIJRestoreArray(Ao, &vb));
   PetscFunctionReturn(0);
 }
 
@@ -691,24 +554,13 @@ PetscErrorCode ClothAssembleMatrix(Cloth c, const PetscScalar *x, PetscReal a, P
   PetscCall(PetscLogEventBegin(drape_log.jacobian, 0, 0, 0, 0));
   if (!c->hdiag) PetscCall(PetscMalloc1(9 * c->nowned + 1, &c->hdiag));
   PetscCall(PetscArrayzero(c->hdiag, 9 * c->nowned));
-  if (c->map_mat != J) {
-    PetscBool block;
-    PetscCall(ClothBuildAssemblyMap(c, J));
-    PetscCall(PetscObjectTypeCompareAny((PetscObject) J, &block, MATSEQSBAIJ, MATMPISBAIJ, MATSEQBAIJ, MATMPIBAIJ, ""));
-    if (!c->map && block) PetscCall(ClothBuildRowBuffer(c, J));
+  if (c->rb_mat != J) { /* a matrix ClothCreateMatrix did not make: rows into its own pattern */
+    PetscCall(ClothBuildRowBuffer(c, J));
+    c->rb_coo = PETSC_FALSE;
   }
   PetscCall(ClothScatterPositions(c, x, &xl));
-  if (c->map)
-    PetscCall(ClothAddToMatrixFast(c, xl, a, b, J));
-  else if (c->rb_mat == J)
-    PetscCall(ClothAddToMatrixRows(c, xl, a, b, J));
-  else {
-    PetscCall(MatZeroEntries(J));
-    PetscCall(ClothAddToMatrix(c, xl, a, b, J));
-  }
+  PetscCall(ClothAddToMatrixRows(c, xl, a, b, J));
   PetscCall(ClothEndScatter(c, &xl));
-  PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
-  PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
   PetscCall(PetscLogEventEnd(drape_log.jacobian, 0, 0, 0, 0));
   PetscFunctionReturn(0);
 }
