@@ -86,12 +86,15 @@ def test_load_square_run(sphere):
         assert run.nframes == n > 2
         assert np.array_equal(run.positions, f["position"][:n])
         assert np.array_equal(run.solid_triangles.ravel(), f["solid_triangles"][:])
+        assert np.array_equal(run.strain_max, f["strain_max"][:n, 0])
+    assert run.frame_at(run.time[1], 1e-12) == 1 and run.frame_at(-1.0, 1e-12) is None
+    assert run.attrs["lattice_mx"] == 11 and run.attrs["stopped_by"] == "" and run.attrs["at_rest"] in (0, 1)
     assert run.active.shape == (11, 11) and run.active.all()
     assert run.active_cells.sum() == 100
     assert run.floor == 0.0
     assert run.option("solid_type") == "sphere"
     assert run.option("cloth_center") == "0,0,0.6"
-    assert set(run.contact) == {"depth", "count"}
+    assert set(run.contact) == {"depth", "count", "force"} and run.contact["force"].shape == (n, 3)
 
 
 def test_circle_active_mask(circle):
