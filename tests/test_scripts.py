@@ -11,10 +11,10 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import DRAPE, ROOT
+import conftest
+from conftest import ROOT
 
 SCRIPTS = ROOT / "scripts"
-sys.path.insert(0, str(SCRIPTS))
 with warnings.catch_warnings():  # matplotlib's import trips newer pyparsing's deprecations
     warnings.simplefilter("ignore", DeprecationWarning)
     import matplotlib.image
@@ -31,9 +31,7 @@ CIRCLE = ("-options_file runs/cusick.opts -cloth_shape circle -cloth_size 0.3 -d
 
 
 def drape(args, out):
-    cmd = [str(DRAPE), *args.split(), "-drape_progress", "0", "-output_file", str(out)]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=ROOT)
-    assert proc.returncode == 0, f"{' '.join(cmd)} failed:\n{proc.stdout}\n{proc.stderr}"
+    conftest.run(f"{args} -output_file {out}", checks=False, timeout=120)
     return out
 
 
