@@ -24,7 +24,8 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import Drape, fail, machine, md_table, median, write_csv  # noqa: E402
+from bench_common import machine, md_table, median, write_csv  # noqa: E402
+from drape_run import Drape, fail  # noqa: E402
 
 PROG = "bench_assembly.py"
 EVENT = re.compile(r"^(DrapeJacobian|MatSetValuesCOO|MatSetPreallCOO)\s+(\d+)\s+\S+\s+(\S+)", re.M)

@@ -8,7 +8,7 @@ corners) for a fixed number of steps:
                      Omega as the cloth hangs, and 0.9 x diverges in long runs)
   explicit Euler     -ts_type euler at 0.9 x its own (damping-set) stability limit
   backward Euler     -ts_type drapebe at 10 x the symplectic limit
-The limit is the one drape prints at start-up. Each timed run is repeated and the
+The limit is the one drape reports at start-up. Each timed run is repeated and the
 median of drape's own "particle-steps/s" (wall time of the time loop) is reported,
 with CG iterations per step for backward Euler.
 
@@ -18,33 +18,16 @@ with CG iterations per step for backward Euler.
 import argparse
 import csv
 import os
-import re
 import statistics
-import subprocess
-import sys
 from pathlib import Path
 
 from bench_common import machine
+from drape_run import ROOT, Drape
 
-ROOT = Path(__file__).resolve().parent.parent
+PROG = "bench_core"
 # (name, options, step as a multiple of the limit, which printed limit)
 SCHEMES = [("symplectic", "-ts_type basicsymplectic", 0.5, "symplectic"), ("explicit", "-ts_type euler", 0.9, "explicit"),
            ("beuler", "-ts_type drapebe", 10.0, "symplectic")]
-
-
-def launcher(np_):
-    if np_ <= 1:
-        return []
-    cmd = ["mpiexec"] + (["--allow-run-as-root"] if os.geteuid() == 0 else [])
-    return cmd + ["--oversubscribe", "-np", str(np_)]
-
-
-def drape(exe, np_, args):
-    cmd = launcher(np_) + [str(exe)] + args + ["-drape_progress", "0"]
-    try:
-        return subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
-    except OSError as e:
-        sys.exit(f"bench_core: cannot run {exe}: {e}")
 
 
 def main():
@@ -59,30 +42,24 @@ def main():
     a = p.parse_args()
     if a.quick:
         a.sizes, a.repeat, a.steps = "16,24", 1, 20
-    exe = ROOT / a.build / "drape"
-    if not exe.exists():
-        sys.exit(f"bench_core: {exe} not found; run 'make all' first")
+    drape = Drape(PROG, a.build, a.np)
     sizes = [int(s) for s in a.sizes.split(",")]
     rows = []
     print(f"# drape core benchmark on {machine()}, {a.np} rank(s), median of {a.repeat}")
     for n in sizes:
         base = ["-da_grid_x", str(n), "-da_grid_y", str(n), "-cloth_pin", "edge_corners", "-ts_max_time", "1e9"]
-        res = drape(exe, a.np, base + ["-ts_max_steps", "0"])
-        limits = {k: re.search(rf"{k} Euler: stable for h < (\S+) s", res.stdout) for k in ("symplectic", "explicit")}
-        if res.returncode or not all(limits.values()):
-            sys.exit(f"bench_core: cannot read the stability limits for N = {n}:\n{res.stdout}{res.stderr}")
+        limits = drape.limits(base)
         for name, args, factor, which in SCHEMES:
-            dt = factor * float(limits[which].group(1))
+            dt = factor * limits[which]
             steps = a.steps or max(20, int(2e7 // (n * n)) // (20 if name == "beuler" else 1))
             rates, its, status = [], [], "ok"
             for _ in range(a.repeat):
-                res = drape(exe, a.np, base + args.split() + ["-ts_dt", f"{dt:.6e}", "-ts_max_steps", str(steps)])
+                res = drape.run(base + args.split() + ["-ts_dt", f"{dt:.6e}", "-ts_max_steps", str(steps)])
                 if res.returncode:
-                    status = "diverged" if "diverged" in res.stderr else "failed"
+                    status = res.status()
                     break
-                rates.append(float(re.search(r"([0-9.e+-]+) particle-steps/s", res.stdout).group(1)))
-                m = re.search(r"([0-9.]+) CG iterations per step", res.stdout)
-                its.append(float(m.group(1)) if m else 0.0)
+                rates.append(res.report["particle_steps_per_s"])
+                its.append(res.report["cg_per_step"])
             row = {"scheme": name, "N": n, "particles": n * n, "dt": f"{dt:.3e}", "steps": steps,
                    "median_particle_steps_per_s": f"{statistics.median(rates):.4g}" if rates else "",
                    "cg_its_per_step": f"{statistics.median(its):.2f}" if its and name == "beuler" else "",

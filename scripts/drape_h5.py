@@ -6,13 +6,17 @@ Usage::
     run = drape_h5.load("out/hang.h5")
     run.positions[-1]          # last frame, shape [My, Mx, 3], index [j][i][xyz]
     run.energies["kinetic"]    # shape [nframes]
+    run.strain_max             # largest edge strain per frame, shape [nframes]
+    run.frame_at(0.5, 1e-9)    # index of the frame at t = 0.5 s, or None
+    run.attrs["omega_max"]     # the run's report (and "options"), bytes decoded
     run.active                 # [My, Mx] bool: particles that are part of the cloth
     run.solid_triangles        # [ntri, 3, 3] or None: the solid's mesh (vertex xyz)
     run.floor                  # height of the -solid_floor plane, or None
     run.option("cloth_shape")  # value of an option of the run, or None
 
 Only complete frames are returned: drape writes ``/time`` last in each frame,
-so a run killed mid-frame may leave the other datasets one frame longer.
+so a run killed mid-frame may leave the other datasets one frame longer. The file
+is opened without HDF5's file locking, so a running drape's frames can be read.
 """
 
 from dataclasses import dataclass, field
@@ -22,7 +26,7 @@ import h5py
 import numpy as np
 
 ENERGIES = ("kinetic", "gravity", "stretch", "shear", "bend")
-CONTACT = ("depth", "count")
+CONTACT = ("depth", "count", "force")
 _REQUIRED = ("position", "velocity", "time", "step")
 
 
@@ -36,8 +40,9 @@ class DrapeRun:
     time: np.ndarray  # [nframes] (s)
     step: np.ndarray  # [nframes] time-step number of each frame
     energies: dict = field(default_factory=dict)  # name -> [nframes] (J)
-    attrs: dict = field(default_factory=dict)  # root attributes, str decoded
-    contact: dict = field(default_factory=dict)  # "depth" (m), "count" -> [nframes], when written
+    attrs: dict = field(default_factory=dict)  # root attributes: options and the run's report, str decoded
+    contact: dict = field(default_factory=dict)  # "depth" (m), "count" -> [nframes], "force" (N) -> [nframes, 3], when written
+    strain_max: np.ndarray = None  # [nframes] largest stretch of a lattice edge, (l - L)/L, when written
     solid_triangles: np.ndarray = None  # [ntri, 3, 3] (m), or None without a mesh solid
     active: np.ndarray = None  # [My, Mx] bool, True for the particles of the cloth
 
@@ -81,6 +86,11 @@ class DrapeRun:
     def total_energy(self):
         """Sum of the energies present, per frame."""
         return sum(self.energies.values(), np.zeros(self.nframes))
+
+    def frame_at(self, t, tol):
+        """Index of the first frame within `tol` s of time `t`, or None."""
+        k = np.flatnonzero(np.abs(self.time - t) <= tol)
+        return int(k[0]) if len(k) else None
 
 
 def _decode(value):
@@ -133,7 +143,7 @@ def load(path):
     if not os.path.isfile(path):
         raise ValueError(f"{path}: no such file")
     try:
-        f = h5py.File(path, "r")
+        f = h5py.File(path, "r", locking=False)
     except OSError as e:
         raise ValueError(f"{path}: not an HDF5 file ({e})") from None
     with f:
@@ -153,11 +163,18 @@ def load(path):
             velocities=f["velocity"][:n],
             time=f["time"][:n].reshape(n),
             step=f["step"][:n].reshape(n).astype(np.int64),
-            energies={e: f[f"energy_{e}"][:n].reshape(n) for e in ENERGIES if f"energy_{e}" in f},
+            energies={e: _series(f, f"energy_{e}", n) for e in ENERGIES if f"energy_{e}" in f},
             attrs={k: _decode(v) for k, v in f.attrs.items()},
-            contact={c: f[f"contact_{c}"][:n].reshape(n) for c in CONTACT if f"contact_{c}" in f},
+            contact={c: _series(f, f"contact_{c}", n) for c in CONTACT if f"contact_{c}" in f},
+            strain_max=_series(f, "strain_max", n) if "strain_max" in f else None,
             solid_triangles=_triangles(f),
         )
+
+
+def _series(f, name, n):
+    """The first n rows of a per-frame dataset: [n] for one value a frame, else [n, k]."""
+    d = f[name][:n]
+    return d.reshape(n) if d.shape[1:] == (1,) else d.reshape(n, -1)
 
 
 def _triangles(f):

@@ -15,8 +15,8 @@ on N x N lattices (--sizes), -ts_type drapebe -ts_dt 1e-2 with
   gamg      -pc_type gamg -mg_levels_ksp_type richardson -mg_levels_pc_type sor
   default   no -pc_type: drape chooses by (h Omega_max)^2
 
-and symplectic Euler at 0.9 x the limit drape prints. Recorded from drape's summary
-line: whether it completed (else the reason it stopped), simulated s per wall s,
+and symplectic Euler at 0.9 x the limit drape prints. Recorded from drape's report
+(-drape_json): whether it completed (else the reason it stopped), simulated s per wall s,
 CG iterations and solves per step, steps retried at a smaller step, largest edge
 strain.
 
@@ -39,12 +39,12 @@ strip.csv and implicit_study.md (the tables, the machine, the commands).
     python3 scripts/implicit_study.py --quick --out /tmp/is  # smoke run, under a minute
 """
 import argparse
-import re
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import Drape, fail, machine, md_table, write_csv  # noqa: E402
+from bench_common import machine, md_table, write_csv  # noqa: E402
+from drape_run import Drape, fail  # noqa: E402
 
 PROG = "implicit_study"
 STIFF = ["-cloth_size", "1", "-cloth_density", "0.1", "-cloth_stretch", "1333", "-cloth_shear", "500", "-cloth_bend", "1e-5", "-cloth_damping", "0"]
@@ -57,24 +57,18 @@ PCS = [("bjacobi", ["-pc_type", "bjacobi"]), ("ml", ["-pc_type", "ml"]),
 MESH = ["-da_grid_x", "41", "-da_grid_y", "41", "-cloth_size", "0.9", "-cloth_center", "0,0,0.15"]
 FABRICS = ["denim", "polyester", "royal-target", "gray-interlock", "ivory-rib-knit", "pink-ribbon-brown", "tango-red-jet-set",
            "camel-ponte-roma", "navy-sparkle-sweat", "white-swim-solid"]
-SOLVES = re.compile(r"([0-9.]+) solves per step")
-RETRIED = re.compile(r"(\d+) steps retried")
-STRAIN = re.compile(r"largest edge strain (\S+) %")
-PC = re.compile(r"PC (\w+) on an assembled")
 
 
 def record(r, tend):
     """The numbers of one run: completed?, sim s per wall s, CG its/step, solves/step, retries, strain, PC."""
-    st, s = r.status(), r.summary()
+    st, rep = r.status(), r.report
     row = {"status": st if st != "ok" else "completed"}
-    if st == "ok" and s:
-        steps, t, wall, its = s
-        row.update(sim_per_wall=f"{t / wall:.3g}" if wall > 0 else "", cg_per_step=f"{its:.1f}" if its is not None else "",
-                   solves_per_step=(SOLVES.search(r.stdout).group(1) if SOLVES.search(r.stdout) else "1.00"),
-                   retried=(RETRIED.search(r.stdout).group(1) if RETRIED.search(r.stdout) else "0"),
-                   strain_percent=(STRAIN.search(r.stdout).group(1) if STRAIN.search(r.stdout) else ""), wall=f"{wall:.3g}")
-    m = PC.search(r.stdout)
-    row["pc"] = m.group(1) if m else ""
+    if st == "ok" and rep:
+        wall = rep["wall"]
+        row.update(sim_per_wall=f"{rep['t'] / wall:.3g}" if wall > 0 else "", cg_per_step=f"{rep['cg_per_step']:.1f}" if rep["cg_per_step"] else "",
+                   solves_per_step=f"{rep['solves_per_step']:.2f}", retried=str(rep["steps_retried"]),
+                   strain_percent=f"{100 * rep['strain_max']:.3g}", wall=f"{wall:.3g}")
+    row["pc"] = rep.get("pc_type", "") if rep else ""
     return row
 
 

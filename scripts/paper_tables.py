@@ -47,7 +47,7 @@ no cheaper and less stable), its implicit one is (4). Here:
                           Euler completes T/10, there is no critical step below it
                           (reported as '>= T/10' and timed there)
 
-Times are drape's own wall time of the time loop (Summary line; set-up and the
+Times are drape's own wall time of the time loop (its report; set-up and the
 start-up stability estimate excluded), medians of --repeat runs.
 
 Output in --out (default out/paper_tables): table1.csv, table2.csv, tables.md
@@ -68,7 +68,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import ROOT, Drape, fail, machine, md_table, median, positions, write_csv  # noqa: E402
+import drape_h5  # noqa: E402
+from bench_common import machine, md_table, median, write_csv  # noqa: E402
+from drape_run import ROOT, Drape, fail  # noqa: E402
 
 PROG = "paper_tables"
 PAPER1 = {400: (7, 13), 800: (31, 23), 1200: (69, 28), 1600: (155, 54), 2000: (210, 58), 2400: (327, 75)}  # (dense, CSR) s
@@ -119,8 +121,8 @@ def table1(drape, a, tmp):
         else:
             drape.must(base + CONFIGS1[1][1] + ["-output_file", h5c], f"the CSR run at {mx}x{my}")
             dense_t = dwall
-        xd, td = positions(h5d)
-        xc, tc = positions(h5c)
+        d, c = drape_h5.load(h5d), drape_h5.load(h5c)
+        xd, td, xc, tc = d.positions[-1], d.time[-1], c.positions[-1], c.time[-1]
         if abs(td - tc) > 1e-9:
             fail(PROG, f"the dense and CSR runs at {mx}x{my} ended at different times ({td} and {tc} s)")
         diff = float(np.max(np.linalg.norm(xd - xc, axis=-1))) / max((mx - 1) * s, (my - 1) * s)

@@ -27,7 +27,9 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import ROOT, Drape, machine, md_table, positions, write_csv  # noqa: E402
+import drape_h5  # noqa: E402
+from bench_common import machine, md_table, write_csv  # noqa: E402
+from drape_run import ROOT, Drape  # noqa: E402
 
 PROG = "rtol_accuracy"
 T = 0.5
@@ -56,14 +58,14 @@ def main():
             h = (T / 4) / max(1, round((T / 4) / (factor * lim)))  # frames land on the steps
             ref = Path(tmp) / "ref.h5"
             drape.must(base + ["-ts_type", "rk", "-ts_rk_type", "4", "-ts_dt", repr(0.5 * lim), "-output_file", ref], "the RK4 reference")
-            xref = [positions(ref, k)[0] for k in range(1, 5)]
+            xref = drape_h5.load(ref).positions[1:5]
             for rtol, start in [(1e-12, "zero")] + [(t, s) for t in rtols for s in ("last step", "zero")]:
                 h5 = Path(tmp) / "be.h5"
                 guess = ["-ksp_initial_guess_nonzero", "0"] if start == "zero" else []
                 r = drape.must(base + ["-ts_type", "drapebe", "-ts_dt", repr(h), "-ksp_rtol", f"{rtol:g}", "-output_file", h5] + guess,
                                f"backward Euler rtol {rtol:g}")
                 steps, _, wall, its = r.summary()
-                err = max(float(abs(positions(h5, k + 1)[0] - xref[k]).max()) for k in range(4))
+                err = float(abs(drape_h5.load(h5).positions[1:5] - xref).max())
                 rows.append({"case": f"{n}:{factor:g}", "N": n, "h_over_limit": f"{h / lim:.3g}", "h": f"{h:.4e}", "rtol": f"{rtol:g}", "cg_start": start,
                              "cg_its_per_step": f"{its:.2f}", "wall_s": f"{wall:.3f}", "err_max": f"{err:.4e}"})
                 print(f"  {n}^2 h = {h:.3e} s ({h / lim:.3g} x limit) rtol {rtol:g}, CG from {start}: error {err:.4e}, {its:.2f} CG its/step, {wall:.2f} s",

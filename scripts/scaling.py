@@ -11,7 +11,7 @@ rank, each scheme at the same factor of its own limit as scripts/bench_core.py:
 on N x N lattices, N in --sizes (32..512) and, for the explicit schemes only,
 --big (1024). Step counts shrink with the size (about --work particle-steps per
 explicit run, 1/40 of that for backward Euler, at least 3 steps). Time per step =
-drape's wall time of the time loop (Summary line) / steps, median of --repeat
+drape's wall time of the time loop (its report) / steps, median of --repeat
 runs; time per simulated second = time per step / h (h shrinks with the
 lattice spacing, so this grows faster than the particle count).
 
@@ -39,7 +39,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import ROOT, Drape, fail, machine, md_table, median, write_csv  # noqa: E402
+from bench_common import machine, md_table, median, write_csv  # noqa: E402
+from drape_run import ROOT, Drape, fail  # noqa: E402
 
 PROG = "scaling"
 # (name, options, step as a multiple of the limit, which printed limit, explicit?)

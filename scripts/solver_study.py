@@ -16,7 +16,7 @@ in --sizes (128, 256), on drape's default matrix (SBAIJ; AIJ for gamg):
   gamg      -pc_type gamg (smoothed aggregation, PETSc's default smoother)
   hypre     -pc_type hypre -pc_hypre_type boomeramg
 
-CG iterations per step and wall time per step (drape's Summary line, median of
+CG iterations per step and wall time per step (drape's report, median of
 --repeat); a run that drape stops because the solve failed is recorded with the
 KSP reason drape prints (e.g. DIVERGED_INDEFINITE_PC) and no time.
 
@@ -47,7 +47,6 @@ solver_study.md, pcs.png.
 """
 import argparse
 import os
-import re
 import sys
 import tempfile
 from pathlib import Path
@@ -55,7 +54,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import ROOT, Drape, fail, machine, md_table, median, positions, write_csv  # noqa: E402
+import drape_h5  # noqa: E402
+from bench_common import machine, md_table, median, write_csv  # noqa: E402
+from drape_run import ROOT, Drape, fail  # noqa: E402
 
 PROG = "solver_study"
 PCS = [("none", ["-pc_type", "none"]), ("jacobi", ["-pc_type", "jacobi"]), ("bjacobi", ["-pc_type", "bjacobi"]),
@@ -114,7 +115,8 @@ def part2(drape, a, tmp):
     args = base(n) + ["-ts_dt", f"{dt:.6e}", "-ts_max_steps", str(steps), "-drape_stability_its", "0", "-output_interval", "1e6"]
     h5ref = Path(tmp) / "ref.h5"
     ref = drape.must(args + ["-ksp_rtol", "1e-10", "-output_file", h5ref], "the tightly solved reference run (rtol 1e-10)")
-    xref, tref = positions(h5ref)
+    ref_run = drape_h5.load(h5ref)
+    xref, tref = ref_run.positions[-1], ref_run.time[-1]
     print(f"  {n}^2, h = {dt:.4e} s, {steps} steps to t = {tref:g} s; reference rtol 1e-10: {ref.summary()[3]:.1f} its/step", flush=True)
 
     # how drape reacts to a solve stopped by max_it: a cap of 5 iterations, 3 steps, three ways
@@ -122,8 +124,7 @@ def part2(drape, a, tmp):
 
     def outcome(r):
         st = r.status()
-        m = re.search(r"(\d+) steps retried at a smaller step", r.stdout)
-        return f"ok, {m.group(1)} steps retried" if st == "ok" and m else st
+        return f"ok, {r.report['steps_retried']} steps retried" if st == "ok" and r.report["steps_retried"] else st
 
     flags = {name: outcome(drape.run(args + capped + extra)) for name, extra in
              (("no flag", []), ("no flag, -ts_max_reject 0", ["-ts_max_reject", "0"]),
@@ -142,7 +143,8 @@ def part2(drape, a, tmp):
         if st != "ok":
             fail(PROG, f"the run '{name}' failed ({st}):\n{r.tail()}")
         drape.must(args + opts + ["-output_file", h5], f"the run '{name}' with output")
-        x, t = positions(h5)
+        run = drape_h5.load(h5)
+        x, t = run.positions[-1], run.time[-1]
         if abs(t - tref) > 1e-12:
             fail(PROG, f"run '{name}' ended at t = {t} s, the reference at {tref} s")
         d = np.linalg.norm(x - xref, axis=-1) / CLOTH_SIZE

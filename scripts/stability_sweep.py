@@ -50,21 +50,19 @@ import csv
 import json
 import math
 import os
-import re
 import shutil
-import subprocess
 import sys
 import tempfile
 import threading
 import time
 from pathlib import Path
 
-import h5py
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
-DRAPE = ROOT / os.environ.get("DRAPE_BUILD", "build") / "drape"
-DIVERGED = "drape: error: The run diverged at step"
+import drape_h5
+from drape_run import Drape
+
+PROG = "stability_sweep"
 K_GROWTH = 25.0  # ln of the energy growth drape needs to call a run diverged (model)
 
 SYM, EXP = "symplectic", "explicit"
@@ -113,30 +111,21 @@ class Stats:
             self.runs += 1
             self.log.append(dict(status=res["status"], rc=res["rc"], nonfinite=int(res["nonfinite"]),
                                  stderr=(res["stderr"].strip().splitlines() or [""])[0][:200],
-                                 args=" ".join(res["cmd"][len(mpiexec(NP)) + 1:])))
+                                 args=" ".join(res["args"])))
             if res["status"] == "ok":
                 self.ok += 1
                 if res["nonfinite"]:
                     self.silent_nan += 1
-                    self.nan_runs.append(" ".join(res["cmd"]))
+                    self.nan_runs.append(res["cmd"])
             elif res["status"] == "diverged":
                 self.diverged_caught += 1
             else:
-                self.unexpected.append((" ".join(res["cmd"]), res["rc"], res["stderr"].strip()))
+                self.unexpected.append((res["cmd"], res["rc"], res["stderr"].strip()))
 
 
 STATS = Stats()
-NP = 1
+DRAPE = None  # the Drape of main(): the executable, the ranks per run
 TMP = None
-
-
-def mpiexec(np_):
-    if np_ <= 1:
-        return []
-    cmd = ["mpiexec"]
-    if os.geteuid() == 0:
-        cmd.append("--allow-run-as-root")
-    return cmd + ["--oversubscribe", "-np", str(np_)]
 
 
 def material_args(p):
@@ -153,32 +142,24 @@ def run_drape(args, expect=None, keep_h5=False, timeout=900):
     fd, h5 = tempfile.mkstemp(suffix=".h5", dir=TMP)
     os.close(fd)
     os.unlink(h5)
-    cmd = mpiexec(NP) + [str(DRAPE)] + list(args) + ["-drape_progress", "0", "-output_file", h5]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=ROOT)
-    res = dict(cmd=cmd, rc=proc.returncode, stdout=proc.stdout, stderr=proc.stderr,
-               nonfinite=False, div_step=None, h5=h5 if keep_h5 else None)
-    err_lines = [l for l in proc.stderr.splitlines() if l.strip()]
-    if proc.returncode == 0:
+    args = list(args) + ["-output_file", h5]
+    r = DRAPE.run(args, timeout=timeout)
+    res = dict(cmd=r.cmd, args=args, rc=r.returncode, stdout=r.stdout, stderr=r.stderr, report=r.report,
+               nonfinite=False, div_step=r.diverged_at(), h5=h5 if keep_h5 else None)
+    if r.returncode == 0:
         res["status"] = "ok"
         try:
-            with h5py.File(h5, "r") as f:
-                n = len(f["time"])
-                pos = f["position"][:n]
-                res["nonfinite"] = not np.all(np.isfinite(pos))
-        except (OSError, KeyError) as e:  # no readable output from a successful run is a bug too
+            res["nonfinite"] = not np.all(np.isfinite(drape_h5.load(h5).positions))
+        except (OSError, ValueError) as e:  # no readable output from a successful run is a bug too
             res["status"] = "failed"
-            res["stderr"] += f"\n[stability_sweep] unreadable output {h5}: {e}"
-    elif len(err_lines) >= 1 and err_lines[0].startswith(DIVERGED) and \
-            all(not l.startswith("drape: error:") for l in err_lines[1:]):
+            res["stderr"] += f"\n[stability_sweep] unreadable output: {e}"
+    elif res["div_step"] is not None:
         res["status"] = "diverged"
-        m = re.search(r"diverged at step (\d+)", err_lines[0])
-        res["div_step"] = int(m.group(1)) if m else None
     else:
         res["status"] = "failed"
-    if expect == "solve" and res["status"] == "failed" and len(err_lines) == 1 \
-            and err_lines[0].startswith("drape: error:"):
+    if expect == "solve" and res["status"] == "failed" and r.error():
         res["status"] = "error"  # a clean drape error (e.g. SNES not converged): reported, not a bug
-        res["message"] = err_lines[0]
+        res["message"] = r.error()
     if res["status"] == "error":
         with STATS.lock:
             STATS.runs += 1
@@ -191,21 +172,13 @@ def run_drape(args, expect=None, keep_h5=False, timeout=900):
 
 
 def read_limits(p):
-    """Omega_max and the printed limits for a fabric (-ts_max_steps 0)."""
+    """Omega_max and the symplectic and explicit Euler limits drape reports for a fabric
+    (-ts_max_steps 0); the explicit one is 0 when it is unstable at every step."""
     res = run_drape(material_args(p) + ["-gravity", GRAVITY, "-ts_max_steps", "0"])
-    out = res["stdout"]
     if res["status"] != "ok":
         raise RuntimeError(f"drape failed reading the limits: {res['stderr']}")
-    omega = float(re.search(r"Omega_max = (\S+) rad/s", out).group(1))
-    sym = float(re.search(r"symplectic Euler: stable for h < (\S+) s", out).group(1))
-    m = re.search(r"explicit Euler: stable for h < (\S+) s at damping", out)
-    if m:
-        exp = float(m.group(1))
-    elif "explicit Euler: unstable at every step without damping" in out:
-        exp = 0.0
-    else:
-        raise RuntimeError("no explicit Euler line in drape's output:\n" + out)
-    return omega, sym, exp
+    rep = res["report"]
+    return rep["omega_max"], rep["symplectic_limit"], rep["euler_limit"]
 
 
 def theory(scheme, omega, c):
@@ -366,24 +339,18 @@ def be_run(extra, t_end, interval):
     args = material_args(BE_FABRIC) + ["-gravity", BE_GRAVITY, "-ts_max_time", repr(t_end),
                                        "-output_interval", repr(interval)] + extra
     res = run_drape(args, expect="solve", keep_h5=True)
-    data = None
-    if res["h5"] and os.path.exists(res["h5"]):
+    data = None  # the frames (drape_h5.DrapeRun), if any were written
+    if os.path.exists(res["h5"]):
         try:
-            with h5py.File(res["h5"], "r") as f:
-                n = len(f["time"])
-                data = dict(time=f["time"][:n].ravel(), pos=f["position"][:n],
-                            ke=f["energy_kinetic"][:n].ravel())
-        except (OSError, KeyError):
-            data = None
+            data = drape_h5.load(res["h5"])
+        except (OSError, ValueError):
+            pass
         os.unlink(res["h5"])
     return res, data
 
 
 def at_time(data, t, tol):
-    if data is None:
-        return None
-    i = np.where(np.abs(data["time"] - t) <= tol)[0]
-    return int(i[0]) if len(i) else None
+    return None if data is None else data.frame_at(t, tol)
 
 
 def backward_euler(steps, t_end, interval):
@@ -400,30 +367,30 @@ def backward_euler(steps, t_end, interval):
         for snes, (res, data) in out.items():
             msg = res.get("message") or (res["stderr"].strip().splitlines() or [""])[0]
             row[f"{snes}_status"] = res["status"]
-            row[f"{snes}_t_reached"] = float(data["time"][-1]) if data is not None else float("nan")
+            row[f"{snes}_t_reached"] = float(data.time[-1]) if data is not None else float("nan")
             row[f"{snes}_message"] = msg[:160]
-            row[f"{snes}_nonfinite"] = bool(data is not None and not np.all(np.isfinite(data["pos"])))
+            row[f"{snes}_nonfinite"] = bool(data is not None and not np.all(np.isfinite(data.positions)))
             for t in (0.5, 1.0):
                 i, j = at_time(data, t, h / 4), at_time(ref, t, href)
-                row[f"{snes}_ke_ratio_{t:g}s"] = (float(data["ke"][i] / ref["ke"][j])
-                                                 if i is not None and j is not None and ref["ke"][j] > 0
+                row[f"{snes}_ke_ratio_{t:g}s"] = (float(data.energies["kinetic"][i] / ref.energies["kinetic"][j])
+                                                 if i is not None and j is not None and ref.energies["kinetic"][j] > 0
                                                  else float("nan"))
-            i, j = (len(data["time"]) - 1 if data is not None else None), None
+            i, j = (len(data.time) - 1 if data is not None else None), None
             if i is not None:
-                j = at_time(ref, data["time"][i], href)
-            row[f"{snes}_dx_ref_rms"] = (float(np.sqrt(np.mean(np.sum((data["pos"][i] - ref["pos"][j]) ** 2, -1))))
+                j = at_time(ref, data.time[i], href)
+            row[f"{snes}_dx_ref_rms"] = (float(np.sqrt(np.mean(np.sum((data.positions[i] - ref.positions[j]) ** 2, -1))))
                                          if i is not None and j is not None else float("nan"))
         a, b = out["ksponly"][1], out["newtonls"][1]
-        n = min(len(a["time"]), len(b["time"])) - 1 if a is not None and b is not None else 0
+        n = min(len(a.time), len(b.time)) - 1 if a is not None and b is not None else 0
         if n > 0:
-            d = np.linalg.norm(a["pos"][n] - b["pos"][n], axis=-1)
-            row.update(cmp_time=float(a["time"][n]), dx_ksp_newton_rms=float(np.sqrt(np.mean(d ** 2))),
+            d = np.linalg.norm(a.positions[n] - b.positions[n], axis=-1)
+            row.update(cmp_time=float(a.time[n]), dx_ksp_newton_rms=float(np.sqrt(np.mean(d ** 2))),
                        dx_ksp_newton_max=float(d.max()))
         else:
             row.update(cmp_time=float("nan"), dx_ksp_newton_rms=float("nan"), dx_ksp_newton_max=float("nan"))
         rows.append(row)
     info = dict(omega=omega, sym_limit=psym, h_ref=href, ref_status=ref_res["status"],
-                ref_ke_0_5=float(ref["ke"][at_time(ref, 0.5, href)]) if ref is not None else float("nan"))
+                ref_ke_0_5=float(ref.energies["kinetic"][at_time(ref, 0.5, href)]) if ref is not None else float("nan"))
     return rows, info
 
 
@@ -463,7 +430,7 @@ def fmt(v, spec=".3g"):
 def summary_md(path, args, sweeps, be_rows, be_info, elapsed, nsteps):
     L = [f"# Stability stress test ({'quick' if args.quick else 'full'})", "",
          f"Command: `{' '.join(['scripts/stability_sweep.py'] + sys.argv[1:])}`, {elapsed:.0f} s wall, "
-         f"{NP} rank(s) per run.", "",
+         f"{DRAPE.np} rank(s) per run.", "",
          f"Criterion: hanging cloth (`-cloth_pin edge_corners`, gravity {GRAVITY} m/s^2), stable when drape "
          f"exits 0 after a fixed number of steps: symplectic Euler {nsteps[SYM]}, explicit Euler {nsteps[EXP]}. "
          f"Bisection on h to {args.tol:.0%} relative width; `measured` is the geometric mean of the bracket.", "",
@@ -520,7 +487,7 @@ def summary_md(path, args, sweeps, be_rows, be_info, elapsed, nsteps):
 
 
 def main(argv=None):
-    global NP, TMP
+    global DRAPE, TMP
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", default="out/stability")
     ap.add_argument("--quick", action="store_true", help="2 points per sweep, coarse bisection (test suite)")
@@ -529,7 +496,7 @@ def main(argv=None):
     ap.add_argument("--tol", type=float, default=None, help="relative bracket width (default 0.02, quick 0.1)")
     ap.add_argument("--no-beuler", action="store_true", help="skip the backward-Euler part")
     args = ap.parse_args(argv)
-    NP = args.np
+    DRAPE = Drape(PROG, os.environ.get("DRAPE_BUILD", "build"), args.np)
     if args.tol is None:
         args.tol = 0.1 if args.quick else 0.02
     nsteps = {SYM: 400, EXP: 2000 if args.quick else 20000}

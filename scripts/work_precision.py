@@ -21,7 +21,7 @@ taken over those four frames and all particles, relative to the cloth size
 
 Schemes (the fixed-step ones with -ts_dt on a geometric sweep of
 --steps-per-decade sizes per decade, starting from a cap set by the stability
-limits drape prints at start-up, read with -ts_max_steps 0):
+limits drape reports at start-up, read with -ts_max_steps 0):
 
   explicit Euler     -ts_type euler                        from 0.1 x the symplectic limit
   symplectic Euler   -ts_type basicsymplectic              from 0.9 x the symplectic limit
@@ -45,8 +45,8 @@ the script stops with an error unless it is at least --ref-margin (10) times
 below the smallest error it reports. For 'rest' the references are RK4 runs to
 rest at -drape_rest_tol 1e-12 (steps 0.5 and 0.25 x the symplectic limit).
 
-Wall time is drape's own "Summary: N steps to t = T s in W s wall" (the time loop
-only; -drape_progress 0). Runs are made one at a time (--jobs 1) so they do not
+Wall time is drape's own, the "wall" of its report (the time loop only, as in
+its "Summary:" line). Runs are made one at a time (--jobs 1) so they do not
 compete for cores.
 
 Output in --out (default out/work_precision):
@@ -62,23 +62,23 @@ Reproduce (about 3-4 minutes on 2 cores):
 """
 import argparse
 import csv
+import itertools
 import math
 import os
-import re
-import shutil
-import subprocess
 import sys
 import tempfile
-import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+import drape_h5
+import drape_run
+from drape_run import ROOT, fail
+
+PROG = "work_precision"
 TARGETS = (1e-2, 1e-3, 1e-4)
 CLOTH_SIZE = 1.0  # m, every scene here: errors are relative to it
-SUMMARY = re.compile(r"Summary: (\d+) steps to t = (\S+) s in (\S+) s wall")
 FIELDS = ["scene", "scheme", "dt", "tol", "steps", "wall_s", "err_rms", "err_max", "status"]
 
 RK = ["-ts_type", "rk", "-ts_adapt_type", "none", "-ts_rk_type"]
@@ -100,80 +100,39 @@ class StudyError(Exception):
     pass
 
 
-def fail(msg):
-    sys.exit(f"work_precision: error: {msg}")
+class Drape(drape_run.Drape):
+    """drape_run.Drape whose runs write their frames to numbered files in a temporary directory."""
+
+    def __init__(self, build, np_, tmpdir):
+        super().__init__(PROG, build, np_)
+        self.tmp, self.count = Path(tmpdir), itertools.count(1)
+
+    def run_frames(self, args):
+        """Run drape writing its frames; returns (Result, HDF5 path)."""
+        h5 = self.tmp / f"run{next(self.count)}.h5"
+        return self.run(args + ["-output_file", h5], timeout=None), h5
 
 
-class Drape:
-    def __init__(self, exe, np_, tmpdir):
-        self.exe, self.np, self.tmp, self.count = exe, np_, Path(tmpdir), 0
-
-    def launcher(self):
-        if self.np <= 1:
-            return []
-        mpi = shutil.which("mpiexec")
-        if not mpi:
-            fail("--np needs mpiexec on the PATH")
-        return [mpi] + (["--allow-run-as-root"] if os.geteuid() == 0 else []) + ["--oversubscribe", "-np", str(self.np)]
-
-    def run(self, args, output=True):
-        """Run drape; returns (proc, h5 path or None)."""
-        self.count += 1
-        h5 = self.tmp / f"run{self.count}.h5" if output else None
-        cmd = self.launcher() + [str(self.exe)] + args + ["-drape_progress", "0"]
-        if h5:
-            cmd += ["-output_file", str(h5)]
-        for attempt in range(10):  # the executable may be being relinked by a concurrent 'make'
-            try:
-                proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
-                break
-            except OSError as e:
-                if attempt == 9 or not self.exe.exists() and attempt >= 2:
-                    fail(f"cannot run {self.exe}: {e}")
-                time.sleep(3)
-        proc.cmd = " ".join(cmd)
-        return proc, h5
-
-
-def summary(proc):
-    m = SUMMARY.search(proc.stdout)
-    if not m:
-        raise StudyError(f"no 'Summary:' line in the output of\n  {proc.cmd}\n{proc.stdout}{proc.stderr}")
-    return int(m.group(1)), float(m.group(2)), float(m.group(3))
-
-
-def status_of(proc):
-    if proc.returncode == 0:
-        return "ok"
-    return "diverged" if "diverged" in (proc.stdout + proc.stderr) else "failed"
+def summary(r):
+    """(steps, simulated time, wall s of the time loop) of a completed run."""
+    if r.report is None:
+        raise StudyError(f"no report (-drape_json) in the output of\n{r.tail()}")
+    return r.summary()[:3]
 
 
 def frames(h5, times, tol):
     """Positions [len(times), My, Mx, 3] at the given times (each must be a frame)."""
-    import h5py
-    with h5py.File(h5, "r") as f:
-        n = f["time"].shape[0]
-        t = f["time"][:n].ravel()
-        out = []
-        for target in times:
-            k = np.flatnonzero(np.abs(t - target) <= tol)
-            if not len(k):
-                raise StudyError(f"{h5}: no frame at t = {target:g} s (frames at {np.array2string(t, precision=6)})")
-            out.append(f["position"][k[0]])
-        return np.array(out)
+    run = drape_h5.load(h5)
+    ks = [run.frame_at(t, tol) for t in times]
+    for t, k in zip(times, ks):
+        if k is None:
+            raise StudyError(f"{h5}: no frame at t = {t:g} s (frames at {np.array2string(run.time, precision=6)})")
+    return run.positions[ks]
 
 
 def errors(x, ref):
     d = np.linalg.norm(x - ref, axis=-1) / CLOTH_SIZE
     return float(np.sqrt(np.mean(d**2))), float(np.max(d))
-
-
-def limits(drape, base):
-    proc, _ = drape.run(base + ["-ts_max_steps", "0"], output=False)
-    m = {k: re.search(rf"{k} Euler: stable for h < (\S+) s", proc.stdout) for k in ("symplectic", "explicit")}
-    if proc.returncode or not all(m.values()):
-        fail(f"cannot read the stability limits from\n  {proc.cmd}\n{proc.stdout}{proc.stderr}")
-    return {k: float(v.group(1)) for k, v in m.items()}
 
 
 def sweep(first, decades, spd, interval):
@@ -215,7 +174,7 @@ def timed_scene(drape, scene, base, T, spd, a, pool):
     interval = T / 4
     base = base + ["-ts_max_time", repr(T), "-output_interval", repr(interval)]
     times = [interval * k for k in range(1, 5)]
-    lim = limits(drape, base)
+    lim = drape.limits(base)
     print(f"{scene}: symplectic limit {lim['symplectic']:.4e} s, explicit Euler limit {lim['explicit']:.4e} s", flush=True)
     ftol = 1e-6 * interval
 
@@ -225,10 +184,10 @@ def timed_scene(drape, scene, base, T, spd, a, pool):
     dt_ref = interval / math.ceil(interval / (rk4_min / 8) - 1e-9)
     refs = []
     for dt in (dt_ref, dt_ref / 2):
-        proc, h5 = drape.run(base + REF[1] + ["-ts_dt", repr(dt)])
-        if proc.returncode:
-            fail(f"the reference run failed:\n  {proc.cmd}\n{proc.stdout}{proc.stderr}")
-        refs.append((summary(proc), frames(h5, times, ftol)))
+        r, h5 = drape.run_frames(base + REF[1] + ["-ts_dt", repr(dt)])
+        if r.returncode:
+            fail(PROG, f"the reference run failed:\n{r.tail()}")
+        refs.append((summary(r), frames(h5, times, ftol)))
         h5.unlink()
     xref = refs[1][1]
     refrow = row(scene, REF[0], dt=dt_ref, steps=refs[0][0][0], wall=refs[0][0][2], err=errors(refs[0][1], xref), status="ref_check")
@@ -238,14 +197,14 @@ def timed_scene(drape, scene, base, T, spd, a, pool):
         steps = round(T / dt)
         if steps > a.max_steps:
             return row(scene, name, dt=dt, steps=steps, status="skipped")
-        proc, h5 = drape.run(base + opts + ["-ts_dt", repr(dt)])
-        st = status_of(proc)
+        r, h5 = drape.run_frames(base + opts + ["-ts_dt", repr(dt)])
+        st = r.status()
         if st != "ok":
             if st == "failed":
-                print(f"warning: {proc.cmd} failed:\n{proc.stdout[-2000:]}{proc.stderr[-2000:]}", file=sys.stderr)
+                print(f"warning: a run failed:\n{r.tail(2000)}", file=sys.stderr)
             h5.unlink(missing_ok=True)
             return row(scene, name, dt=dt, status=st)
-        n, _, wall = summary(proc)
+        n, _, wall = summary(r)
         err = errors(frames(h5, times, ftol), xref)
         h5.unlink()
         return row(scene, name, dt=dt, steps=n, wall=wall, err=err)
@@ -255,15 +214,15 @@ def timed_scene(drape, scene, base, T, spd, a, pool):
         for k, t in enumerate(times):
             opts = base + ADAPTIVE[1] + ["-ts_rtol", repr(tol), "-ts_atol", repr(tol), "-ts_max_time", repr(t),
                                          "-output_interval", repr(10 * T), "-ts_dt", repr(lim["symplectic"] / 10)]
-            proc, h5 = drape.run(opts)
-            st = status_of(proc)
+            r, h5 = drape.run_frames(opts)
+            st = r.status()
             if st != "ok":
                 h5.unlink(missing_ok=True)
                 return row(scene, ADAPTIVE[0], tol=tol, status=st)
             xs.append(frames(h5, [t], ftol)[0])
             h5.unlink()
             if k == len(times) - 1:
-                n, _, wall = summary(proc)
+                n, _, wall = summary(r)
         return row(scene, ADAPTIVE[0], tol=tol, steps=n, wall=wall, err=errors(np.array(xs), xref))
 
     jobs = [(name, opts, dt) for name, opts, _, first, dec in FIXED
@@ -280,38 +239,36 @@ def timed_scene(drape, scene, base, T, spd, a, pool):
 def rest_scene(drape, base, a, pool):
     """Error of the rest shape (last frame) for symplectic and backward Euler."""
     base = base + ["-output_interval", "1e6"]  # first and last frames only
-    lim = limits(drape, base)
+    lim = drape.limits(base)
     tmax = float(base[base.index("-ts_max_time") + 1])
     print(f"rest: symplectic limit {lim['symplectic']:.4e} s", flush=True)
 
-    def last(proc, h5):
-        import h5py
-        with h5py.File(h5, "r") as f:
-            n = f["time"].shape[0]
-            return f["position"][n - 1], float(f["time"][n - 1][0])
+    def last(h5):
+        run = drape_h5.load(h5)
+        return run.positions[-1], run.time[-1]
 
     refs = []
     for dt in (0.5 * lim["symplectic"], 0.25 * lim["symplectic"]):
-        proc, h5 = drape.run(base + REF[1] + ["-ts_dt", repr(dt), "-drape_rest_tol", "1e-12"])
-        if proc.returncode:
-            fail(f"the rest reference run failed:\n  {proc.cmd}\n{proc.stdout}{proc.stderr}")
-        x, t = last(proc, h5)
+        r, h5 = drape.run_frames(base + REF[1] + ["-ts_dt", repr(dt), "-drape_rest_tol", "1e-12"])
+        if r.returncode:
+            fail(PROG, f"the rest reference run failed:\n{r.tail()}")
+        x, t = last(h5)
         h5.unlink()
         if t >= tmax * (1 - 1e-9):
-            fail(f"the rest reference did not come to rest by t = {tmax:g} s:\n  {proc.cmd}")
-        refs.append((summary(proc), x, dt))
+            fail(PROG, f"the rest reference did not come to rest by t = {tmax:g} s:\n  {r.cmd}")
+        refs.append((summary(r), x, dt))
     xref = refs[1][1]
     refrow = row("rest", REF[0], dt=refs[0][2], steps=refs[0][0][0], wall=refs[0][0][2], err=errors(refs[0][1], xref), status="ref_check")
 
     def one(job):
         name, opts, dt = job
-        proc, h5 = drape.run(base + opts + ["-ts_dt", repr(dt)])
-        st = status_of(proc)
+        r, h5 = drape.run_frames(base + opts + ["-ts_dt", repr(dt)])
+        st = r.status()
         if st != "ok":
             h5.unlink(missing_ok=True)
             return row("rest", name, dt=dt, status=st)
-        n, t, wall = summary(proc)
-        x, _ = last(proc, h5)
+        n, t, wall = summary(r)
+        x, _ = last(h5)
         h5.unlink()
         if t >= tmax * (1 - 1e-9):
             return row("rest", name, dt=dt, steps=n, wall=wall, status="not at rest")
@@ -394,18 +351,13 @@ def main():
     a.rest_symplectic = [0.5, 0.25] if a.quick else [0.9, 0.5, 0.25]
     a.rest_beuler = [10.0, 2.5] if a.quick else [20.0, 10.0, 5.0, 2.0]
     if spd < 1:
-        fail("--steps-per-decade must be at least 1")
+        fail(PROG, "--steps-per-decade must be at least 1")
     scenes = [s for s in a.scenes.split(",") if s]
     for s in scenes:
         if s not in ("hang", "swing", "rest"):
-            fail(f"unknown scene '{s}' (choose from hang, swing, rest)")
-    exe = (ROOT / a.build / "drape") if not Path(a.build).is_absolute() else Path(a.build) / "drape"
-    if not exe.exists():
-        fail(f"{exe} is missing: build it with 'make all' first")
+            fail(PROG, f"unknown scene '{s}' (choose from hang, swing, rest)")
     if not (ROOT / "runs" / "hang.opts").exists():
-        fail(f"{ROOT / 'runs' / 'hang.opts'} is missing")
-    out = Path(a.out)
-    out.mkdir(parents=True, exist_ok=True)
+        fail(PROG, f"{ROOT / 'runs' / 'hang.opts'} is missing")
 
     grid = ["-da_grid_x", str(N), "-da_grid_y", str(N)]
     hang = ["-options_file", "runs/hang.opts"] + grid
@@ -414,18 +366,20 @@ def main():
     # released hanging straight down from its two top corners: one equilibrium (a
     # sheet dropped from horizontal can settle into different fold states)
     rest = hang + ["-cloth_orientation", "vertical", "-cloth_damping", "2", "-drape_rest_tol", "1e-7", "-ts_max_time", "60"]
-    print(f"work_precision: {N} x {N} lattice, T = {T:g} s, {spd} step(s) per decade, {a.np} rank(s), {exe}", flush=True)
 
     rows, refrows = [], []
     with tempfile.TemporaryDirectory(prefix="wp_") as tmp, ThreadPoolExecutor(max(1, a.jobs)) as pool:
-        drape = Drape(exe, a.np, tmp)
+        drape = Drape(a.build, a.np, tmp)
+        out = Path(a.out)
+        out.mkdir(parents=True, exist_ok=True)
+        print(f"work_precision: {N} x {N} lattice, T = {T:g} s, {spd} step(s) per decade, {a.np} rank(s), {drape.exe}", flush=True)
         try:
             for s in scenes:
                 r, ref = rest_scene(drape, rest, a, pool) if s == "rest" else timed_scene(drape, s, hang if s == "hang" else swing, T, spd, a, pool)
                 rows += r
                 refrows.append(ref)
         except StudyError as e:
-            fail(str(e))
+            fail(PROG, str(e))
 
     csv_path = out / "work_precision.csv"
     with open(csv_path, "w", newline="") as f:
@@ -445,7 +399,7 @@ def main():
         for ref in refrows:
             check_reference(ref["scene"], ref, rows, a.ref_margin)
     except StudyError as e:
-        fail(str(e))
+        fail(PROG, str(e))
     print(f"wrote {csv_path}, {', '.join(str(out / f'wp_{s}.png') for s in scenes)}, {out / 'fastest.md'}")
 
 

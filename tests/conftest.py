@@ -1,18 +1,22 @@
-"""Shared helpers for drape's test suite: run the program, read its HDF5 output.
+"""Shared helpers for drape's test suite: run the program (scripts/drape_run.py, whose
+Result has the run's report) and read its HDF5 output (scripts/drape_h5.py).
 
 Every successful run is made with -malloc_debug -malloc_dump -options_left and is
 checked for leaks and unused options, so each test also guards those."""
 import os
 import re
-import subprocess
+import sys
 import time
 from pathlib import Path
 
-import h5py
-import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "scripts"))
+import drape_h5  # noqa: E402
+import drape_run  # noqa: E402
+from drape_run import mpiexec  # noqa: E402,F401  (for the tests that launch drape themselves)
+
 BUILD = ROOT / os.environ.get("DRAPE_BUILD", "build")
 DRAPE = BUILD / "drape"
 LEAK = re.compile(r"^\[\s*\d+\]\s*\d+ bytes", re.M)
@@ -30,41 +34,24 @@ LEAK = re.compile(r"^\[\s*\d+\]\s*\d+ bytes", re.M)
 ROUNDOFF = 1e-10  # m
 
 
-def mpiexec(np_):
-    cmd = ["mpiexec"]
-    if os.geteuid() == 0:
-        cmd.append("--allow-run-as-root")
-    return cmd + ["--oversubscribe", "-np", str(np_)]
-
-
-class Result:
-    def __init__(self, proc):
-        self.returncode = proc.returncode
-        self.stdout = proc.stdout
-        self.stderr = proc.stderr
-
-    def value(self, pattern, cast=float):
-        """First group of `pattern` in stdout."""
-        m = re.search(pattern, self.stdout)
-        assert m, f"{pattern!r} not in output:\n{self.stdout}"
-        return cast(m.group(1))
+def printed(res, pattern, cast=float):
+    """First group of `pattern` in a run's stdout: a number only the prose gives."""
+    m = re.search(pattern, res.stdout)
+    assert m, f"{pattern!r} not in output:\n{res.stdout}"
+    return cast(m.group(1))
 
 
 def run(args, np_=1, check=True, checks=True, timeout=600):
-    """Run drape with `args` (a list or a string) on np_ ranks."""
+    """Run drape with `args` (a list or a string) on np_ ranks; returns its drape_run.Result."""
     if isinstance(args, str):
         args = args.split()
-    extra = ["-drape_progress", "0"]
-    if check and checks:
-        extra += ["-malloc_debug", "-malloc_dump", "-options_left"]
-    cmd = (mpiexec(np_) if np_ > 1 else []) + [str(DRAPE)] + list(args) + extra
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=ROOT)
-    res = Result(proc)
+    extra = ["-malloc_debug", "-malloc_dump", "-options_left"] if check and checks else []
+    res = drape_run.run(DRAPE, list(args) + extra, np_, timeout)
     if check:
-        assert proc.returncode == 0, f"{' '.join(cmd)} failed:\n{proc.stdout}\n{proc.stderr}"
+        assert res.returncode == 0, f"{res.cmd} failed:\n{res.stdout}\n{res.stderr}"
         if checks:
-            assert "There are no unused options." in proc.stdout, f"unused options:\n{proc.stdout}"
-            assert not LEAK.search(proc.stdout + proc.stderr), f"memory leak:\n{proc.stdout}{proc.stderr}"
+            assert "There are no unused options." in res.stdout, f"unused options:\n{res.stdout}"
+            assert not LEAK.search(res.stdout + res.stderr), f"memory leak:\n{res.stdout}{res.stderr}"
     return res
 
 
@@ -74,31 +61,11 @@ def wait_for_frames(path, n, timeout=60):
     while time.time() < deadline:
         time.sleep(0.3)
         try:
-            with h5py.File(path, "r", locking=False) as f:
-                if f["time"].shape[0] >= n:
-                    return
-        except (OSError, KeyError):
+            if drape_h5.load(path).nframes >= n:
+                return
+        except (OSError, KeyError, ValueError):  # not yet a drape file, or a frame being written
             pass
     raise AssertionError(f"{path} did not reach {n} frames in {timeout} s")
-
-
-class Frames:
-    """The complete frames of a drape HDF5 file."""
-
-    def __init__(self, path):
-        with h5py.File(path, "r") as f:
-            n = f["time"].shape[0]
-            self.time = f["time"][:n].ravel()
-            self.step = f["step"][:n].ravel()
-            self.x = f["position"][:n]
-            self.v = f["velocity"][:n]
-            self.energy = {k[7:]: f[k][:n].ravel() for k in f if k.startswith("energy_")}
-            self.contact_force = f["contact_force"][:n].reshape(n, 3)
-            self.attrs = dict(f.attrs)
-
-    @property
-    def total_energy(self):
-        return sum(self.energy.values())
 
 
 def rest_shape(tmp, n, options):
@@ -107,8 +74,8 @@ def rest_shape(tmp, n, options):
     out = tmp / f"rest{n}.h5"
     res = run(f"{options} -da_grid_x {n} -da_grid_y {n} -cloth_damping 5 -ts_max_time 8 -drape_rest_tol 1e-6 -output_interval 1 "
               f"-output_file {out}", checks=False)
-    assert "At rest" in res.stdout
-    return Frames(out).x[-1]
+    assert res.report["at_rest"], res.stdout
+    return drape_h5.load(out).positions[-1]
 
 
 @pytest.fixture

@@ -6,7 +6,9 @@ import subprocess
 import numpy as np
 import pytest
 
-from conftest import DRAPE, ROUNDOFF, Frames, run
+from conftest import DRAPE, ROUNDOFF, run
+
+import drape_h5
 
 THICK = 2e-3
 SCHEMES = {
@@ -24,19 +26,19 @@ def test_cloth_settles_on_a_plane(tmp, scheme):
     out = tmp / "plane.h5"
     run(f"-da_grid_x 10 -da_grid_y 10 -cloth_center 0,0,0.1 -solid_floor 0.05 -contact_mode friction "
         f"-ts_max_time 1.5 -output_interval 0.01 -output_file {out} {SCHEMES[scheme]}")
-    fr = Frames(out)
-    z = fr.x[..., 2]
+    fr = drape_h5.load(out)
+    z = fr.positions[..., 2]
     assert z.min() >= 0.05 + THICK - 1e-12
     assert np.abs(z[-1] - (0.05 + THICK)).max() < 1e-9
-    assert fr.energy["kinetic"][-1] < 1e-5 * 0.15 * 9.81 * 0.05  # of the energy the fall released
-    assert fr.x[-1, ..., :2].std() > 0.2  # still spread out, not collapsed
+    assert fr.energies["kinetic"][-1] < 1e-5 * 0.15 * 9.81 * 0.05  # of the energy the fall released
+    assert fr.positions[-1, ..., :2].std() > 0.2  # still spread out, not collapsed
     weight = 0.15 * 1.0 * 9.81  # density x area x g
     # explicit Euler chatters at rest (v = 0, g h, 0, ...): its damping carries c h / 2 of the weight
     tol = 5 * 1e-4 if scheme == "euler" else 1e-9
-    force = fr.contact_force[-1]
+    force = fr.contact["force"][-1]
     assert abs(force[2] - weight) <= tol * weight, (force, weight)
     assert np.abs(force[:2]).max() <= 1e-9 * weight
-    assert np.all(fr.contact_force[0] == 0)  # no time before the first frame
+    assert np.all(fr.contact["force"][0] == 0)  # no time before the first frame
 
 
 def tilted_gravity(alpha):
@@ -59,8 +61,8 @@ def test_friction_on_an_inclined_plane(tmp, scheme, tan_alpha):
     run(f"-da_grid_x 8 -da_grid_y 8 -cloth_size 0.3 -cloth_center 0,0,{THICK} -solid_floor 0 -contact_mode friction "
         f"-contact_friction {mu} -cloth_damping 0 {tilted_gravity(alpha)} -ts_max_time {T} -output_interval 0.05 "
         f"-output_file {out} {args}")
-    fr = Frames(out)
-    xc = fr.x[..., 0].mean(axis=(1, 2)) - fr.x[0, ..., 0].mean()
+    fr = drape_h5.load(out)
+    xc = fr.positions[..., 0].mean(axis=(1, 2)) - fr.positions[0, ..., 0].mean()
     expect = 0.5 * 9.81 * max(math.sin(alpha) - mu * math.cos(alpha), 0) * fr.time ** 2
     if tan_alpha < mu and scheme == "symplectic":
         assert np.abs(xc).max() < 1e-9
@@ -69,7 +71,7 @@ def test_friction_on_an_inclined_plane(tmp, scheme, tan_alpha):
         assert np.abs(xc - creep).max() < 1e-3 * creep[-1], (xc, creep)
     else:
         assert np.abs(xc[-1] - expect[-1]) < 0.02 * expect[-1], (xc[-1], expect[-1])
-    assert np.abs(fr.x[..., 2] - THICK).max() < 1e-9
+    assert np.abs(fr.positions[..., 2] - THICK).max() < 1e-9
     # the force of the plane: normal M g cos(alpha); along the slope static friction
     # holding M g sin(alpha) when sticking, kinetic -mu M g cos(alpha) when sliding
     Mg = 0.15 * 0.3 * 0.3 * 9.81
@@ -77,7 +79,7 @@ def test_friction_on_an_inclined_plane(tmp, scheme, tan_alpha):
     # (backward Euler's creep starts in the first frame interval: its momentum, 1e-5 of
     # the force, is in that frame's average)
     first = 2 if tan_alpha < mu and scheme != "symplectic" else 1
-    assert np.abs(fr.contact_force[first:] - expect_force).max() < 1e-9 * Mg, (fr.contact_force[-1], expect_force)
+    assert np.abs(fr.contact["force"][first:] - expect_force).max() < 1e-9 * Mg, (fr.contact["force"][-1], expect_force)
 
 
 def test_sticky_contact_has_zero_velocity(tmp):
@@ -86,14 +88,14 @@ def test_sticky_contact_has_zero_velocity(tmp):
     run(f"-da_grid_x 12 -da_grid_y 12 -cloth_center 0,0,0.3 -solid_type sphere -solid_radius 0.2 "
         f"-solid_resolution 64 -solid_floor -0.1 -contact_mode sticky -ts_type basicsymplectic -ts_dt 2e-4 "
         f"-ts_max_time 0.5 -output_interval 0.05 -output_file {out}")
-    fr = Frames(out)
-    r = np.linalg.norm(fr.x, axis=-1)
+    fr = drape_h5.load(out)
+    r = np.linalg.norm(fr.positions, axis=-1)
     # the generated sphere's contact surface is exact; a sticky particle is held where
     # it first reached it, up to the step's tangential motion lifting it (h v)^2 / 2 R
     on_sphere = r <= 0.2 + THICK + 1e-6
-    touching = on_sphere | (fr.x[..., 2] <= -0.1 + THICK + 1e-12)
+    touching = on_sphere | (fr.positions[..., 2] <= -0.1 + THICK + 1e-12)
     assert on_sphere[-1].sum() >= 4 and r.min() >= 0.2 + THICK - 1e-12
-    speed = np.linalg.norm(fr.v, axis=-1)
+    speed = np.linalg.norm(fr.velocities, axis=-1)
     assert speed[touching].max() == 0.0
 
 
@@ -107,11 +109,11 @@ def test_sphere_drape_no_penetration_and_fourfold_symmetry(tmp, scheme, sym_tol)
     run(f"-da_grid_x 21 -da_grid_y 21 -cloth_center 0,0,0.45 -solid_type sphere -solid_radius 0.2 "
         f"-solid_resolution 48 -solid_translate 0,0,0.2 -contact_mode sticky -ts_max_time 0.6 "
         f"-output_interval 0.05 -output_file {out} {SCHEMES[scheme]}")
-    fr = Frames(out)
-    r = np.linalg.norm(fr.x - np.array([0, 0, 0.2]), axis=-1)
+    fr = drape_h5.load(out)
+    r = np.linalg.norm(fr.positions - np.array([0, 0, 0.2]), axis=-1)
     assert r.min() >= 0.2 + THICK - 1e-9  # the generated sphere's contact surface is exact
-    assert fr.attrs and fr.x[-1, ..., 2].min() < 0.2  # it did drape below the equator
-    X = fr.x[-1]
+    assert fr.attrs and fr.positions[-1, ..., 2].min() < 0.2  # it did drape below the equator
+    X = fr.positions[-1]
     n = X.shape[0]
     rot = np.stack([-X[..., 1], X[..., 0], X[..., 2]], -1)  # 90 degrees about z
     Y = np.empty_like(X)
@@ -150,20 +152,20 @@ def test_same_frames_with_contact_on_1_and_2_ranks(tmp, args, tol):
         run(f"-da_grid_x 14 -da_grid_y 12 -cloth_center 0,0,0.3 -solid_type sphere -solid_radius 0.2 "
             f"-solid_floor -0.15 -contact_mode friction -ts_max_time 0.3 -output_interval 0.05 "
             f"-output_file {out} {args}", np_=np_)
-        frames.append(Frames(out))
-    assert frames[0].energy["kinetic"][-1] > 0
-    assert np.abs(frames[0].x - frames[1].x).max() <= tol
+        frames.append(drape_h5.load(out))
+    assert frames[0].energies["kinetic"][-1] > 0
+    assert np.abs(frames[0].positions - frames[1].positions).max() <= tol
 
 
 def test_cusick_scene_reports_drape_coefficient(tmp):
     """A coarse Cusick run drapes, comes to rest by itself, and reports DC and folds
-    on the console and in the HDF5 file."""
+    (in its report and the HDF5 file; tests/test_report.py compares them with the
+    console)."""
     out = tmp / "cusick.h5"
     res = run(f"-options_file runs/cusick.opts -da_grid_x 31 -da_grid_y 31 -ts_dt 2e-3 -output_file {out}")
-    dc = res.value(r"drape coefficient DC = (\S+),")
-    folds = res.value(r", (\d+) folds", int)
-    assert "At rest at t =" in res.stdout
+    dc, folds = res.report["drape_coefficient"], res.report["drape_folds"]
+    assert res.report["at_rest"] and "At rest at t =" in res.stdout
     assert 0.0 < dc < 1.0 and folds >= 3
-    fr = Frames(out)
-    assert abs(float(fr.attrs["drape_coefficient"]) - dc) < 1e-4 and int(fr.attrs["drape_folds"]) == folds
+    fr = drape_h5.load(out)
+    assert fr.attrs["drape_coefficient"] == dc and fr.attrs["drape_folds"] == folds
     assert fr.time[-1] < 4.0  # stopped at rest, before -ts_max_time

@@ -11,7 +11,9 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import DRAPE, ROOT, Frames, mpiexec, run
+from conftest import DRAPE, ROOT, mpiexec, run
+
+import drape_h5
 
 TINY = ["-da_grid_x", "4", "-da_grid_y", "4", "-ts_max_steps", "2", "-drape_progress", "0"]
 PANEL = (ROOT / "runs/outlines/panel.txt").read_text()
@@ -153,7 +155,7 @@ def test_tiny_output_interval_ends(tmp):
     frame every step, and the run ends."""
     out = tmp / "tiny.h5"
     run(f"-da_grid_x 4 -da_grid_y 4 -ts_max_steps 5 -output_interval 1e-15 -output_file {out}", timeout=60)
-    assert len(Frames(out).time) == 6
+    assert len(drape_h5.load(out).time) == 6
 
 
 SCENE = "-da_grid_x 5 -da_grid_y 5 -ts_max_time 0.01 -output_interval 0.005"
@@ -162,12 +164,12 @@ SCENE = "-da_grid_x 5 -da_grid_y 5 -ts_max_time 0.01 -output_interval 0.005"
 def test_restart_under_another_spelling_continues_the_file(tmp):
     """-restart r.h5 -output_file ./r.h5 truncated the file it had just read."""
     subprocess.run([str(DRAPE)] + SCENE.split() + ["-output_file", "r.h5", "-drape_progress", "0"], check=True, capture_output=True, cwd=tmp)
-    first = Frames(tmp / "r.h5")
+    first = drape_h5.load(tmp / "r.h5")
     res = drape(["-restart", "r.h5", "-output_file", "./r.h5", "-ts_max_time", "0.02", "-drape_progress", "0"], tmp)
     assert res.returncode == 0, res.stderr
-    after = Frames(tmp / "r.h5")
+    after = drape_h5.load(tmp / "r.h5")
     assert np.allclose(after.time, [0, 0.005, 0.01, 0.015, 0.02])
-    assert np.array_equal(after.x[:3], first.x)
+    assert np.array_equal(after.positions[:3], first.positions)
 
 
 def test_restart_from_a_copy_leaves_the_original(tmp):
@@ -179,7 +181,7 @@ def test_restart_from_a_copy_leaves_the_original(tmp):
     res = drape(["-restart", "copy.h5", "-ts_max_time", "0.02", "-drape_progress", "0"], tmp)
     assert res.returncode == 0, res.stderr
     assert hashlib.sha256((tmp / "orig.h5").read_bytes()).hexdigest() == digest
-    assert len(Frames(tmp / "copy.h5").time) == 5
+    assert len(drape_h5.load(tmp / "copy.h5").time) == 5
 
 
 @pytest.mark.parametrize("damage,message", [
@@ -258,7 +260,7 @@ def test_outline_lines_of_any_length(tmp):
         else:
             lines.append("")
     (tmp / "long.txt").write_text("\n".join(lines) + "\n")
-    masses = [run(f"-da_grid_x 21 -da_grid_y 21 -cloth_outline {f} -ts_max_steps 0").value(r"mass (\S+) kg")
+    masses = [run(f"-da_grid_x 21 -da_grid_y 21 -cloth_outline {f} -ts_max_steps 0").report["mass"]
               for f in (tmp / "long.txt", ROOT / "runs/outlines/panel.txt")]
     assert masses[0] == masses[1]
 

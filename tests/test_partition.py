@@ -3,7 +3,9 @@ METIS balances an irregular (circular) cloth that DMDA blocks cannot."""
 import numpy as np
 import pytest
 
-from conftest import ROUNDOFF, Frames, run
+from conftest import ROUNDOFF, printed, run
+
+import drape_h5
 
 CIRCLE = ("-da_grid_x 25 -da_grid_y 25 -cloth_shape circle -cloth_size 0.3 -cloth_center 0,0,0.0025 "
           "-solid_type cylinder -solid_radius 0.09 -solid_height 0.3 -solid_translate 0,0,-0.15 "
@@ -15,19 +17,19 @@ CIRCLE = ("-da_grid_x 25 -da_grid_y 25 -cloth_shape circle -cloth_size 0.3 -clot
 def test_same_frames_for_every_partition_and_rank_count(tmp, scheme, tol):
     ref = tmp / "ref.h5"
     run(f"{CIRCLE} {scheme} -output_file {ref}")
-    a = Frames(ref)
-    assert a.energy["kinetic"][-1] > 0
+    a = drape_h5.load(ref)
+    assert a.energies["kinetic"][-1] > 0
     for np_ in (2, 3, 4):
         for part in ("dmda", "metis"):
             out = tmp / f"{part}{np_}.h5"
             run(f"{CIRCLE} {scheme} -cloth_partition {part} -output_file {out}", np_=np_)
-            b = Frames(out)
-            assert np.abs(a.x - b.x).max() <= tol, (np_, part)
+            b = drape_h5.load(out)
+            assert np.abs(a.positions - b.positions).max() <= tol, (np_, part)
 
 
 def quality(res):
-    m = res.value(r"partition: \w+ on \d+ ranks, (\d+ to \d+) active", str).split(" to ")
-    return int(m[0]), int(m[1]), res.value(r"imbalance ([0-9.]+)"), res.value(r"(\d+) of \d+ stretch edges cut", int)
+    m = printed(res, r"partition: \w+ on \d+ ranks, (\d+ to \d+) active", str).split(" to ")
+    return int(m[0]), int(m[1]), printed(res, r"imbalance ([0-9.]+)"), printed(res, r"(\d+) of \d+ stretch edges cut", int)
 
 
 def test_metis_balances_a_circular_cloth():
@@ -79,13 +81,13 @@ def test_polygon_panel_with_a_hole(tmp):
     one, three = tmp / "one.h5", tmp / "three.h5"
     res = run(f"{args} -output_file {one}")
     run(f"{args} -cloth_partition metis -output_file {three}", np_=3)
-    a, b = Frames(one), Frames(three)
-    mass = res.value(r"mass (\S+) kg")
+    a, b = drape_h5.load(one), drape_h5.load(three)
+    mass = res.report["mass"]
     cells = active.sum()
     assert abs(mass - 0.15 * cells / (n - 1) ** 2) < 0.03 * mass  # lumped masses of the active particles
-    moved = np.abs(a.x[-1] - a.x[0]).max(axis=-1) > 0
+    moved = np.abs(a.positions[-1] - a.positions[0]).max(axis=-1) > 0
     assert np.array_equal(moved, active)  # exactly the particles inside fall
-    assert np.abs(a.x - b.x).max() <= ROUNDOFF
+    assert np.abs(a.positions - b.positions).max() <= ROUNDOFF
 
 
 @pytest.mark.parametrize("text,message", [("0 0\n1 x\n", "is not 'x y' in metres"), ("0 0\n1 1\n\n", "needs at least 3"),

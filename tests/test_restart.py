@@ -7,7 +7,10 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import DRAPE, ROOT, ROUNDOFF, Frames, run, wait_for_frames
+from conftest import DRAPE, ROOT, ROUNDOFF, run, wait_for_frames
+
+import drape_h5
+import drape_run
 
 SCENE = "-da_grid_x 12 -da_grid_y 10 -cloth_pin edge_corners -output_interval 0.01"
 
@@ -25,36 +28,41 @@ def test_restart_matches_uninterrupted_run(tmp, scheme, tol, np_restart):
     run(f"{SCENE} {scheme} -ts_max_time 0.1 -output_file {full}")
     run(f"{SCENE} {scheme} -ts_max_time 0.05 -output_file {part}")
     res = run(f"-restart {part} -ts_max_time 0.1", np_=np_restart)
-    a, b = Frames(full), Frames(part)
+    a, b = drape_h5.load(full), drape_h5.load(part)
     assert len(a.time) == len(b.time) == 11
     assert np.allclose(a.time, b.time, rtol=0, atol=1e-12)
     assert np.array_equal(a.step, b.step)
-    assert np.abs(a.x - b.x).max() <= tol and np.abs(a.v - b.v).max() <= tol * 100
+    assert np.abs(a.positions - b.positions).max() <= tol and np.abs(a.velocities - b.velocities).max() <= tol * 100
     assert (tmp / "part.xmf").read_text().count("<Time Value=") == 11
-    assert res.returncode == 0
+    # the report counts the steps of the restarted run; "step" goes on from the file's
+    assert res.report["step"] == b.step[-1] and res.report["steps"] == b.step[-1] - b.step[5]
+    assert res.report["t"] == b.time[-1] and res.report["ranks"] == np_restart
 
 
 def test_sigterm_writes_a_checkpoint_and_restart_continues(tmp):
     out, full = tmp / "sig.h5", tmp / "full.h5"
     args = "-da_grid_x 40 -da_grid_y 40 -cloth_pin edge_corners -ts_type basicsymplectic -ts_dt 1e-4 -output_steps 200"
-    proc = subprocess.Popen([str(DRAPE)] + args.split() + ["-ts_max_time", "100", "-drape_progress", "0", "-output_file", str(out)],
+    proc = subprocess.Popen([str(DRAPE)] + args.split() + ["-ts_max_time", "100", "-drape_progress", "0", "-drape_json", "-output_file", str(out)],
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     wait_for_frames(out, 3)
     proc.send_signal(signal.SIGTERM)
     stdout, stderr = proc.communicate(timeout=60)
     assert proc.returncode == 75, stdout + stderr
     assert "Stopped by SIGTERM" in stdout and f"-restart {out}" in stdout
-    stopped = Frames(out)
+    stopped = drape_h5.load(out)
     stop_step = int(stopped.step[-1])
+    report = drape_run.parse_report(stdout)  # a run stopped by SIGTERM completes its report
+    assert report["stopped_by"] == "SIGTERM" and report["step"] == stop_step and report["t"] == stopped.time[-1]
+    assert stopped.attrs["stopped_by"] == "SIGTERM" and stopped.attrs["step"] == stop_step
     t_end = stopped.time[-1] + 0.05
     # continue to t_end; an uninterrupted run to t_end has the same scheduled frames
     run(f"-restart {out} -ts_max_time {t_end}")
     run(f"{args} -ts_max_time {t_end} -output_file {full}")
-    a, b = Frames(full), Frames(out)
+    a, b = drape_h5.load(full), drape_h5.load(out)
     sched = [k for k, s in enumerate(b.step) if s % 200 == 0]
     assert stop_step % 200 != 0 or len(sched) == len(b.step)
-    assert np.array_equal(b.x[sched], a.x[: len(sched)]) and np.array_equal(b.step[sched], a.step[: len(sched)])
-    assert np.array_equal(b.x[-1], a.x[-1])
+    assert np.array_equal(b.positions[sched], a.positions[: len(sched)]) and np.array_equal(b.step[sched], a.step[: len(sched)])
+    assert np.array_equal(b.positions[-1], a.positions[-1])
 
 
 @pytest.mark.parametrize("kind,message", [("missing", "does not exist"), ("text", "not an HDF5 file"),

@@ -11,10 +11,10 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import DRAPE, ROOT
+import conftest
+from conftest import ROOT
 
 SCRIPTS = ROOT / "scripts"
-sys.path.insert(0, str(SCRIPTS))
 with warnings.catch_warnings():  # matplotlib's import trips newer pyparsing's deprecations
     warnings.simplefilter("ignore", DeprecationWarning)
     import matplotlib.image
@@ -31,9 +31,7 @@ CIRCLE = ("-options_file runs/cusick.opts -cloth_shape circle -cloth_size 0.3 -d
 
 
 def drape(args, out):
-    cmd = [str(DRAPE), *args.split(), "-drape_progress", "0", "-output_file", str(out)]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=ROOT)
-    assert proc.returncode == 0, f"{' '.join(cmd)} failed:\n{proc.stdout}\n{proc.stderr}"
+    conftest.run(f"{args} -output_file {out}", checks=False, timeout=120)
     return out
 
 
@@ -86,12 +84,15 @@ def test_load_square_run(sphere):
         assert run.nframes == n > 2
         assert np.array_equal(run.positions, f["position"][:n])
         assert np.array_equal(run.solid_triangles.ravel(), f["solid_triangles"][:])
+        assert np.array_equal(run.strain_max, f["strain_max"][:n, 0])
+    assert run.frame_at(run.time[1], 1e-12) == 1 and run.frame_at(-1.0, 1e-12) is None
+    assert run.attrs["lattice_mx"] == 11 and run.attrs["stopped_by"] == "" and run.attrs["at_rest"] in (0, 1)
     assert run.active.shape == (11, 11) and run.active.all()
     assert run.active_cells.sum() == 100
     assert run.floor == 0.0
     assert run.option("solid_type") == "sphere"
     assert run.option("cloth_center") == "0,0,0.6"
-    assert set(run.contact) == {"depth", "count"}
+    assert set(run.contact) == {"depth", "count", "force"} and run.contact["force"].shape == (n, 3)
 
 
 def test_circle_active_mask(circle):

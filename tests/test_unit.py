@@ -1,14 +1,11 @@
 """Run the C unit tests (tests/unit/*.c, built by `make all` into $DRAPE_BUILD/tests)."""
 
-import os
 import re
 import subprocess
-from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
-BUILD = ROOT / os.environ.get("DRAPE_BUILD", "build")
+from conftest import BUILD, ROOT, mpiexec
 
 
 def run_unit(name, *args, timeout=300):
@@ -24,7 +21,7 @@ def run_unit_ranks(name, np_, args, npassed):
     """A C unit test on np_ ranks with leak checking; asserts its closing line."""
     cmd = [str(BUILD / "tests" / name)] + args + ["-malloc_debug", "-malloc_dump"]
     if np_ > 1:
-        cmd = ["mpiexec"] + (["--allow-run-as-root"] if os.geteuid() == 0 else []) + ["--oversubscribe", "-np", str(np_)] + cmd
+        cmd = mpiexec(np_) + cmd
     proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert re.search(rf"^{npassed} passed, 0 failed$", proc.stdout, re.MULTILINE), proc.stdout
