@@ -25,16 +25,19 @@ typedef struct {
 
 /* Summary numbers a driver prints or writes next to the results. */
 typedef struct {
-  PetscInt  Mx, My;                     /* lattice size (warp x weft)           */
-  PetscInt  nparticles, npinned;        /* global counts                        */
-  PetscInt  nstretch, nshear, nbend;    /* global element counts                */
-  PetscInt  nowned;                     /* particles owned by this rank         */
-  PetscReal mass;                       /* total mass, kg                       */
-  PetscReal density;                    /* areal density, kg/m^2                */
-  PetscReal damping;                    /* mass-proportional damping, 1/s       */
-  PetscReal gravity[3];                 /* m/s^2                                */
-  PetscReal size[2], spacing[2];        /* cloth size and lattice spacing, m    */
-  PetscReal stretch[2], shear, bend[2]; /* continuum rigidities (see README) */
+  PetscInt    Mx, My;                     /* lattice size (warp x weft)           */
+  PetscInt    nparticles, npinned;        /* global counts                        */
+  PetscInt    nactive;                    /* particles inside the cloth's outline */
+  PetscInt    owned_min, owned_max, ncut; /* active particles per rank, stretch edges cut by the partition */
+  const char *partition;                  /* dmda or metis                        */
+  PetscInt    nstretch, nshear, nbend;    /* global element counts                */
+  PetscInt    nowned;                     /* particles owned by this rank         */
+  PetscReal   mass;                       /* total mass, kg                       */
+  PetscReal   density;                    /* areal density, kg/m^2                */
+  PetscReal   damping;                    /* mass-proportional damping, 1/s       */
+  PetscReal   gravity[3];                 /* m/s^2                                */
+  PetscReal   size[2], spacing[2];        /* cloth size and lattice spacing, m    */
+  PetscReal   stretch[2], shear, bend[2]; /* continuum rigidities (see README) */
 } ClothInfo;
 
 /* Create (not collective: nothing is communicated yet), read the -cloth_* and

@@ -22,6 +22,7 @@ PETSC_EXTERN PetscErrorCode ReportSetString(Report, const char name[], const cha
  * PETSC_STRING) and value (the one of its type). Not collective. */
 PETSC_EXTERN PetscErrorCode ReportGetSize(Report, PetscInt *n);
 PETSC_EXTERN PetscErrorCode ReportGetEntry(Report, PetscInt k, const char **name, PetscDataType *, PetscReal *r, PetscInt *i, const char **s);
-/* One line: a JSON object of every entry (non-finite reals as null), printed by
+/* One line: a JSON object of every entry (reals that are not finite, or at least
+ * PETSC_INFINITY, as null), printed by
  * rank 0. Collective. */
 PETSC_EXTERN PetscErrorCode ReportPrintJSON(Report);

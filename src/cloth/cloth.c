@@ -707,6 +707,11 @@ PetscErrorCode ClothGetInfo(Cloth c, ClothInfo *info)
   info->My         = c->My;
   info->nparticles = c->Mx * c->My;
   info->npinned    = c->npinned;
+  info->nactive    = (PetscInt) c->active_total;
+  info->owned_min  = c->owned_min;
+  info->owned_max  = c->owned_max;
+  info->ncut       = c->ncut;
+  info->partition  = PartitionTypes[c->partition];
   info->nstretch   = c->nstretch;
   info->nshear     = c->nshear;
   info->nbend      = c->nbend;

@@ -174,6 +174,7 @@ PetscErrorCode ClothComputeEnergies(Cloth c, const PetscScalar *x, const PetscSc
   PetscCall(ClothEndScatter(c, &xl));
   PetscCall(MPIU_Allreduce(local, sum, 5, MPIU_REAL, MPI_SUM, c->comm));
   PetscCall(MPIU_Allreduce(&strain, &en->strain_max, 1, MPIU_REAL, MPIU_MAX, c->comm));
+  if (!c->nstretch) en->strain_max = (PetscReal) NAN; /* no stretch edges: not measured */
   en->kinetic = sum[0];
   en->gravity = sum[1];
   en->stretch = sum[2];

@@ -529,7 +529,7 @@ static PetscErrorCode CheckDivergence(Simulation s, TS ts, PetscInt step, PetscR
     s->energy_scale   = info.mass * g * PetscMax(info.size[0], info.size[1]) + PetscAbsReal(e - sum[1]) + PETSC_SMALL;
     PetscFunctionReturn(0);
   }
-  if (finite && e - s->energy0 <= s->divergence_factor * s->energy_scale && strain <= s->max_strain) PetscFunctionReturn(0);
+  if (finite && e - s->energy0 <= s->divergence_factor * s->energy_scale && !(strain > s->max_strain)) PetscFunctionReturn(0); /* NaN strain: no stretch edges */
   PetscCall(TSGetType(ts, &type));
   PetscCall(TSGetTimeStep(ts, &dt));
   if (s->limits.euler > 0)
@@ -617,6 +617,7 @@ static PetscErrorCode WarnStepLimit(Simulation s, PetscViewer viewer, TSType typ
   if (euler && dt > s->limits.euler && 2 * Om > c) {
     /* fastest mode, underdamped: |1 + h mu|^2 = 1 - h c + h^2 Omega^2 per step */
     const PetscReal g = PetscSqrtReal(1 - dt * c + dt * dt * Om * Om);
+    PetscCall(ReportSetReal(s->report, "euler_growth_per_step", g));
     PetscCall(PetscViewerASCIIPrintf(viewer,
                                      "  WARNING: h is above the explicit Euler limit: the fastest mode grows by %.6g per step (a factor e every %.3g steps; up to %.3g steps in this run). drape stops the run when the growth shows in the energy, "
                                      "which can be late or never for slow growth\n",
@@ -711,7 +712,12 @@ static PetscErrorCode SimulationReportStart(Simulation s)
   PetscCall(ReportSetInt(r, "lattice_mx", info.Mx));
   PetscCall(ReportSetInt(r, "lattice_my", info.My));
   PetscCall(ReportSetInt(r, "particles", info.nparticles));
+  PetscCall(ReportSetInt(r, "active_particles", info.nactive));
   PetscCall(ReportSetInt(r, "pinned", info.npinned));
+  PetscCall(ReportSetString(r, "partition", info.partition));
+  PetscCall(ReportSetInt(r, "owned_min", info.owned_min));
+  PetscCall(ReportSetInt(r, "owned_max", info.owned_max));
+  PetscCall(ReportSetInt(r, "stretch_edges_cut", info.ncut));
   PetscCall(ReportSetReal(r, "size_warp", info.size[0]));
   PetscCall(ReportSetReal(r, "size_weft", info.size[1]));
   PetscCall(ReportSetReal(r, "mass", info.mass));
@@ -827,10 +833,12 @@ PetscErrorCode SimulationRun(Simulation s)
     PetscCall(ReportSetInt(s->report, "drape_folds", folds));
   }
   {
-    const PetscReal wall = (PetscReal) (t1 - s->wall0);
-    const PetscInt  run  = steps - s->restart_step; /* steps taken by this run */
+    const PetscReal mywall = (PetscReal) (t1 - s->wall0);
+    const PetscInt  run    = steps - s->restart_step; /* steps taken by this run */
+    PetscReal       wall;
     PetscInt        solves, rejected;
     Report          r = s->report;
+    PetscCall(MPIU_Allreduce(&mywall, &wall, 1, MPIU_REAL, MPIU_MAX, s->comm)); /* the job's, the same on every rank */
     PetscCall(TSGetKSPIterations(s->ts, &its));
     PetscCall(TSDrapeBEGetStatistics(s->ts, &solves, &rejected, NULL));
     PetscCall(ReportSetInt(r, "steps", run));
@@ -849,7 +857,10 @@ PetscErrorCode SimulationRun(Simulation s)
       if (its > 0) PetscCall(PetscPrintf(s->comm, ", %.2f CG iterations per step", (double) its / PetscMax(run, 1)));
       if (solves > run) PetscCall(PetscPrintf(s->comm, ", %.2f solves per step", (double) solves / PetscMax(run, 1)));
       if (rejected) PetscCall(PetscPrintf(s->comm, ", %" PetscInt_FMT " steps retried at a smaller step", rejected));
-      PetscCall(PetscPrintf(s->comm, "; largest edge strain %.3g %%\n", (double) (100 * s->strain_last)));
+      if (PetscIsNanReal(s->strain_last))
+        PetscCall(PetscPrintf(s->comm, "; no stretch edges\n"));
+      else
+        PetscCall(PetscPrintf(s->comm, "; largest edge strain %.3g %%\n", (double) (100 * s->strain_last)));
     }
     if (enabled) PetscCall(OutputWriteReport(s->output, r));
     if (s->json) PetscCall(ReportPrintJSON(r));

@@ -398,6 +398,7 @@ static PetscErrorCode OutputWriteReportFile(void *ctx)
     PetscBool     b;
     PetscCall(ReportGetEntry(c->report, k, &name, &type, &r, &i, &s));
     b = (PetscBool) (i != 0);
+    if (type == PETSC_REAL && PetscAbsReal(r) >= PETSC_INFINITY) r = r > 0 ? (PetscReal) INFINITY : (PetscReal) -INFINITY; /* PETSc's infinity is finite */
     PetscCall(PetscViewerHDF5WriteAttribute(c->o->viewer, "/", name, type, type == PETSC_REAL ? (const void *) &r : type == PETSC_INT ? (const void *) &i : type == PETSC_BOOL ? (const void *) &b : (const void *) s));
   }
   PetscCall(PetscViewerHDF5GetFileId(c->o->viewer, &fid));

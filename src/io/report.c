@@ -153,7 +153,7 @@ PetscErrorCode ReportPrintJSON(Report r)
     PetscCall(PetscPrintf(r->comm, k ? ", \"%s\": " : "\"%s\": ", e->name));
     switch (e->type) {
     case PETSC_REAL:
-      if (PetscIsInfOrNanReal(e->r))
+      if (PetscIsInfOrNanReal(e->r) || PetscAbsReal(e->r) >= PETSC_INFINITY) /* PETSc's infinity is a finite number */
         PetscCall(PetscPrintf(r->comm, "null"));
       else
         PetscCall(PetscPrintf(r->comm, "%.17g", (double) e->r));
