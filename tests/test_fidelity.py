@@ -1,6 +1,7 @@
 """Fabric fidelity: drape against the classical fabric tests. The heavy elastica
-(scripts/elastica.py) against its known answers, and drape's clamped strip
-(scripts/cantilever.py, Peirce's cantilever) against the elastica."""
+(scripts/elastica.py) against its known answers, drape's clamped strip
+(scripts/cantilever.py, Peirce's cantilever) against the elastica, and the virtual
+KES tensile, shear and picture-frame tests (scripts/kes.py) against Y and G."""
 import math
 import sys
 
@@ -12,6 +13,7 @@ from conftest import DRAPE, ROOT
 sys.path.insert(0, str(ROOT / "scripts"))
 import cantilever  # noqa: E402
 import elastica  # noqa: E402
+import kes  # noqa: E402
 
 
 def test_elastica_small_deflection_limit():
@@ -73,3 +75,43 @@ def test_cantilever_strip_rests_on_the_elastica(angle):
         assert abs(r["drop_err"]) < 0.05 and abs(r["reach_err"]) < 0.05, r
         err[n] = max(abs(r["drop_err"]), abs(r["reach_err"]))
     assert err[10] < 0.5 * err[5], err
+
+
+
+@pytest.mark.parametrize("mode", ["tensile-warp", "tensile-weft"])
+def test_kes_tensile_gives_y(mode):
+    """KES-FB1 tensile: clamps 20 cm long, 5 cm apart (10 cells), the far one pulled 1 %
+    across them; the free particles start unstrained. At rest the cloth stores
+    Y e^2 W H / 2 with denim's Y along the pull (411, 2028 N/m): exact in this model
+    (no Poisson coupling, every row a chain of equal springs), so within the solver's
+    tolerance, far inside the issue's 2 %."""
+    r = kes.clamp_test(mode, drape=DRAPE)
+    assert r["at_rest"], r
+    assert abs(r["error"]) < 1e-4, r
+    assert r["energy"]["shear"] < 1e-9 * r["energy"]["stretch"]
+
+
+def test_picture_frame_shear_gives_g():
+    """Picture frame: all four edges pinned on the trellis of a 0.01 rad shear (sides
+    unstretched), the interior starting unsheared. It comes to the uniform shear,
+    G gamma^2 A / 2 with denim's G = s_sh = 53.4 N/m, and stretches nothing."""
+    r = kes.clamp_test("frame", drape=DRAPE)
+    assert r["at_rest"], r
+    assert abs(r["error"]) < 1e-4, r
+    assert r["energy"]["stretch"] < 1e-9 * r["energy"]["shear"]
+
+
+def test_kes_shear_gives_g():
+    """KES-FB1 shear: the far clamp moved 0.01 rad along itself. The specimen's free ends
+    carry no shear stress and relax over an end zone, so the rectangle stores less
+    than G gamma^2 W H / 2 by a share proportional to W / H: measured -4.0 % at KES's
+    H/W = 4, -1.8 % at 8. Both within the issue's 5 %, and the W/H -> 0 extrapolation,
+    2 G(8) - G(4), within 1 % of G (measured +0.4 %)."""
+    g = {}
+    for aspect in (4, 8):
+        r = kes.clamp_test("shear", aspect=aspect, drape=DRAPE)
+        assert r["at_rest"] and r["out_of_plane"] == 0, r
+        assert -0.05 < r["error"] < 0, r
+        g[aspect] = r["measured"]
+    assert g[8] > g[4]
+    assert 2 * g[8] - g[4] == pytest.approx(r["expected"], rel=0.01), (g, r["expected"])
