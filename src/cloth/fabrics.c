@@ -10,13 +10,23 @@
  *
  * What the file entries mean (ARCSim's src/dde.cpp and src/physics.cpp):
  *   density        areal density, kg/m^2 (face mass = area x density).
- *   stretching[0]  [s_uu, s_uv, s_vv, s_sh] at zero strain; the simulator doubles
- *                  them, k = 2 s, in the membrane energy per area
- *                  W = (k_uu G_uu^2 + k_vv G_vv^2 + 2 k_uv G_uu G_vv + k_sh G_uv^2) / 2
- *                  with G the Green strain. At small strain G_uu = eps_u and
+ *   stretching[0]  [s_uu, s_uv, s_vv, s_sh] at zero strain (stretching[1..5] are
+ *                  the large-strain samples, blended in only as the strain grows);
+ *                  dde.cpp doubles them, k = 2 s (evaluate_stretching_sample:
+ *                  "real_elastic[3]*=2;"). The time step integrates
+ *                  physics.cpp's stretching_force, whose gradient is
+ *                    k[0]*G(0,0)*fuu + k[2]*G(1,1)*fvv
+ *                    + k[1]*(G(0,0)*fvv + G(1,1)*fuu) + 2*k[3]*G(0,1)*fuv
+ *                  with fuu, fvv, fuv the gradients of G_uu, G_vv, G_uv (G the
+ *                  Green strain): the gradient of the energy per area
+ *                    W = (k_uu G_uu^2 + k_vv G_vv^2 + 2 k_uv G_uu G_vv) / 2 + k_sh G_uv^2
+ *                  (ARCSim 0.2.1 states this W in a comment of that function).
+ *                  The 1/2 on k_sh G_uv^2 is only in stretching_energy(), which
+ *                  the time step does not call. At small strain G_uu = eps_u and
  *                  G_uv = gamma/2 (gamma the shear angle), so the tensile
- *                  rigidities are 2 s_uu and 2 s_vv (N/m) and the shear rigidity,
- *                  W = S gamma^2 / 2, is S = 2 s_sh / 4 = s_sh / 2 (N/m).
+ *                  rigidities are 2 s_uu and 2 s_vv (N/m) and the shear energy is
+ *                  2 s_sh gamma^2 / 4 = s_sh gamma^2 / 2: the shear rigidity
+ *                  (W = G gamma^2 / 2) is G = s_sh (N/m).
  *                  s_uv (Poisson coupling) has no counterpart in the particle
  *                  model and is dropped.
  *   bending[r][0]  k_e at zero curvature for hinge edges along u (r = 0) and
@@ -84,7 +94,7 @@ PetscErrorCode ClothSetFabric(Cloth c, const char *name)
     c->density    = f->density;
     c->stretch[0] = 2 * f->s_uu;
     c->stretch[1] = 2 * f->s_vv;
-    c->shear      = f->s_sh / 2;
+    c->shear      = f->s_sh; /* see the header: W = k_sh G_uv^2, k_sh = 2 s_sh, G_uv = gamma/2 */
     c->bend[0]    = f->ke_v / 4; /* curvature along the warp (u): hinges along v */
     c->bend[1]    = f->ke_u / 4;
     PetscCall(PetscSNPrintf(c->fabric, sizeof c->fabric, "%s (%s; Wang, Ramamoorthi & O'Brien 2011)", f->name, f->use));

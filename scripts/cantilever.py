@@ -1,0 +1,193 @@
+#!/usr/bin/env python3
+"""Virtual cantilever test (Peirce; ASTM D1388, FAST): a drape strip clamped at one end
+rests bent by its own weight; its tip is compared with the heavy elastica
+(scripts/elastica.py) at the same free length.
+
+The strip. A lattice strip cut along the warp (0 deg: long along i), the weft
+(90 deg: long along j) or the bias (45 deg: a rotated rectangle, -cloth_shape polygon,
+on a square lattice) of width --width, with n free lattice rows beyond k pinned ones
+(-cloth_pin list). Its free length L is chosen so that lambda = w L^3 / B (w = rho g,
+B the rigidity of the thread along the strip) is --lam: the deflection is neither
+tiny nor past vertical (lambda = 8 puts the chord at 41.5 deg, ASTM's angle).
+
+The discrete clamp. drape bends a thread through the angle at each particle between
+its two neighbouring segments: the tangent of a segment sits at its midpoint and a
+particle's turning angle is the curvature times a spacing h. Pinning rows 0..k-1
+fixes the tangent of the last pinned segment, (k-2, k-1), horizontal: the clamp is
+the midpoint of that segment, s_c = (k - 3/2) h from row 0, and not the last pinned
+particle. The last row carries half a cell (drape halves the masses and
+rigidities of boundary rows), so the strip ends at its last particle, and the free
+length is L = (n + 1/2) h. At 45 deg the rows are the lattice's diagonals, h = d/sqrt(2)
+for a lattice spacing d, and the same holds thread by thread: every thread's last
+pinned particle lies on the same diagonal.
+
+What is compared. The tip (the mean of the last row's particles) below the clamp
+(drop) and beyond it along the strip (reach), against the elastica's at lambda; and
+the rigidity the strip shows, B_eff / B = lambda / lambda_eff with lambda_eff the
+elastica's lambda for the measured drop (the weight per unit length and the free
+length being the strip's own). At 45 deg a real fabric is about as stiff as along
+the threads (ARCSim's bias-angle bending data); drape's model has no twist
+rigidity, so a bias strip may bend by twisting its threads instead of bending them.
+
+Usage:
+    python3 scripts/cantilever.py                         # 0, 90, 45 deg at n = 10, 20
+    python3 scripts/cantilever.py --angles 0 --rows 10,20,40 --fabric polyester
+"""
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import elastica  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+G = 9.81
+
+
+def drape_path(build=None):
+    """The drape executable of `build` (default $DRAPE_BUILD or build/)."""
+    return ROOT / (build or os.environ.get("DRAPE_BUILD", "build")) / "drape"
+
+
+def material(drape, fabric_args):
+    """density, bend_warp, bend_weft of a material (a zero-step run's JSON line)."""
+    proc = subprocess.run([str(drape), *fabric_args, "-da_grid_x", "3", "-da_grid_y", "3", "-ts_max_steps", "0", "-drape_json", "-drape_progress", "0"],
+                          capture_output=True, text=True, cwd=ROOT, timeout=60)
+    if proc.returncode != 0:
+        raise RuntimeError(f"drape refused the material {' '.join(fabric_args)}: {proc.stdout}{proc.stderr}")
+    j = json.loads(proc.stdout.strip().splitlines()[-1])
+    return j["density"], j["bend_warp"], j["bend_weft"]
+
+
+class Strip:
+    """Lattice, pins and outline of a strip at `angle` (0, 90 or 45 deg) with n free rows of
+    spacing h beyond k pinned ones, `width` wide: which particles are in it, and each
+    one's row (0 at the first pinned row) and offset across."""
+
+    def __init__(self, angle, n, k, h, width):
+        self.angle, self.n, self.k, self.h = angle, n, k, h
+        self.L = (n + 0.5) * h
+        self.clamp = (k - 1.5) * h  # along the strip from row 0
+        rows = k + n
+        if angle in (0, 90):
+            across = max(3, int(round(width / h)) + 1)
+            self.width = (across - 1) * h
+            self.d = h
+            mx, my = (rows, across) if angle == 0 else (across, rows)
+            self.shape = (my, mx)
+            jj, ii = np.mgrid[0:my, 0:mx]
+            self.row = ii if angle == 0 else jj
+            self.off = (jj if angle == 0 else ii) * h - 0.5 * self.width
+            self.active = np.ones(self.shape, dtype=bool)
+            self.size = ((mx - 1) * h, (my - 1) * h)
+            self.outline = None
+        elif angle == 45:
+            d = h * math.sqrt(2)  # a thread step moves one diagonal row along the strip
+            q = max(1, int(round(width / (2 * h) - 0.5)))
+            self.width = (2 * q + 1) * h
+            self.d = d
+            a = -(rows - 1) // 2  # diagonal index of row 0 (the strip centred on the sheet)
+            smax = max(abs(a), abs(a + rows - 1))
+            c = (smax + q) // 2 + 1
+            m = 2 * c + 1
+            self.shape = (m, m)
+            jj, ii = np.mgrid[0:m, 0:m]
+            sidx, vidx = (ii - c) + (jj - c), (jj - c) - (ii - c)
+            self.row = sidx - a
+            self.off = vidx * h
+            self.active = (self.row >= 0) & (self.row < rows) & (np.abs(vidx) <= q)
+            self.size = ((m - 1) * d, (m - 1) * d)
+            s0, s1, v = (a - 0.5) * h, (a + rows - 0.5) * h, (q + 0.5) * h  # the cuts fall between particles
+            self.outline = [((s - t) / math.sqrt(2), (s + t) / math.sqrt(2)) for s, t in ((s0, -v), (s1, -v), (s1, v), (s0, v))]
+        else:
+            raise ValueError(f"angle {angle}: the strip is cut at 0, 90 or 45 deg")
+        self.pinned = self.active & (self.row < k)
+        self.tip = self.active & (self.row == rows - 1)
+
+    def options(self, tmp):
+        """drape options for this strip's lattice, shape and pins (writes the outline into tmp)."""
+        my, mx = self.shape
+        pins = ",".join(f"{i},{j}" for j, i in zip(*np.nonzero(self.pinned)))
+        opts = ["-da_grid_x", str(mx), "-da_grid_y", str(my), "-cloth_size", f"{self.size[0]!r},{self.size[1]!r}", "-cloth_center", "0,0,0",
+                "-cloth_pin", "list", "-cloth_pin_list", pins]
+        if self.outline:
+            path = Path(tmp) / "strip45.txt"
+            path.write_text("".join(f"{x!r} {y!r}\n" for x, y in self.outline))
+            opts += ["-cloth_shape", "polygon", "-cloth_outline", str(path)]
+        return opts
+
+
+def run_case(angle, n, lam=8.0, fabric=("-cloth_fabric", "denim"), k=2, width=0.025, drape=None, keep=None):
+    """Clamp a strip at `angle` with n free rows, lambda = w L^3 / B, run it to rest, compare
+    its tip with the elastica's. Returns a dict of the numbers (lengths in m)."""
+    drape = drape or drape_path()
+    rho, bw, bf = material(drape, list(fabric))
+    B = {0: bw, 90: bf, 45: (bw + bf) / 2}[angle]  # at 45 deg: the threads' mean
+    w = rho * G
+    L = (lam * B / w) ** (1 / 3)
+    strip = Strip(angle, n, k, L / (n + 0.5), width)
+    omega = 3.516 * math.sqrt(B / (rho * L ** 4))  # first bending mode of the clamped strip
+    with tempfile.TemporaryDirectory(prefix="cantilever_") as tmp:
+        out = Path(keep) if keep else Path(tmp) / "strip.h5"
+        opts = [*fabric, *strip.options(tmp), "-cloth_damping", f"{omega:.6g}", "-ts_type", "drapebe", "-ts_dt", f"{0.1 / omega:.6g}",
+                "-ts_max_time", f"{400 / omega:.6g}", "-drape_rest_tol", "1e-10", "-output_interval", f"{400 / omega:.6g}",
+                "-output_file", str(out), "-drape_json", "-drape_progress", "0"]
+        t0 = time.perf_counter()
+        proc = subprocess.run([str(drape), *opts], capture_output=True, text=True, cwd=ROOT, timeout=600)
+        wall = time.perf_counter() - t0
+        if proc.returncode != 0:
+            raise RuntimeError(f"drape failed on the {angle} deg strip: {proc.stdout[-2000:]}{proc.stderr[-2000:]}")
+        summary = json.loads(proc.stdout.strip().splitlines()[-1])
+        with h5py.File(out, "r") as f:
+            x = f["position"][f["time"].shape[0] - 1]  # [My][Mx][3]
+            x0 = f["position"][0]
+    # the strip's axis in the plane, from its initial positions
+    axis = {0: np.array([1.0, 0.0]), 90: np.array([0.0, 1.0]), 45: np.array([1.0, 1.0]) / math.sqrt(2)}[angle]
+    s0 = x0[..., :2] @ axis
+    row0 = s0[strip.pinned & (strip.row == 0)].mean()
+    clamp_s = row0 + strip.clamp
+    z0 = x0[strip.pinned, 2].mean()
+    drop = float(z0 - x[strip.tip, 2].mean())
+    reach = float((x[strip.tip, :2] @ axis).mean() - clamp_s)
+    e = elastica.solve(lam)
+    lam_eff = elastica.lam_for(drop / L, "drop")
+    return {"angle": angle, "rows": n, "h": strip.h, "lattice": f"{strip.shape[1]}x{strip.shape[0]}", "particles": int(strip.active.sum()),
+            "width": strip.width, "L": L, "lam": lam, "B": B, "drop": drop, "reach": reach, "drop_elastica": e.drop * L, "reach_elastica": e.reach * L,
+            "drop_err": drop / (e.drop * L) - 1, "reach_err": reach / (e.reach * L) - 1, "B_eff_ratio": lam / lam_eff,
+            "at_rest": summary.get("at_rest"), "t": summary["t"], "strain_max": summary["strain_max"], "wall": wall}
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--angles", default="0,90,45", help="strip angles to the warp: 0, 90, 45 (deg)")
+    p.add_argument("--rows", default="10,20", help="free lattice rows n (resolution)")
+    p.add_argument("--lam", type=float, default=8.0, help="w L^3 / B (8: chord at 41.5 deg)")
+    p.add_argument("--width", type=float, default=0.025, help="strip width (m; ASTM D1388: 25 mm)")
+    p.add_argument("--pinned", type=int, default=2, help="pinned rows k (>= 2)")
+    p.add_argument("--fabric", default="denim", help="-cloth_fabric NAME (density and B)")
+    p.add_argument("--build", default=None, help="build directory (default $DRAPE_BUILD or build)")
+    a = p.parse_args()
+    if a.pinned < 2:
+        p.error("--pinned must be at least 2: the clamp is the tangent of the last pinned segment")
+    print(f"cantilever: {a.fabric}, lambda = w L^3 / B = {a.lam:g}, width {1e3 * a.width:g} mm, {a.pinned} pinned rows")
+    print("| angle | rows n | lattice | L (mm) | drop drape / elastica (mm) | error | reach drape / elastica (mm) | error | B_eff / B | at rest (t s) | wall s |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for angle in (int(v) for v in a.angles.split(",")):
+        for n in (int(v) for v in a.rows.split(",")):
+            r = run_case(angle, n, a.lam, ("-cloth_fabric", a.fabric), a.pinned, a.width, drape_path(a.build))
+            print(f"| {angle} | {n} | {r['lattice']} | {1e3 * r['L']:.2f} | {1e3 * r['drop']:.3f} / {1e3 * r['drop_elastica']:.3f} | {100 * r['drop_err']:+.2f} % "
+                  f"| {1e3 * r['reach']:.3f} / {1e3 * r['reach_elastica']:.3f} | {100 * r['reach_err']:+.2f} % | {r['B_eff_ratio']:.3f} "
+                  f"| {r['at_rest']} ({r['t']:.2f}) | {r['wall']:.1f} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
