@@ -37,7 +37,8 @@ typedef struct {
   PetscReal   damping;                    /* mass-proportional damping, 1/s       */
   PetscReal   gravity[3];                 /* m/s^2                                */
   PetscReal   size[2], spacing[2];        /* cloth size and lattice spacing, m    */
-  PetscReal   stretch[2], shear, bend[2]; /* continuum rigidities (see README) */
+  PetscReal   stretch[2], shear, bend[3]; /* continuum rigidities (see README); bend: warp, weft, bias */
+  const char *model;                      /* drape or paper                       */
 } ClothInfo;
 
 /* Create (not collective: nothing is communicated yet), read the -cloth_* and

@@ -34,19 +34,18 @@ Usage:
     python3 scripts/cantilever.py --angles 0 --rows 10,20,40 --fabric polyester
 """
 import argparse
-import json
 import math
 import os
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-import h5py
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import drape_h5  # noqa: E402
+import drape_run  # noqa: E402
 import elastica  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -59,13 +58,12 @@ def drape_path(build=None):
 
 
 def material(drape, fabric_args):
-    """density, bend_warp, bend_weft of a material (a zero-step run's JSON line)."""
-    proc = subprocess.run([str(drape), *fabric_args, "-da_grid_x", "3", "-da_grid_y", "3", "-ts_max_steps", "0", "-drape_json", "-drape_progress", "0"],
-                          capture_output=True, text=True, cwd=ROOT, timeout=60)
-    if proc.returncode != 0:
-        raise RuntimeError(f"drape refused the material {' '.join(fabric_args)}: {proc.stdout}{proc.stderr}")
-    j = json.loads(proc.stdout.strip().splitlines()[-1])
-    return j["density"], j["bend_warp"], j["bend_weft"]
+    """density, bend_warp, bend_weft, bend_bias of a material (a zero-step run's report)."""
+    r = drape_run.run(drape, [*fabric_args, "-da_grid_x", "3", "-da_grid_y", "3", "-ts_max_steps", "0"], timeout=60)
+    if r.returncode != 0 or r.report is None:
+        raise RuntimeError(f"drape refused the material {' '.join(fabric_args)}: {r.tail()}")
+    j = r.report
+    return j["density"], j["bend_warp"], j["bend_weft"], j["bend_bias"]
 
 
 class Strip:
@@ -130,8 +128,8 @@ def run_case(angle, n, lam=8.0, fabric=("-cloth_fabric", "denim"), k=2, width=0.
     """Clamp a strip at `angle` with n free rows, lambda = w L^3 / B, run it to rest, compare
     its tip with the elastica's. Returns a dict of the numbers (lengths in m)."""
     drape = drape or drape_path()
-    rho, bw, bf = material(drape, list(fabric))
-    B = {0: bw, 90: bf, 45: (bw + bf) / 2}[angle]  # at 45 deg: the threads' mean
+    rho, bw, bf, bb = material(drape, list(fabric))
+    B = {0: bw, 90: bf, 45: bb}[angle]  # at 45 deg: the bias rigidity
     w = rho * G
     L = (lam * B / w) ** (1 / 3)
     strip = Strip(angle, n, k, L / (n + 0.5), width)
@@ -140,16 +138,15 @@ def run_case(angle, n, lam=8.0, fabric=("-cloth_fabric", "denim"), k=2, width=0.
         out = Path(keep) if keep else Path(tmp) / "strip.h5"
         opts = [*fabric, *strip.options(tmp), "-cloth_damping", f"{omega:.6g}", "-ts_type", "drapebe", "-ts_dt", f"{0.1 / omega:.6g}",
                 "-ts_max_time", f"{400 / omega:.6g}", "-drape_rest_tol", "1e-10", "-output_interval", f"{400 / omega:.6g}",
-                "-output_file", str(out), "-drape_json", "-drape_progress", "0"]
+                "-output_file", str(out)]
         t0 = time.perf_counter()
-        proc = subprocess.run([str(drape), *opts], capture_output=True, text=True, cwd=ROOT, timeout=600)
+        r = drape_run.run(drape, opts, timeout=600)
         wall = time.perf_counter() - t0
-        if proc.returncode != 0:
-            raise RuntimeError(f"drape failed on the {angle} deg strip: {proc.stdout[-2000:]}{proc.stderr[-2000:]}")
-        summary = json.loads(proc.stdout.strip().splitlines()[-1])
-        with h5py.File(out, "r") as f:
-            x = f["position"][f["time"].shape[0] - 1]  # [My][Mx][3]
-            x0 = f["position"][0]
+        if r.returncode != 0 or r.report is None:
+            raise RuntimeError(f"drape failed on the {angle} deg strip: {r.tail()}")
+        summary = r.report
+        fr = drape_h5.load(out)
+        x, x0 = fr.positions[-1], fr.positions[0]  # [My][Mx][3]
     # the strip's axis in the plane, from its initial positions
     axis = {0: np.array([1.0, 0.0]), 90: np.array([0.0, 1.0]), 45: np.array([1.0, 1.0]) / math.sqrt(2)}[angle]
     s0 = x0[..., :2] @ axis

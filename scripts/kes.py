@@ -29,16 +29,19 @@ Usage:
     python3 scripts/kes.py --fabric polyester --gap-cells 10,20 --aspect 4,8
 """
 import argparse
-import json
 import math
 import os
-import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
 
 import h5py
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import drape_h5  # noqa: E402
+import drape_run  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -49,10 +52,11 @@ def drape_path(build=None):
 
 
 def _run(drape, args, what):
-    proc = subprocess.run([str(drape), *args, "-drape_progress", "0"], capture_output=True, text=True, cwd=ROOT, timeout=600)
-    if proc.returncode != 0:
-        raise RuntimeError(f"drape failed on the {what}: {proc.stdout[-2000:]}{proc.stderr[-2000:]}")
-    return proc.stdout
+    """The report of a drape run that must succeed."""
+    r = drape_run.run(drape, args, timeout=600)
+    if r.returncode != 0 or r.report is None:
+        raise RuntimeError(f"drape failed on the {what}: {r.tail()}")
+    return r.report
 
 
 def clamp_test(mode, fabric=("-cloth_fabric", "denim"), gap=10, aspect=4.0, k=2, strain=0.01, h=0.005, drape=None):
@@ -84,7 +88,7 @@ def clamp_test(mode, fabric=("-cloth_fabric", "denim"), gap=10, aspect=4.0, k=2,
                  "-gravity", "0,0,0", "-cloth_pin", "list", "-cloth_pin_list", pins]
     with tempfile.TemporaryDirectory(prefix="kes_") as tmp:
         base, out = Path(tmp) / "base.h5", Path(tmp) / "rest.h5"
-        j = json.loads(_run(drape, [*base_opts, "-ts_max_steps", "0", "-output_file", str(base), "-drape_json"], f"{mode} set-up").strip().splitlines()[-1])
+        j = _run(drape, [*base_opts, "-ts_max_steps", "0", "-output_file", str(base)], f"{mode} set-up")
         rho, G, (Yw, Yf) = j["density"], j["shear"], (j["stretch_warp"], j["stretch_weft"])
         with h5py.File(base, "r+") as f:
             x = f["position"][-1]
@@ -107,14 +111,13 @@ def clamp_test(mode, fabric=("-cloth_fabric", "denim"), gap=10, aspect=4.0, k=2,
         omega = math.pi / (2 * W) * math.sqrt(stiff / rho)
         opts = ["-restart", str(base), "-output_file", str(out), "-ts_max_steps", "100000000", "-ts_type", "drapebe", "-ts_dt", f"{0.2 / omega:.6g}", "-cloth_damping", f"{omega:.6g}",
                 "-ts_max_time", f"{2000 / omega:.6g}", "-drape_rest_tol", "1e-14", "-output_interval", f"{2000 / omega:.6g}", "-ksp_rtol", "1e-10",
-                "-pc_type", "bjacobi", "-drape_json"]
+                "-pc_type", "bjacobi"]
         t0 = time.perf_counter()
-        summary = json.loads(_run(drape, opts, mode).strip().splitlines()[-1])
+        summary = _run(drape, opts, mode)
         wall = time.perf_counter() - t0
-        with h5py.File(out, "r") as f:
-            n = f["time"].shape[0]
-            energy = {k: float(f[f"energy_{k}"][n - 1, 0]) for k in ("stretch", "shear", "bend", "kinetic")}
-            xr = f["position"][n - 1]
+        fr = drape_h5.load(out)
+        energy = {k: float(fr.energies[k][-1]) for k in ("stretch", "shear", "bend", "kinetic")}
+        xr = fr.positions[-1]
     total = energy["stretch"] + energy["shear"] + energy["bend"]
     measured = 2 * total / (strain ** 2 * W * H)
     return {"mode": mode, "gap": gap, "aspect": H / W, "lattice": f"{mx}x{my}", "W": W, "H": H, "strain": strain, "energy": energy,

@@ -29,7 +29,7 @@ def sphere_rest(tmp_path_factory):
     def get(fabric, scheme):
         if (fabric, scheme) not in cache:
             h5 = out / f"{fabric}-{scheme}.h5"
-            args = scheme_args(f"-options_file runs/sphere.opts -cloth_fabric {fabric}", scheme, 0.9)
+            args = scheme_args(f"-options_file runs/sphere.opts -cloth_fabric {fabric}", scheme, 0.5)
             res = run(f"{args} -output_interval 1 -output_file {h5}", checks=False)
             fr = drape_h5.load(h5)
             cache[fabric, scheme] = (res, fr)
@@ -43,14 +43,17 @@ def test_sphere_scene_rests_without_stretch(sphere_rest, fabric, scheme):
     """The cloth lands on the sphere at v = sqrt(2 g 0.098 m) and sticks. A sticky
     landing freezes at most the strain of a wave reflected at a fixed end, 2 v / c with
     c = sqrt(Y / rho) the fabric's slowest stretch-wave speed; the weight strains it by
-    rho g L / Y, about 1e-4. Measured (with the shear G = s_sh): polyester 0.34 %
-    (drapebe) and 1.07 % (symplectic, 2v/c = 1.57 %), royal-target 0.73 % / 1.63 %,
-    denim (warp Y = 411 N/m, 2v/c = 7.8 %) 4.3 % / 4.1 %; before contact entered the
-    implicit solve polyester rested at 29 % with three times the released
-    gravitational energy stored as stretch. So: max edge strain under 3 % for the two
-    stiff wovens, within 2v/c (+10 %) for all three, and the stretch energy at rest
-    under 3 % of the gravitational energy released (measured 0.15-2.0 %: royal-target
-    in symplectic Euler 2.0 %, 1.0 % with the shear at half strength)."""
+    rho g L / Y, about 1e-4. Measured (shear G = s_sh, drape's bias term; symplectic
+    Euler at half its limit): polyester 0.35 % (drapebe) and 0.75 % (symplectic, 2v/c =
+    1.57 %), royal-target 0.89 % / 1.06 %, denim (warp Y = 411 N/m, 2v/c = 7.8 %) 3.8 % /
+    3.5 %; before contact entered the implicit solve polyester rested at 29 % with three
+    times the released gravitational energy stored as stretch. So: max edge strain under
+    3 % for the two stiff wovens, within 2v/c (+10 %) for all three, and the stretch
+    energy at rest under 2 % of the gravitational energy released (measured 0.15-1.15 %).
+    Symplectic Euler runs at half the limit estimated for the flat sheet, the README's
+    safe choice: at 0.9 of it the folds' tension takes the run to the edge of stability,
+    and the frozen landing strain then depends on the last digit of the step (royal-target
+    1.82 % at h = 1.64835755e-4 s, 2.35 % at 1.648358e-4 s)."""
     res, fr = sphere_rest(fabric, scheme)
     rep = res.report
     ymin, rho = min(rep["stretch_warp"], rep["stretch_weft"]), rep["density"]
@@ -62,7 +65,7 @@ def test_sphere_scene_rests_without_stretch(sphere_rest, fabric, scheme):
     if fabric != "denim":
         assert strain < 0.03
     released = fr.energies["gravity"][0] - fr.energies["gravity"][-1]
-    assert released > 0.3 and fr.energies["stretch"][-1] < 0.03 * released, (fr.energies["stretch"][-1], released)
+    assert released > 0.3 and fr.energies["stretch"][-1] < 0.02 * released, (fr.energies["stretch"][-1], released)
     # and it did drape: on the sphere, nothing inside it, the corners hanging below its top
     r = np.linalg.norm(fr.positions[-1] - np.array([0, 0, 0.25]), axis=-1)
     assert r.min() >= 0.25 + 0.002 - 1e-9 and fr.positions[-1, ..., 2].min() < 0.25

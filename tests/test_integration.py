@@ -88,7 +88,7 @@ BAD = [
     ("-cloth_stiffnes 3", "Unknown option -cloth_stiffnes"),
     ("-drape_stability_its -2", "-drape_stability_its must be zero or positive"),
     ("-cloth_size 1,2,3", "-cloth_size takes one value"),
-    ("-cloth_bend 1,2,3", "-cloth_bend needs one value (warp = weft) or two"),
+    ("-cloth_bend 1e-5,1e-5,1e-5,1e-5", "-cloth_bend needs one value (warp = weft), two (warp,weft) or three (warp,weft,bias)"),
     ("-solid_floor 2", "particles inside the solid"),
     ("-cloth_shape circle -cusick_pedestal_radius 1", "leaves no overhang"),
     ("-cusick_center 0.1", "-cusick_center needs two coordinates"),

@@ -71,7 +71,9 @@ def test_prose_says_the_report(hang):
     assert f(r"Cloth: (\d+) x", int) == rep["lattice_mx"] and f(r" x (\d+) particles", int) == rep["lattice_my"]
     assert f(r"(\d+) pinned", int) == rep["pinned"] and f(r"mass (\S+) kg") == shown(rep["mass"], "g")
     assert f(r"material: stretch (\S+),") == shown(rep["stretch_warp"], "g") and f(r"stretch \S+,(\S+) N/m") == shown(rep["stretch_weft"], "g")
-    assert f(r"shear (\S+) N/m") == shown(rep["shear"], "g") and f(r"bend (\S+),") == shown(rep["bend_warp"], "g")
+    assert f(r"shear (\S+) N/m") == shown(rep["shear"], "g") and f(r"bend ([^,]+),") == shown(rep["bend_warp"], "g")
+    assert f(r"bend [^,]+,([^,]+),") == shown(rep["bend_weft"], "g") and f(r"bend [^,]+,[^,]+,(\S+) N m") == shown(rep["bend_bias"], "g")
+    assert f(r"model: (\w+)", str) == rep["model"] == "drape" and f(r"(\d+) bending triples", int) == rep["bending_triples"]
     assert f(r"density (\S+) kg") == shown(rep["density"], "g") and f(r"damping (\S+) 1/s") == shown(rep["damping"], "g")
     assert f(r"Omega_max = (\S+) rad/s", str) == format(rep["omega_max"], ".4e")
     assert f(r"symplectic Euler: stable for h < (\S+) s", str) == format(rep["symplectic_limit"], ".4e")

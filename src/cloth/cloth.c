@@ -6,6 +6,7 @@
 
 static const char *const orientation_names[] = {"horizontal", "vertical", "ClothOrientation", "CLOTH_", NULL};
 static const char *const shape_names[]       = {"square", "circle", "polygon", "ClothShape", "CLOTH_", NULL};
+static const char *const model_names[]       = {"drape", "paper", "ClothModel", "CLOTH_MODEL_", NULL};
 static const char *const pin_names[]         = {"none", "corners", "edge_corners", "edge", "list", "ClothPinType", "CLOTH_PIN_", NULL};
 
 PetscErrorCode ClothCreate(MPI_Comm comm, Cloth *cloth)
@@ -24,6 +25,7 @@ PetscErrorCode ClothCreate(MPI_Comm comm, Cloth *cloth)
   c->shear       = 30.0; /* N/m per rad: KES G ~ 0.5 gf/(cm deg)                  */
   c->bend[0]     = 5e-6; /* N m: KES B ~ 0.05 gf cm^2/cm                           */
   c->bend[1]     = 5e-6;
+  c->bend[2]     = -1; /* the bias: (Bw + Bf)/2 unless given or measured */
   c->gravity[2]  = -9.81;
   c->origin[2]   = 1.0;
   c->orientation = CLOTH_HORIZONTAL;
@@ -50,6 +52,70 @@ static PetscErrorCode OptionsWarpWeft(PetscOptionItems *PetscOptionsObject, cons
     value[0] = tmp[0];
     value[1] = n == 1 ? tmp[0] : tmp[1];
   }
+  PetscFunctionReturn(0);
+}
+
+/* -cloth_bend Bw[,Bf[,Bb]]: one value means warp = weft; the bias Bb (what a strip
+ * cut at 45 degrees measures) is (Bw + Bf)/2 unless given third. */
+static PetscErrorCode OptionsBend(PetscOptionItems *PetscOptionsObject, PetscReal bend[3], PetscBool *bias_given)
+{
+  PetscInt  n      = 4; /* one more than allowed: detects extra values */
+  PetscReal tmp[4] = {bend[0], bend[1], bend[2], 0};
+  PetscBool set;
+  char      deflt[96];
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscSNPrintf(deflt, sizeof deflt, "%g,%g,%g", (double) bend[0], (double) bend[1], (double) (bend[2] < 0 ? 0.5 * (bend[0] + bend[1]) : bend[2])));
+  PetscCall(PetscOptionsRealArray("-cloth_bend", "Bending rigidity warp[,weft[,bias]] (N m): the bias is what a strip cut at 45 degrees to the threads measures, (warp + weft)/2 unless given; 0 removes the bending energy", deflt, tmp, &n, &set));
+  PetscCheck(!set || (n > 0 && n <= 3), PETSC_COMM_WORLD, PETSC_ERR_USER_INPUT, "Option -cloth_bend needs one value (warp = weft), two (warp,weft) or three (warp,weft,bias)");
+  *bias_given = (PetscBool) (set && n == 3);
+  if (set) {
+    bend[0] = tmp[0];
+    bend[1] = n == 1 ? tmp[0] : tmp[1];
+    bend[2] = n == 3 ? tmp[2] : -1;
+  }
+  PetscFunctionReturn(0);
+}
+
+/* The per-area rigidities of the bending elements from the strip rigidities Bw, Bf,
+ * Bb (what strips cut along the warp, the weft and at 45 degrees measure) on a
+ * lattice of spacing dx x dy: warp triples aw, weft triples af, and the two families
+ * of diagonal triples (i-1,j-1),(i,j),(i+1,j+1) and (i-1,j+1),(i,j),(i+1,j-1).
+ *
+ * A triple of arm length l whose line bends with curvature k stores kappa_e k^2 l^2/2;
+ * with one triple per particle (area dx dy) a family along the unit direction n
+ * stores beta k_n^2/2 per area for kappa_e = beta dx dy / l^2. Warp and weft triples
+ * give D11 = aw and D22 = af of the plate's bending stiffness
+ * W = (D11 k_xx^2 + D22 k_yy^2 + 2 D12 k_xx k_yy + D66 (2 k_xy)^2)/2; the two diagonal
+ * families (l^2 = dx^2 + dy^2, k_n = (dx^2 k_xx + dy^2 k_yy +- 2 dx dy k_xy)/l^2) add
+ * D11 = d dx^2/dy^2, D22 = d dy^2/dx^2, D12 = D66 = d, with d = 2 beta dx^2 dy^2/l^4,
+ * i.e. kappa_e = d l^2/(2 dx dy). Cloth is all but inextensible against bending
+ * (sqrt(B/Y) is a fraction of a millimetre), so a strip bends developably: along n
+ * with curvature k it has k_ij = k n_i n_j and rigidity n n : D : n n. Along the warp
+ * Bw = aw + d dx^2/dy^2, along the weft Bf = af + d dy^2/dx^2, at 45 degrees
+ * Bb = (D11 + D22 + 2 D12 + 4 D66)/4 = (Bw + Bf + 6 d)/4. Hence
+ * d = (4 Bb - Bw - Bf)/6, and aw, af >= 0 and d >= 0 bound Bb. Without the diagonals
+ * (the paper's model) Bb = (Bw + Bf)/4: half the threads' mean, and a strip with no
+ * twist rigidity measures less still. */
+static PetscErrorCode ClothBendCoefficients(Cloth c)
+{
+  const PetscReal dx = c->size[0] / (c->Mx - 1), dy = c->size[1] / (c->My - 1), r2 = dx * dx / (dy * dy);
+  const PetscReal bw = c->bend[0], bf = c->bend[1], bb = c->bend[2], d = (4 * bb - bw - bf) / 6;
+  const PetscReal lo = 0.25 * (bw + bf), hi = lo + 1.5 * PetscMin(bw / r2, bf * r2);
+
+  PetscFunctionBeginUser;
+  if (c->model == CLOTH_MODEL_PAPER) {
+    c->bend_coef[0] = bw;
+    c->bend_coef[1] = bf;
+    c->bend_coef[2] = 0;
+    PetscFunctionReturn(0);
+  }
+  PetscCheck(bb >= lo * (1 - 1e-12) && bb <= hi * (1 + 1e-12), c->comm, PETSC_ERR_USER_INPUT,
+             "-cloth_bend: the bias rigidity %g N m (what a strip cut at 45 degrees measures) must lie from (warp + weft)/4 = %g to %g N m for warp %g and weft %g N m on this lattice (spacing %g x %g m); -cloth_model paper drops the bias term",
+             (double) bb, (double) lo, (double) hi, (double) bw, (double) bf, (double) dx, (double) dy);
+  c->bend_coef[2] = PetscMax(d, 0);
+  c->bend_coef[0] = PetscMax(bw - c->bend_coef[2] * r2, 0);
+  c->bend_coef[1] = PetscMax(bf - c->bend_coef[2] / r2, 0);
   PetscFunctionReturn(0);
 }
 
@@ -210,7 +276,7 @@ static PetscErrorCode ClothCheckLatticeSize(Cloth c, PetscInt Mx, PetscInt My)
 PetscErrorCode ClothSetFromOptions(Cloth c)
 {
   PetscInt          n, npin = 0, ipin = (PetscInt) c->pin, iorient = (PetscInt) c->orientation, hess = 0;
-  PetscBool         set;
+  PetscBool         set, bias_given = PETSC_FALSE;
   const char *const hessian_names[] = {"projected", "exact", "ClothHessian", "", NULL};
 
   PetscFunctionBeginUser;
@@ -238,7 +304,13 @@ PetscErrorCode ClothSetFromOptions(Cloth c)
   PetscCall(PetscOptionsReal("-cloth_damping", "Mass-proportional damping c, force -c m v (1/s)", "ClothSetFromOptions", c->damping, &c->damping, NULL));
   PetscCall(OptionsWarpWeft(PetscOptionsObject, "-cloth_stretch", "Tensile rigidity warp[,weft] (N/m); 0 removes the stretch energy", c->stretch));
   PetscCall(PetscOptionsReal("-cloth_shear", "In-plane shear rigidity (N/m: energy per area S gamma^2/2 for a shear angle gamma); 0 removes the shear energy", "ClothSetFromOptions", c->shear, &c->shear, NULL));
-  PetscCall(OptionsWarpWeft(PetscOptionsObject, "-cloth_bend", "Bending rigidity warp[,weft] (N m); 0 removes the bending energy", c->bend));
+  PetscCall(OptionsBend(PetscOptionsObject, c->bend, &bias_given));
+  {
+    PetscInt imodel = (PetscInt) c->model;
+    PetscCall(PetscOptionsEList("-cloth_model", "Bending model: drape (thread triples and diagonal triples: warp, weft and bias rigidity) or paper (the paper's thread triples only: no bias rigidity)", "ClothSetFromOptions", model_names, 2,
+                                model_names[imodel], &imodel, NULL));
+    c->model = (ClothModel) imodel;
+  }
   n = 3;
   PetscCall(PetscOptionsRealArray("-gravity", "Gravity vector gx,gy,gz (m/s^2)", "ClothSetFromOptions", c->gravity, &n, &set));
   PetscCheck(!set || n == 3, c->comm, PETSC_ERR_USER_INPUT, "Option -gravity needs three components gx,gy,gz; got %" PetscInt_FMT, n);
@@ -284,7 +356,10 @@ PetscErrorCode ClothSetFromOptions(Cloth c)
   PetscCall(DrapeCheckReal(c->comm, "-cloth_damping", 1, &c->damping, 0, 1e4, "1/s"));
   PetscCall(DrapeCheckReal(c->comm, "-cloth_stretch", 2, c->stretch, 0, 1e7, "N/m"));
   PetscCall(DrapeCheckReal(c->comm, "-cloth_shear", 1, &c->shear, 0, 1e6, "N/m"));
-  PetscCall(DrapeCheckReal(c->comm, "-cloth_bend", 2, c->bend, 0, 1, "N m"));
+  if (c->bend[2] < 0) c->bend[2] = 0.5 * (c->bend[0] + c->bend[1]);
+  PetscCheck(c->model == CLOTH_MODEL_DRAPE || !bias_given, c->comm, PETSC_ERR_USER_INPUT, "-cloth_model paper has no bias rigidity: give -cloth_bend warp[,weft], or use -cloth_model drape for a third value");
+  PetscCall(DrapeCheckReal(c->comm, "-cloth_bend", 3, c->bend, 0, 1, "N m"));
+  PetscCall(ClothBendCoefficients(c));
   PetscCall(DrapeCheckReal(c->comm, "-gravity", 3, c->gravity, -1e3, 1e3, "m/s^2 (each component)"));
   PetscCall(DrapeCheckReal(c->comm, "-cloth_center", 3, c->origin, -1e4, 1e4, "m"));
   PetscCall(DrapeCheckIntOption(c->comm, "-cloth_pin_list"));
@@ -395,7 +470,7 @@ static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const P
   PetscFunctionBeginUser;
   PetscCall(ElementsAllocate(st, 2 * nl, 2));
   PetscCall(ElementsAllocate(sh, 4 * nl, 3));
-  PetscCall(ElementsAllocate(be, 2 * nl, 3));
+  PetscCall(ElementsAllocate(be, (c->bend_coef[2] > 0 ? 4 : 2) * nl, 3));
   for (PetscInt j = 0; j < My; j++) {
     for (PetscInt i = 0; i < Mx; i++) {
       /* stretch along the warp (i) and the weft (j) */
@@ -426,20 +501,30 @@ static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const P
         }
       }
       /* bending: triples along the warp and the weft centred on (i, j) */
-      if (c->bend[0] > 0 && i >= 1 && i + 1 < Mx && (OWNED(i - 1, j) || OWNED(i, j) || OWNED(i + 1, j)) && ACT(i - 1, j) && ACT(i, j) && ACT(i + 1, j)) {
+      if (c->bend_coef[0] > 0 && i >= 1 && i + 1 < Mx && (OWNED(i - 1, j) || OWNED(i, j) || OWNED(i + 1, j)) && ACT(i - 1, j) && ACT(i, j) && ACT(i + 1, j)) {
         PetscInt e       = be->n++;
         be->p[3 * e]     = LOCAL(i - 1, j);
         be->p[3 * e + 1] = LOCAL(i + 1, j);
         be->p[3 * e + 2] = LOCAL(i, j);
-        PetscCall(ElementsSetCoefficient(be, e, c->bend[0] * dy * EdgeWeight(j, My) / dx, 0));
+        PetscCall(ElementsSetCoefficient(be, e, c->bend_coef[0] * dy * EdgeWeight(j, My) / dx, 0));
         be->own[e] = (unsigned char) OWNED(i, j);
       }
-      if (c->bend[1] > 0 && j >= 1 && j + 1 < My && (OWNED(i, j - 1) || OWNED(i, j) || OWNED(i, j + 1)) && ACT(i, j - 1) && ACT(i, j) && ACT(i, j + 1)) {
+      if (c->bend_coef[1] > 0 && j >= 1 && j + 1 < My && (OWNED(i, j - 1) || OWNED(i, j) || OWNED(i, j + 1)) && ACT(i, j - 1) && ACT(i, j) && ACT(i, j + 1)) {
         PetscInt e       = be->n++;
         be->p[3 * e]     = LOCAL(i, j - 1);
         be->p[3 * e + 1] = LOCAL(i, j + 1);
         be->p[3 * e + 2] = LOCAL(i, j);
-        PetscCall(ElementsSetCoefficient(be, e, c->bend[1] * dx * EdgeWeight(i, Mx) / dy, 0));
+        PetscCall(ElementsSetCoefficient(be, e, c->bend_coef[1] * dx * EdgeWeight(i, Mx) / dy, 0));
+        be->own[e] = (unsigned char) OWNED(i, j);
+      }
+      /* bias: the two diagonal triples centred on an interior (i, j) (ClothBendCoefficients) */
+      for (PetscInt s = -1; c->bend_coef[2] > 0 && s <= 1 && i >= 1 && i + 1 < Mx && j >= 1 && j + 1 < My; s += 2) {
+        if (!(OWNED(i - 1, j - s) || OWNED(i, j) || OWNED(i + 1, j + s)) || !ACT(i - 1, j - s) || !ACT(i, j) || !ACT(i + 1, j + s)) continue;
+        PetscInt e       = be->n++;
+        be->p[3 * e]     = LOCAL(i - 1, j - s);
+        be->p[3 * e + 1] = LOCAL(i + 1, j + s);
+        be->p[3 * e + 2] = LOCAL(i, j);
+        PetscCall(ElementsSetCoefficient(be, e, c->bend_coef[2] * (dx * dx + dy * dy) / (2 * dx * dy), 0));
         be->own[e] = (unsigned char) OWNED(i, j);
       }
     }
@@ -470,9 +555,10 @@ static void InitialPosition(Cloth c, PetscInt i, PetscInt j, PetscReal x[3])
 
 static PetscBool ActiveCallback(void *ctx, PetscInt i, PetscInt j) { return ClothIsActive((Cloth) ctx, i, j); }
 
-/* The 12 interaction neighbours (paper Fig. 2): whatever a kernel of an owned
- * particle touches is owned or one of these ghosts. */
-static const PetscInt neighbours[12][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}, {1, 1}, {-1, 1}, {1, -1}, {-1, -1}, {2, 0}, {-2, 0}, {0, 2}, {0, -2}};
+/* The 12 interaction neighbours (paper Fig. 2), and the 4 of the diagonal bending
+ * triples: whatever a kernel of an owned particle touches is owned or one of these
+ * ghosts. */
+static const PetscInt neighbours[16][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}, {1, 1}, {-1, 1}, {1, -1}, {-1, -1}, {2, 0}, {-2, 0}, {0, 2}, {0, -2}, {2, 2}, {-2, 2}, {2, -2}, {-2, -2}};
 
 /* Local layout from the owner array: owned particles first (natural order), then
  * ghosts (natural order); global block numbers rank by rank; ghost scatter. */
@@ -501,7 +587,7 @@ static PetscErrorCode ClothBuildLayout(Cloth c, const PetscInt *owner, PetscInt 
     if (owner[n] == rank) local[n] = c->nlocal++;
   for (PetscInt n = 0; n < N; n++) {
     if (owner[n] == rank || local[n] >= 0) continue;
-    for (PetscInt s = 0; s < 12; s++) {
+    for (PetscInt s = 0; s < (c->bend_coef[2] > 0 ? 16 : 12); s++) {
       PetscInt i = n % c->Mx - neighbours[s][0], j = n / c->Mx - neighbours[s][1];
       if (i >= 0 && i < c->Mx && j >= 0 && j < c->My && owner[j * c->Mx + i] == rank) {
         local[n] = c->nowned + nghost++;
@@ -712,6 +798,8 @@ PetscErrorCode ClothGetInfo(Cloth c, ClothInfo *info)
   info->owned_max  = c->owned_max;
   info->ncut       = c->ncut;
   info->partition  = PartitionTypes[c->partition];
+  info->model      = model_names[c->model];
+  info->bend[2]    = c->model == CLOTH_MODEL_PAPER ? 0.25 * (c->bend[0] + c->bend[1]) : c->bend[2];
   info->nstretch   = c->nstretch;
   info->nshear     = c->nshear;
   info->nbend      = c->nbend;
@@ -826,8 +914,10 @@ PetscErrorCode ClothView(Cloth c, PetscViewer viewer)
                                        size, c->owned_min, c->owned_max, (double) (c->owned_max * size / PetscMax(c->active_total, 1)), c->ncut, c->nstretch));
   }
   if (c->fabric[0]) PetscCall(PetscViewerASCIIPrintf(viewer, "  fabric: %s\n", c->fabric));
-  PetscCall(PetscViewerASCIIPrintf(viewer, "  material: stretch %g,%g N/m, shear %g N/m, bend %g,%g N m, density %g kg/m^2, damping %g 1/s\n", (double) c->stretch[0], (double) c->stretch[1], (double) c->shear, (double) c->bend[0],
-                                   (double) c->bend[1], (double) c->density, (double) c->damping));
+  PetscCall(PetscViewerASCIIPrintf(viewer, "  material: stretch %g,%g N/m, shear %g N/m, bend %g,%g,%g N m (warp, weft, bias), density %g kg/m^2, damping %g 1/s\n", (double) c->stretch[0], (double) c->stretch[1], (double) c->shear,
+                                   (double) c->bend[0], (double) c->bend[1], (double) (c->model == CLOTH_MODEL_PAPER ? 0.25 * (c->bend[0] + c->bend[1]) : c->bend[2]), (double) c->density, (double) c->damping));
+  PetscCall(PetscViewerASCIIPrintf(viewer, "  model: %s (%s)\n", model_names[c->model],
+                                   c->model == CLOTH_MODEL_PAPER ? "the paper's thread triples: no twist rigidity, a 45 degree strip bends at (warp + weft)/4 or less" : "thread triples and diagonal triples: warp, weft and bias bending rigidity"));
   PetscCall(PetscViewerASCIIPrintf(viewer, "  gravity (%g, %g, %g) m/s^2, Hessian %s\n", (double) c->gravity[0], (double) c->gravity[1], (double) c->gravity[2], c->exact_hessian ? "exact" : "SPD-projected"));
   PetscFunctionReturn(0);
 }

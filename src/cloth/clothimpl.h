@@ -41,6 +41,11 @@ typedef enum {
 } ClothPinType;
 
 typedef enum {
+  CLOTH_MODEL_DRAPE,
+  CLOTH_MODEL_PAPER
+} ClothModel;
+
+typedef enum {
   CLOTH_SQUARE,
   CLOTH_CIRCLE,
   CLOTH_POLYGON
@@ -50,8 +55,10 @@ struct _p_Cloth {
   MPI_Comm comm;
   /* options */
   PetscReal        size[2], density, damping, gravity[3], origin[3];
-  PetscReal        stretch[2], shear, bend[2];
-  char             fabric[256]; /* named fabric the material came from, or "" */
+  PetscReal        stretch[2], shear, bend[3]; /* bend: warp, weft, and the bias (a 45 deg strip) */
+  ClothModel       model;                      /* drape (with the bias term) or paper            */
+  PetscReal        bend_coef[3];               /* per-area rigidities of the warp and weft triples and the diagonal pair (ClothBendCoefficients) */
+  char             fabric[256];                /* named fabric the material came from, or "" */
   ClothOrientation orientation;
   ClothPinType     pin;
   ClothShape       shape;

@@ -714,6 +714,9 @@ static PetscErrorCode SimulationReportStart(Simulation s)
   PetscCall(ReportSetInt(r, "particles", info.nparticles));
   PetscCall(ReportSetInt(r, "active_particles", info.nactive));
   PetscCall(ReportSetInt(r, "pinned", info.npinned));
+  PetscCall(ReportSetInt(r, "stretch_edges", info.nstretch));
+  PetscCall(ReportSetInt(r, "shear_cells", info.nshear));
+  PetscCall(ReportSetInt(r, "bending_triples", info.nbend));
   PetscCall(ReportSetString(r, "partition", info.partition));
   PetscCall(ReportSetInt(r, "owned_min", info.owned_min));
   PetscCall(ReportSetInt(r, "owned_max", info.owned_max));
@@ -728,6 +731,8 @@ static PetscErrorCode SimulationReportStart(Simulation s)
   PetscCall(ReportSetReal(r, "shear", info.shear));
   PetscCall(ReportSetReal(r, "bend_warp", info.bend[0]));
   PetscCall(ReportSetReal(r, "bend_weft", info.bend[1]));
+  PetscCall(ReportSetReal(r, "bend_bias", info.bend[2]));
+  PetscCall(ReportSetString(r, "model", info.model));
   if (s->stability_its > 0) {
     PetscCall(ReportSetReal(r, "omega_max", s->limits.omega));
     PetscCall(ReportSetReal(r, "symplectic_limit", s->limits.symplectic));
