@@ -91,9 +91,12 @@ PETSC_EXTERN PetscErrorCode ClothComputeEnergies(Cloth, const PetscScalar *x, co
 /* y = H(x) z with H the exact Hessian of the internal energy; pinned rows and
  * columns removed. Matrix-free: used for the stability estimate. */
 PETSC_EXTERN PetscErrorCode ClothApplyHessian(Cloth, const PetscScalar *x, const PetscScalar *z, PetscScalar *y);
-/* A matrix of the given type (block size 3) preallocated for the pattern of a*M + b*H. */
+/* A matrix of the given type (block size 3) preallocated for the pattern of a*M + b*H
+ * (-drape_mat_type, -drape_mat_assembly: MatSetPreallocationCOO for AIJ, block rows
+ * through MATPREALLOCATOR otherwise). Collective. */
 PETSC_EXTERN PetscErrorCode ClothCreateMatrix(Cloth, MatType, Mat *);
-/* J = a M + b H(x); pinned particles get m*I on the diagonal and nothing else. */
+/* J = a M + b H(x); pinned particles get m*I on the diagonal and nothing else.
+ * Collective (ghost exchange, MatSetValuesCOO or MatAssembly). */
 PETSC_EXTERN PetscErrorCode ClothAssembleMatrix(Cloth, const PetscScalar *x, PetscReal a, PetscReal b, Mat J);
 /* The 3x3 diagonal blocks H_kk (owned particles, 9 each, row-major) of the Hessian
  * that the last ClothAssembleMatrix used, before any constraint filtered them;
