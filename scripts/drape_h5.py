@@ -154,6 +154,11 @@ def load(path):
             what = f"missing /{', /'.join(missing)}" if missing else "no drape_version attribute"
             raise ValueError(f"{path}: not a drape output file ({what})")
         n = f["time"].shape[0]
+        t = f["time"][:n].reshape(n)
+        # a run killed inside a frame's write can leave /time one longer than what was
+        # written (extended before the value, which stays at the fill value 0)
+        while n > 1 and t[n - 1] == 0 and t[n - 2] > 0:
+            n -= 1
         pos = f["position"]
         if pos.ndim != 4 or pos.shape[3] != 3 or pos.shape[0] < n:
             raise ValueError(f"{path}: /position has shape {pos.shape}, expected [>={n}][My][Mx][3]")

@@ -225,6 +225,25 @@ def test_damaged_restart_file_is_refused_naming_it(tmp, damage, message):
     assert snapshot(tmp) == before
 
 
+def test_frame_a_kill_left_half_written_is_dropped_and_the_run_continues(tmp):
+    """HDF5 extends /time before it writes the frame's time, so a run killed in between
+    leaves a last entry at the fill value 0 after a later time. That frame is not
+    complete: the reader skips it and -restart continues from the frame before (it was
+    refused as damaged, the times "not in order")."""
+    subprocess.run([str(DRAPE)] + SCENE.split() + ["-output_file", "r.h5", "-drape_progress", "0"], check=True, capture_output=True, cwd=tmp)
+    n = len(drape_h5.load(tmp / "r.h5").time)
+    with h5py.File(tmp / "r.h5", "r+") as f:
+        t = f["time"][:]
+        t[-1] = 0.0
+        f["time"][...] = t
+    fr = drape_h5.load(tmp / "r.h5")
+    assert len(fr.time) == n - 1 and np.all(np.diff(fr.time) > 0)
+    res = drape(["-restart", "r.h5", "-ts_max_time", "0.03", "-drape_progress", "0"], tmp)
+    assert res.returncode == 0, res.stderr
+    fr = drape_h5.load(tmp / "r.h5")
+    assert len(fr.time) > n - 1 and np.all(np.diff(fr.time) > 0) and fr.time[-1] == pytest.approx(0.03)
+
+
 def test_restart_whose_time_a_step_cannot_advance_is_refused(tmp):
     """Restarted at t = 1e6 s with a 1e-12 s step, the time would stand still."""
     subprocess.run([str(DRAPE)] + SCENE.split() + ["-output_file", "r.h5", "-drape_progress", "0"], check=True, capture_output=True, cwd=tmp)

@@ -13,7 +13,9 @@
  *   attributes of /: options (as given) and the run's report (report.h): the
  *                    start-up numbers when the file is opened (drape_version,
  *                    lattice, material, limits), the summary at the end.
- * /time is written last in each frame, so its length counts the complete frames;
+ * /time is written last in each frame, so its length counts the complete frames
+ * (but for a last entry a killed run extended and never wrote: 0 after a later
+ * time; the readers drop it);
  * every frame is flushed, so a run killed later leaves them readable. */
 #include <output.h>
 #include <drape.h>

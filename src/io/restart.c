@@ -113,7 +113,15 @@ static PetscErrorCode RestartInspectFile(hid_t fid, RestartInfo *r)
   if (r->why) PetscFunctionReturn(0);
   /* times and step of the frames: finite, in order (a restart from t = inf never ends) */
   PetscCall(PetscMalloc1(r->nframes, &r->times));
-  if (ReadColumn(fid, "time", 0, (hsize_t) r->nframes, r->times) < 0 || ReadColumn(fid, "step", (hsize_t) r->nframes - 1, 1, &r->step) < 0) {
+  if (ReadColumn(fid, "time", 0, (hsize_t) r->nframes, r->times) < 0) {
+    r->why = "its /time or /step dataset cannot be read (the file is damaged)";
+    PetscFunctionReturn(0);
+  }
+  /* a run killed inside a frame's write can leave /time one longer than what was
+   * written (HDF5 extends the dataset before it writes the value, which stays at the
+   * fill value 0): that frame is not complete */
+  while (r->nframes > 1 && r->times[r->nframes - 1] == 0 && r->times[r->nframes - 2] > 0) r->nframes--;
+  if (ReadColumn(fid, "step", (hsize_t) r->nframes - 1, 1, &r->step) < 0) {
     r->why = "its /time or /step dataset cannot be read (the file is damaged)";
     PetscFunctionReturn(0);
   }
