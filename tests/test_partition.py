@@ -56,9 +56,10 @@ def inside(polys, x, y):
 
 
 def test_polygon_panel_with_a_hole(tmp):
-    """A cut garment panel with a hole (runs/outlines/panel.txt): drape keeps exactly
-    the lattice particles inside (even-odd rule), the hole's particles never move,
-    and METIS on 3 ranks gives the 1-rank frames."""
+    """A cut garment panel with a hole (runs/outlines/panel.txt): the cloth is exactly
+    the lattice cells whose four corners lie inside (even-odd rule), its mass their
+    area times the density; the particles of no such cell (the hole's, the cut's
+    spikes) never move, and METIS on 3 ranks gives the 1-rank frames."""
     from conftest import ROOT
     rings, ring = [], []
     for line in (ROOT / "runs/outlines/panel.txt").read_text().splitlines():
@@ -82,12 +83,34 @@ def test_polygon_panel_with_a_hole(tmp):
     res = run(f"{args} -output_file {one}")
     run(f"{args} -cloth_partition metis -output_file {three}", np_=3)
     a, b = drape_h5.load(one), drape_h5.load(three)
-    mass = res.report["mass"]
-    cells = active.sum()
-    assert abs(mass - 0.15 * cells / (n - 1) ** 2) < 0.03 * mass  # lumped masses of the active particles
+    cell = active[:-1, :-1] & active[1:, :-1] & active[:-1, 1:] & active[1:, 1:]
+    corner = np.zeros_like(active)
+    for dj in (0, 1):
+        for di in (0, 1):
+            corner[dj:n - 1 + dj, di:n - 1 + di] |= cell
+    assert res.report["mass"] == pytest.approx(0.15 * cell.sum() / (n - 1) ** 2, rel=1e-12)  # lumped from the cells' area
+    assert res.report["active_particles"] == corner.sum() <= active.sum()
     moved = np.abs(a.positions[-1] - a.positions[0]).max(axis=-1) > 0
-    assert np.array_equal(moved, active)  # exactly the particles inside fall
+    assert np.array_equal(moved, corner)  # exactly the cloth's particles fall
     assert np.abs(a.positions - b.positions).max() <= ROUNDOFF
+
+
+def test_circle_specimen_is_its_cells():
+    """The Cusick specimen (a 61 x 61 lattice cut to its inscribed circle): the four
+    particles at the ends of the axes lie inside the circle but are corners of no cell
+    inside it; they are not cloth (they were full-mass particles hanging on edges of
+    no width). Mass = density x the area of the cells inside."""
+    n = 61
+    a = (np.arange(n) - (n - 1) / 2) / ((n - 1) / 2)
+    inside = a[None, :] ** 2 + a[:, None] ** 2 <= 1 + 1e-12
+    cell = inside[:-1, :-1] & inside[1:, :-1] & inside[:-1, 1:] & inside[1:, 1:]
+    corner = np.zeros_like(inside)
+    for dj in (0, 1):
+        for di in (0, 1):
+            corner[dj:n - 1 + dj, di:n - 1 + di] |= cell
+    rep = run(f"-da_grid_x {n} -da_grid_y {n} -cloth_shape circle -cloth_size 0.3 -ts_max_steps 0", checks=False).report
+    assert inside.sum() - corner.sum() == 4 and rep["active_particles"] == corner.sum()
+    assert rep["mass"] == pytest.approx(0.15 * cell.sum() * (0.3 / (n - 1)) ** 2, rel=1e-12)
 
 
 @pytest.mark.parametrize("text,message", [("0 0\n1 x\n", "is not 'x y' in metres"), ("0 0\n1 1\n\n", "needs at least 3"),

@@ -418,7 +418,25 @@ static PetscBool IsPinned(Cloth c, PetscInt i, PetscInt j)
 }
 
 /* Share of the lattice spacing that a boundary row/column carries (1/2). */
-static inline PetscReal EdgeWeight(PetscInt i, PetscInt M) { return (i == 0 || i == M - 1) ? 0.5 : 1.0; }
+/* Area weights from the lattice cells inside the cloth: cell (i, j) has corners (i, j),
+ * (i+1, j), (i, j+1), (i+1, j+1) and belongs to the cloth when all four are active
+ * (mask value 1; 2 marks a particle being pruned, still a corner). A particle owns a
+ * quarter of each of its (up to four) cells, a lattice edge half of each of its (up
+ * to two) cells: on the full rectangle the boundary rows get half and the corners a
+ * quarter, and a cut outline (circle, polygon) weighs its edge particles and edges by
+ * the area they stand for. */
+static inline PetscBool CellIn(Cloth c, PetscInt i, PetscInt j)
+{
+  if (i < 0 || j < 0 || i + 1 >= c->Mx || j + 1 >= c->My) return PETSC_FALSE;
+  return (PetscBool) (ClothIsActive(c, i, j) && ClothIsActive(c, i + 1, j) && ClothIsActive(c, i, j + 1) && ClothIsActive(c, i + 1, j + 1));
+}
+
+/* Fraction of a full particle's area dx dy that particle (i, j) stands for. */
+static PetscReal ClothCellWeight(Cloth c, PetscInt i, PetscInt j) { return 0.25 * (CellIn(c, i - 1, j - 1) + CellIn(c, i, j - 1) + CellIn(c, i - 1, j) + CellIn(c, i, j)); }
+
+/* Fraction of a full strip width that the warp edge (i, j)-(i+1, j) (warp = PETSC_TRUE)
+ * or the weft edge (i, j)-(i, j+1) stands for. */
+static PetscReal EdgeCellWeight(Cloth c, PetscBool warp, PetscInt i, PetscInt j) { return warp ? 0.5 * (CellIn(c, i, j - 1) + CellIn(c, i, j)) : 0.5 * (CellIn(c, i - 1, j) + CellIn(c, i, j)); }
 
 static PetscErrorCode ElementsAllocate(ClothElements *el, PetscInt n, PetscInt nper)
 {
@@ -478,14 +496,14 @@ static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const P
         PetscInt e       = st->n++;
         st->p[2 * e]     = LOCAL(i, j);
         st->p[2 * e + 1] = LOCAL(i + 1, j);
-        PetscCall(ElementsSetCoefficient(st, e, c->stretch[0] * dy * EdgeWeight(j, My) / dx, dx));
+        PetscCall(ElementsSetCoefficient(st, e, c->stretch[0] * dy * EdgeCellWeight(c, PETSC_TRUE, i, j) / dx, dx));
         st->own[e] = (unsigned char) OWNED(i, j);
       }
       if (c->stretch[1] > 0 && j + 1 < My && (OWNED(i, j) || OWNED(i, j + 1)) && ACT(i, j) && ACT(i, j + 1)) {
         PetscInt e       = st->n++;
         st->p[2 * e]     = LOCAL(i, j);
         st->p[2 * e + 1] = LOCAL(i, j + 1);
-        PetscCall(ElementsSetCoefficient(st, e, c->stretch[1] * dx * EdgeWeight(i, Mx) / dy, dy));
+        PetscCall(ElementsSetCoefficient(st, e, c->stretch[1] * dx * EdgeCellWeight(c, PETSC_FALSE, i, j) / dy, dy));
         st->own[e] = (unsigned char) OWNED(i, j);
       }
       /* shear: the four corners of cell (i, j) in a row as (a, b, vertex c), vertices
@@ -506,7 +524,7 @@ static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const P
         be->p[3 * e]     = LOCAL(i - 1, j);
         be->p[3 * e + 1] = LOCAL(i + 1, j);
         be->p[3 * e + 2] = LOCAL(i, j);
-        PetscCall(ElementsSetCoefficient(be, e, c->bend_coef[0] * dy * EdgeWeight(j, My) / dx, 0));
+        PetscCall(ElementsSetCoefficient(be, e, c->bend_coef[0] * dy * 0.5 * (EdgeCellWeight(c, PETSC_TRUE, i - 1, j) + EdgeCellWeight(c, PETSC_TRUE, i, j)) / dx, 0));
         be->own[e] = (unsigned char) OWNED(i, j);
       }
       if (c->bend_coef[1] > 0 && j >= 1 && j + 1 < My && (OWNED(i, j - 1) || OWNED(i, j) || OWNED(i, j + 1)) && ACT(i, j - 1) && ACT(i, j) && ACT(i, j + 1)) {
@@ -514,7 +532,7 @@ static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const P
         be->p[3 * e]     = LOCAL(i, j - 1);
         be->p[3 * e + 1] = LOCAL(i, j + 1);
         be->p[3 * e + 2] = LOCAL(i, j);
-        PetscCall(ElementsSetCoefficient(be, e, c->bend_coef[1] * dx * EdgeWeight(i, Mx) / dy, 0));
+        PetscCall(ElementsSetCoefficient(be, e, c->bend_coef[1] * dx * 0.5 * (EdgeCellWeight(c, PETSC_FALSE, i, j - 1) + EdgeCellWeight(c, PETSC_FALSE, i, j)) / dy, 0));
         be->own[e] = (unsigned char) OWNED(i, j);
       }
       /* bias: the two diagonal triples centred on an interior (i, j) (ClothBendCoefficients) */
@@ -524,7 +542,7 @@ static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const P
         be->p[3 * e]     = LOCAL(i - 1, j - s);
         be->p[3 * e + 1] = LOCAL(i + 1, j + s);
         be->p[3 * e + 2] = LOCAL(i, j);
-        PetscCall(ElementsSetCoefficient(be, e, c->bend_coef[2] * (dx * dx + dy * dy) / (2 * dx * dy), 0));
+        PetscCall(ElementsSetCoefficient(be, e, c->bend_coef[2] * (dx * dx + dy * dy) / (2 * dx * dy) * ClothCellWeight(c, i, j), 0));
         be->own[e] = (unsigned char) OWNED(i, j);
       }
     }
@@ -683,8 +701,18 @@ PetscErrorCode ClothSetUp(Cloth c)
     unsigned char *mask;
     PetscInt       nact = 0;
     PetscCall(PetscMalloc1(c->Mx * c->My, &mask));
-    for (PetscInt n = 0; n < c->Mx * c->My; n++) nact += mask[n] = (unsigned char) ClothIsActive(c, n % c->Mx, n / c->Mx);
+    for (PetscInt n = 0; n < c->Mx * c->My; n++) mask[n] = (unsigned char) ClothIsActive(c, n % c->Mx, n / c->Mx);
     c->mask = mask;
+    /* the cloth is its lattice cells inside the outline: a particle that is a corner of
+     * no such cell (a spike of the cut) carries no area and would hang on edges of no
+     * width, so it is not part of the cloth (one pass: no cell loses a corner) */
+    for (PetscInt n = 0; n < c->Mx * c->My; n++) {
+      if (mask[n] && ClothCellWeight(c, n % c->Mx, n / c->Mx) == 0) mask[n] = 2;
+    }
+    for (PetscInt n = 0; n < c->Mx * c->My; n++) {
+      if (mask[n] == 2) mask[n] = 0;
+      nact += mask[n];
+    }
     PetscCheck(nact > 0, c->comm, PETSC_ERR_USER_INPUT, "No lattice particle lies inside the cloth's outline; check -cloth_outline against -cloth_size");
   }
   PetscCall(PetscMalloc1(c->Mx * c->My, &owner));
@@ -714,7 +742,7 @@ PetscErrorCode ClothSetUp(Cloth c)
     c->row_map[l]      = l < c->nowned ? c->col_map[l] : -1;
     if (l < c->nowned) {
       c->owned_local[l] = l;
-      c->mass[l]        = c->density * c->spacing[0] * c->spacing[1] * EdgeWeight(i, c->Mx) * EdgeWeight(j, c->My);
+      c->mass[l]        = c->density * c->spacing[0] * c->spacing[1] * (ClothIsActive(c, i, j) ? ClothCellWeight(c, i, j) : 1); /* inactive: held like a pin, a nominal mass for the matrix */
       c->pinned[l]      = c->pinned_local[l];
       c->active[l]      = ClothIsActive(c, i, j);
       if (c->active[l]) mass += c->mass[l];
