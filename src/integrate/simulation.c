@@ -631,15 +631,33 @@ static PetscErrorCode WarnStepLimit(Simulation s, PetscViewer viewer, TSType typ
   PetscFunctionReturn(0);
 }
 
+/* drapebe's solver as set up: SNES, KSP, PC and matrix types. */
+static PetscErrorCode SimulationSolverTypes(Simulation s, SNESType *st, KSPType *kt, PCType *pt, MatType *mt)
+{
+  SNES snes;
+  KSP  ksp;
+  PC   pc;
+  Mat  J;
+
+  PetscFunctionBeginUser;
+  PetscCall(TSGetSNES(s->ts, &snes));
+  PetscCall(SNESGetType(snes, st));
+  PetscCall(SNESGetKSP(snes, &ksp));
+  PetscCall(KSPGetType(ksp, kt));
+  PetscCall(KSPGetPC(ksp, &pc));
+  PetscCall(PCGetType(pc, pt));
+  PetscCall(SNESGetJacobian(snes, &J, NULL, NULL, NULL));
+  *mt = MATAIJ;
+  if (J) PetscCall(MatGetType(J, mt));
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode SimulationViewStart(Simulation s)
 {
   PetscViewer viewer = PETSC_VIEWER_STDOUT_(s->comm);
   TSType      type;
   PetscReal   dt, tmax;
   const char *name = NULL;
-  SNES        snes;
-  KSP         ksp;
-  PC          pc;
   ClothInfo   info;
 
   PetscFunctionBeginUser;
@@ -673,20 +691,12 @@ static PetscErrorCode SimulationViewStart(Simulation s)
   PetscCall(PetscViewerASCIIPrintf(viewer, ", to t = %g s\n", (double) tmax));
   if (s->stability_its > 0) PetscCall(WarnStepLimit(s, viewer, type, dt, tmax));
   if (!strcmp(type, TSDRAPEBE)) {
+    SNESType st;
     KSPType  kt;
     PCType   pt;
-    SNESType st;
-    MatType  mt = NULL;
-    Mat      J;
-    PetscCall(TSGetSNES(s->ts, &snes));
-    PetscCall(SNESGetType(snes, &st));
-    PetscCall(SNESGetKSP(snes, &ksp));
-    PetscCall(KSPGetType(ksp, &kt));
-    PetscCall(KSPGetPC(ksp, &pc));
-    PetscCall(PCGetType(pc, &pt));
-    PetscCall(SNESGetJacobian(snes, &J, NULL, NULL, NULL));
-    if (J) PetscCall(MatGetType(J, &mt));
-    PetscCall(PetscViewerASCIIPrintf(viewer, "  solver: SNES %s, KSP %s, PC %s on an assembled %s matrix (block size 3)\n", st, kt, pt, mt ? mt : MATAIJ));
+    MatType  mt;
+    PetscCall(SimulationSolverTypes(s, &st, &kt, &pt, &mt));
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  solver: SNES %s, KSP %s, PC %s on an assembled %s matrix (block size 3)\n", st, kt, pt, mt));
   }
   PetscFunctionReturn(0);
 }
@@ -742,26 +752,15 @@ static PetscErrorCode SimulationReportStart(Simulation s)
   PetscCall(ReportSetReal(r, "dt", dt));
   PetscCall(ReportSetReal(r, "t_max", tmax));
   if (!strcmp(type, TSDRAPEBE)) {
-    SNES     snes;
-    KSP      ksp;
-    PC       pc;
+    SNESType st;
     KSPType  kt;
     PCType   pt;
-    SNESType st;
-    MatType  mt = NULL;
-    Mat      J;
-    PetscCall(TSGetSNES(s->ts, &snes));
-    PetscCall(SNESGetType(snes, &st));
-    PetscCall(SNESGetKSP(snes, &ksp));
-    PetscCall(KSPGetType(ksp, &kt));
-    PetscCall(KSPGetPC(ksp, &pc));
-    PetscCall(PCGetType(pc, &pt));
-    PetscCall(SNESGetJacobian(snes, &J, NULL, NULL, NULL));
-    if (J) PetscCall(MatGetType(J, &mt));
+    MatType  mt;
+    PetscCall(SimulationSolverTypes(s, &st, &kt, &pt, &mt));
     PetscCall(ReportSetString(r, "snes_type", st));
     PetscCall(ReportSetString(r, "ksp_type", kt));
     PetscCall(ReportSetString(r, "pc_type", pt));
-    PetscCall(ReportSetString(r, "mat_type", mt ? mt : MATAIJ));
+    PetscCall(ReportSetString(r, "mat_type", mt));
   }
   PetscFunctionReturn(0);
 }
