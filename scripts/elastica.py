@@ -55,9 +55,34 @@ strip bends, +0.03 % in c at a 5 deg chord, +0.1 % at 10, +0.4 % at 20, +1.0 % a
 30, +2.2 % at 45, +4.4 % at 60 (peirce_error(); `python3 scripts/elastica.py`
 prints the table).
 
+Large lambda: shooting from the tip. Past lambda of a few hundred the strip hangs
+nearly vertical over most of its length and theta' there is exponentially small, so
+the shot from the clamp loses it to round-off (solve() stops converging near
+lambda = 500). solve_tip() shoots the other way: with tau = 1 - sigma and
+phi = pi/2 - theta (the angle from the vertical),
+
+    phi''(tau) = lambda tau sin phi,   phi(0) = phi_tip,  phi'(0) = 0,
+
+and the clamp asks phi(1) = pi/2. phi'' > 0 while 0 < phi < pi, so phi rises from
+the tip; a larger phi_tip stays larger as long as both are below pi/2, so phi(1) -
+pi/2 changes sign once, at the hanging solution, as phi_tip goes from 0 to pi/2. The
+root is bracketed on log phi_tip (phi_tip ~ exp(-(2/3) lambda^(1/2)) when the strip
+hangs: 1e-29 at lambda = 1e4) and the near-vertical part is integrated in the
+direction in which it grows, so nothing is lost to round-off. The limp limit is a
+known answer: the strip hangs straight down below a bend at the clamp, where the whole
+weight w L pulls, of length (B / (w L))^(1/2) = L lambda^(-1/2); the tensioned elastica
+turning through 90 degrees there, B theta'^2 / 2 = w L (1 - sin theta), sets the tip
+off by int cos theta ds = (2 B / (w L))^(1/2): reach / L -> (2 / lambda)^(1/2)
+(0.8 % below the exact reach at lambda = 1e4, 0.3 % at 1e5), and the bend's arc
+exceeds its drop by int (1 - sin theta) ds = (2 - 2^(1/2)) L lambda^(-1/2), so
+drop / L -> 1 - (2 - 2^(1/2)) lambda^(-1/2). It agrees with
+solve() where both converge (tests/test_cusick_fabrics.py) and reaches lambda ~ 1e6
+(phi_tip must stay above the smallest double).
+
 Usage:
     python3 scripts/elastica.py                 # a table: lambda, drop, reach, chord, Peirce's error
     import elastica; elastica.solve(8.0)        # Elastica(lam, slope0, drop, reach, ...)
+    elastica.solve_tip(1e4)                     # the same, shot from the tip (any lambda up to ~1e6)
 """
 import math
 from dataclasses import dataclass
@@ -141,6 +166,75 @@ def solve(lam, n=1000, tol=1e-12):
     _, _, _, path = _shoot(lam, p, n, keep=True)
     path = np.array(path)
     return Elastica(lam, p, path[-1, 3], path[-1, 2], path[-1, 0], np.linspace(0.0, 1.0, n + 1), path[:, 0], path[:, 2], path[:, 3])
+
+
+def _shoot_tip(lam, phi_tip, n, keep=False):
+    """RK4 from the tip (tau = 1 - sigma = 0) with phi = pi/2 - theta = phi_tip, phi' = 0:
+    phi''(tau) = lam tau sin phi, and the reach X and drop Y accumulated from the tip.
+    Returns phi(1) - pi/2 and, if `keep`, the path [(phi, phi', X, Y)] on the tau grid."""
+    h = 1.0 / n
+    sin, cos = math.sin, math.cos
+
+    def f(t, ph, om):
+        return om, lam * t * sin(ph), sin(ph), cos(ph)
+
+    ph, om, X, Y = phi_tip, 0.0, 0.0, 0.0
+    path = [(ph, om, X, Y)] if keep else None
+    for k in range(n):
+        t = k * h
+        k1 = f(t, ph, om)
+        k2 = f(t + h / 2, ph + h / 2 * k1[0], om + h / 2 * k1[1])
+        k3 = f(t + h / 2, ph + h / 2 * k2[0], om + h / 2 * k2[1])
+        k4 = f(t + h, ph + h * k3[0], om + h * k3[1])
+        ph, om, X, Y = (v + h / 6 * (a + 2 * b + 2 * c + d) for v, a, b, c, d in zip((ph, om, X, Y), k1, k2, k3, k4))
+        if ph > math.pi:  # far past the clamp's angle: the residual's sign is known
+            return ph - math.pi / 2, path
+        if keep:
+            path.append((ph, om, X, Y))
+    return ph - math.pi / 2, path
+
+
+def solve_tip(lam, n=None, tol=1e-13):
+    """Heavy elastica for lambda = w L^3 / B > 0, shot from the free end (see the docstring):
+    the same Elastica as solve(), for any lambda up to about 1e6.
+
+    Regula falsi (Illinois) on u = log phi_tip, phi_tip = pi/2 - theta(1), bracketed by
+    [log 1e-300, log pi/2]. The grid, n steps (default max(1000, 20 sqrt(lambda))), resolves
+    the clamp's boundary layer, of width lambda^(-1/2)."""
+    if not lam > 0:
+        raise ValueError(f"lambda = w L^3 / B must be positive, not {lam}")
+    n = n or max(1000, int(20 * math.sqrt(lam)))
+    a, b = math.log(1e-300), math.log(math.pi / 2)
+    fa, fb = _shoot_tip(lam, math.exp(a), n)[0], _shoot_tip(lam, math.exp(b), n)[0]
+    if fa >= 0:
+        raise ValueError(f"lambda = {lam} is too large for solve_tip: the tip's angle to the vertical is below 1e-300")
+    if fb <= 0:  # lambda so small that the tip is horizontal to round-off
+        u = b
+    else:
+        side = 0
+        for _ in range(400):
+            u = (a * fb - b * fa) / (fb - fa)
+            fu = _shoot_tip(lam, math.exp(u), n)[0]
+            if abs(fu) < tol or b - a < 1e-15 * max(1.0, abs(u)):
+                break
+            if fu < 0:
+                a, fa = u, fu
+                if side == -1:
+                    fb /= 2
+                side = -1
+            else:
+                b, fb = u, fu
+                if side == 1:
+                    fa /= 2
+                side = 1
+        else:
+            raise RuntimeError(f"the shooting from the tip for lambda = {lam} did not converge")
+    _, path = _shoot_tip(lam, math.exp(u), n, keep=True)
+    path = np.array(path)[::-1]  # on sigma = 1 - tau, from the clamp
+    phi, om, X, Y = path.T
+    theta = math.pi / 2 - phi
+    x, y = X[0] - X, Y[0] - Y
+    return Elastica(lam, float(om[0]), float(y[-1]), float(x[-1]), float(theta[-1]), np.linspace(0.0, 1.0, n + 1), theta, x, y)
 
 
 def lam_for(value, of="drop", lo=1e-3, hi=100.0, n=1000, tol=1e-10):
