@@ -75,6 +75,7 @@ Usage:
     python3 scripts/cusick_fabrics.py                         # ten fabrics, 61^2 and 81^2 (about 20 min)
     python3 scripts/cusick_fabrics.py --paper                 # and the paper's model at 61^2
     python3 scripts/cusick_fabrics.py --fabrics denim --grids 41,61,81
+    python3 scripts/cusick_fabrics.py --offset 0.0005 --out out/cusick_offset   # specimen 0.5 mm off centre
     python3 scripts/cusick_fabrics.py --quick --out /tmp/cq   # smoke run: 2 fabrics, 21^2 and 25^2, 0.3 s
     import cusick_fabrics; cusick_fabrics.radial_strip_bound(0.324, 16.0e-6)
 """
@@ -195,13 +196,17 @@ def drape_path(build=None):
     return ROOT / (build or os.environ.get("DRAPE_BUILD", "build")) / "drape"
 
 
-def cusick_args(fabric, grid, model="drape", max_time=None, h5=None):
+def cusick_args(fabric, grid, model="drape", max_time=None, h5=None, offset=0.0):
     """drape's arguments for the Cusick scene with `fabric` on a grid x grid lattice and
     `model`, to rest or -ts_max_time `max_time` (default the scene's), writing only the
-    first and last frames to `h5` if given."""
+    first and last frames to `h5` if given; `offset` (m) moves the specimen off the
+    pedestal's centre along the warp (a centring error)."""
     t_max = max_time if max_time is not None else float(scene_option("ts_max_time"))
     args = ["-options_file", str(SCENE), "-cloth_fabric", fabric, "-cloth_model", model, "-da_grid_x", str(grid), "-da_grid_y", str(grid),
             "-ts_max_time", repr(t_max), "-output_interval", repr(t_max)]
+    if offset:
+        x, y, z = (float(v) for v in scene_option("cloth_center").split(","))
+        args += ["-cloth_center", f"{x + offset!r},{y!r},{z!r}"]
     return args + (["-output_file", str(h5)] if h5 else [])
 
 
@@ -222,9 +227,9 @@ def row_from_result(r, fabric, grid, model="drape"):
     return row
 
 
-def run_one(drape, fabric, grid, model="drape", max_time=None, h5=None, timeout=1800):
+def run_one(drape, fabric, grid, model="drape", max_time=None, h5=None, offset=0.0, timeout=1800):
     """One Cusick run (cusick_args); returns its CSV row (row_from_result)."""
-    r = drape_run.run(drape, cusick_args(fabric, grid, model, max_time, h5), timeout=timeout)
+    r = drape_run.run(drape, cusick_args(fabric, grid, model, max_time, h5, offset), timeout=timeout)
     return row_from_result(r, fabric, grid, model)
 
 
@@ -276,6 +281,7 @@ def main():
     p.add_argument("--paper", action="store_true", help="also run -cloth_model paper (at --paper-grids)")
     p.add_argument("--paper-grids", default=None, help="lattices for the paper's model (default: the first of --grids)")
     p.add_argument("--max-time", type=float, default=None, help="-ts_max_time (default: the scene's)")
+    p.add_argument("--offset", type=float, default=0.0, help="move the specimen this far (m) off the pedestal's centre, along the warp")
     p.add_argument("--out", default=None, help="output directory (default out/cusick_fabrics, out/cusick_fabrics_quick with --quick)")
     p.add_argument("--dpi", type=int, default=80, help="resolution of the pictures")
     p.add_argument("--no-pictures", action="store_true")
@@ -297,13 +303,14 @@ def main():
         sys.exit(f"cusick_fabrics: error: drape is not built ({drape} is missing): run 'make all' first")
     r_p = float(scene_option("cusick_pedestal_radius"))
     print(f"cusick_fabrics: {SCENE.relative_to(ROOT)}, pedestal radius {r_p} m, lattices {grids}"
-          + (f", paper's model at {paper_grids}" if paper_grids else "") + (f", -ts_max_time {a.max_time}" if a.max_time else ""), flush=True)
+          + (f", paper's model at {paper_grids}" if paper_grids else "") + (f", -ts_max_time {a.max_time}" if a.max_time else "")
+          + (f", specimen {1e3 * a.offset:g} mm off centre" if a.offset else ""), flush=True)
     rows = []
     for fabric in fabrics:
         for model, gs in (("drape", grids), ("paper", paper_grids)):
             for n in gs:
                 h5 = out / "h5" / f"{fabric}_{model}_{n}.h5"
-                row = run_one(drape, fabric, n, model, a.max_time, h5)
+                row = run_one(drape, fabric, n, model, a.max_time, h5, a.offset)
                 rows.append(row)
                 if row["status"] == "ok":
                     print(f"  {fabric:20s} {model:5s} {n:3d}²: DC {row['drape_coefficient']:.4f}, {row['drape_folds']} folds, bound {row['bound']:.4f}, "
