@@ -108,6 +108,15 @@ class Strip:
             self.outline = [((s - t) / math.sqrt(2), (s + t) / math.sqrt(2)) for s, t in ((s0, -v), (s1, -v), (s1, v), (s0, v))]
         else:
             raise ValueError(f"angle {angle}: the strip is cut at 0, 90 or 45 deg")
+        # drape's cloth is the lattice cells inside the outline: a particle that is a
+        # corner of no such cell (a spike of the 45 degree cut) is not cloth
+        a = self.active
+        cell = a[:-1, :-1] & a[1:, :-1] & a[:-1, 1:] & a[1:, 1:]
+        corner = np.zeros_like(a)
+        for dj in (0, 1):
+            for di in (0, 1):
+                corner[dj:dj + cell.shape[0], di:di + cell.shape[1]] |= cell
+        self.active = corner
         self.pinned = self.active & (self.row < k)
         self.tip = self.active & (self.row == rows - 1)
 

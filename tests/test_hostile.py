@@ -146,10 +146,10 @@ def test_metis_leaves_no_rank_without_particles():
 
 
 def test_metis_refuses_more_ranks_than_particles(tmp):
-    (tmp / "two.txt").write_text("-0.1 -0.1\n0.6 -0.1\n0.6 0.1\n-0.1 0.1\n")  # holds (0, 0) and (0.5, 0)
-    res = subprocess.run(mpiexec(3) + [str(DRAPE), "-da_grid_x", "3", "-da_grid_y", "3", "-cloth_outline", "two.txt", "-cloth_partition", "metis",
+    (tmp / "four.txt").write_text("-0.05 -0.05\n0.3 -0.05\n0.3 0.3\n-0.05 0.3\n")  # one cell: (0, 0), (0.25, 0), (0, 0.25), (0.25, 0.25)
+    res = subprocess.run(mpiexec(5) + [str(DRAPE), "-da_grid_x", "5", "-da_grid_y", "5", "-cloth_outline", "four.txt", "-cloth_partition", "metis",
                                        "-ts_max_steps", "1"], capture_output=True, text=True, timeout=60, cwd=tmp)
-    refused(res, "3 ranks need at least as many active particles, and this cloth has 2", ranks=3)
+    refused(res, "5 ranks need at least as many active particles, and this cloth has 4", ranks=5)
     assert "MPI_ABORT" not in res.stdout + res.stderr
 
 
