@@ -194,6 +194,29 @@ def _shoot_tip(lam, phi_tip, n, keep=False):
     return ph - math.pi / 2, path
 
 
+def _illinois(f, a, b, fa, fb, done, maxit, failure):
+    """Root of the increasing f on [a, b] (fa < 0 < fb) by regula falsi with the Illinois
+    modification; stops when done(f(x), a, b, x) holds, raises RuntimeError(failure) after
+    maxit steps."""
+    side = 0
+    for _ in range(maxit):
+        x = (a * fb - b * fa) / (fb - fa)
+        fx = f(x)
+        if done(fx, a, b, x):
+            return x
+        if fx < 0:
+            a, fa = x, fx
+            if side == -1:
+                fb /= 2
+            side = -1
+        else:
+            b, fb = x, fx
+            if side == 1:
+                fa /= 2
+            side = 1
+    raise RuntimeError(failure)
+
+
 def solve_tip(lam, n=None, tol=1e-13):
     """Heavy elastica for lambda = w L^3 / B > 0, shot from the free end (see the docstring):
     the same Elastica as solve(), for any lambda up to about 1e6.
@@ -211,24 +234,8 @@ def solve_tip(lam, n=None, tol=1e-13):
     if fb <= 0:  # lambda so small that the tip is horizontal to round-off
         u = b
     else:
-        side = 0
-        for _ in range(400):
-            u = (a * fb - b * fa) / (fb - fa)
-            fu = _shoot_tip(lam, math.exp(u), n)[0]
-            if abs(fu) < tol or b - a < 1e-15 * max(1.0, abs(u)):
-                break
-            if fu < 0:
-                a, fa = u, fu
-                if side == -1:
-                    fb /= 2
-                side = -1
-            else:
-                b, fb = u, fu
-                if side == 1:
-                    fa /= 2
-                side = 1
-        else:
-            raise RuntimeError(f"the shooting from the tip for lambda = {lam} did not converge")
+        u = _illinois(lambda v: _shoot_tip(lam, math.exp(v), n)[0], a, b, fa, fb, lambda fv, lo, hi, v: abs(fv) < tol or hi - lo < 1e-15 * max(1.0, abs(v)), 400,
+                      f"the shooting from the tip for lambda = {lam} did not converge")
     _, path = _shoot_tip(lam, math.exp(u), n, keep=True)
     path = np.array(path)[::-1]  # on sigma = 1 - tau, from the clamp
     phi, om, X, Y = path.T
@@ -246,23 +253,8 @@ def lam_for(value, of="drop", lo=1e-3, hi=100.0, n=1000, tol=1e-10):
     fa, fb = get(solve(lo, n)) - value, get(solve(hi, n)) - value
     if not fa < 0 < fb:
         raise ValueError(f"{of} = {value} is outside the range of lambda in [{lo}, {hi}]")
-    side = 0
-    for _ in range(100):
-        m = (a * fb - b * fa) / (fb - fa)
-        fm = get(solve(math.exp(m), n)) - value
-        if abs(fm) < tol or b - a < tol:
-            return math.exp(m)
-        if fm < 0:
-            a, fa = m, fm
-            if side == -1:
-                fb /= 2
-            side = -1
-        else:
-            b, fb = m, fm
-            if side == 1:
-                fa /= 2
-            side = 1
-    raise RuntimeError(f"no lambda found for {of} = {value}")
+    return math.exp(_illinois(lambda v: get(solve(math.exp(v), n)) - value, a, b, fa, fb, lambda fv, lo, hi, v: abs(fv) < tol or hi - lo < tol, 100,
+                              f"no lambda found for {of} = {value}"))
 
 
 def peirce_ratio(phi):

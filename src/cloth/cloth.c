@@ -108,6 +108,7 @@ static PetscErrorCode ClothBendCoefficients(Cloth c)
     c->bend_coef[0] = bw;
     c->bend_coef[1] = bf;
     c->bend_coef[2] = 0;
+    c->bend[2]      = lo; /* the bias this model has */
     PetscFunctionReturn(0);
   }
   PetscCheck(bb >= lo * (1 - 1e-12) && bb <= hi * (1 + 1e-12), c->comm, PETSC_ERR_USER_INPUT,
@@ -827,7 +828,6 @@ PetscErrorCode ClothGetInfo(Cloth c, ClothInfo *info)
   info->ncut       = c->ncut;
   info->partition  = PartitionTypes[c->partition];
   info->model      = model_names[c->model];
-  info->bend[2]    = c->model == CLOTH_MODEL_PAPER ? 0.25 * (c->bend[0] + c->bend[1]) : c->bend[2];
   info->nstretch   = c->nstretch;
   info->nshear     = c->nshear;
   info->nbend      = c->nbend;
@@ -837,6 +837,7 @@ PetscErrorCode ClothGetInfo(Cloth c, ClothInfo *info)
   info->damping    = c->damping;
   info->shear      = c->shear;
   for (PetscInt d = 0; d < 3; d++) info->gravity[d] = c->gravity[d];
+  info->bend[2] = c->bend[2];
   for (PetscInt d = 0; d < 2; d++) {
     info->size[d]    = c->size[d];
     info->spacing[d] = c->spacing[d];
@@ -943,7 +944,7 @@ PetscErrorCode ClothView(Cloth c, PetscViewer viewer)
   }
   if (c->fabric[0]) PetscCall(PetscViewerASCIIPrintf(viewer, "  fabric: %s\n", c->fabric));
   PetscCall(PetscViewerASCIIPrintf(viewer, "  material: stretch %g,%g N/m, shear %g N/m, bend %g,%g,%g N m (warp, weft, bias), density %g kg/m^2, damping %g 1/s\n", (double) c->stretch[0], (double) c->stretch[1], (double) c->shear,
-                                   (double) c->bend[0], (double) c->bend[1], (double) (c->model == CLOTH_MODEL_PAPER ? 0.25 * (c->bend[0] + c->bend[1]) : c->bend[2]), (double) c->density, (double) c->damping));
+                                   (double) c->bend[0], (double) c->bend[1], (double) c->bend[2], (double) c->density, (double) c->damping));
   PetscCall(PetscViewerASCIIPrintf(viewer, "  model: %s (%s)\n", model_names[c->model],
                                    c->model == CLOTH_MODEL_PAPER ? "the paper's thread triples: no twist rigidity, a 45 degree strip bends at (warp + weft)/4 or less" : "thread triples and diagonal triples: warp, weft and bias bending rigidity"));
   PetscCall(PetscViewerASCIIPrintf(viewer, "  gravity (%g, %g, %g) m/s^2, Hessian %s\n", (double) c->gravity[0], (double) c->gravity[1], (double) c->gravity[2], c->exact_hessian ? "exact" : "SPD-projected"));
