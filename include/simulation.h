@@ -37,6 +37,9 @@ PETSC_EXTERN PetscErrorCode TSDrapeBESetContact(TS, Contact);
  * preconditioner is chosen (block Jacobi/ICC or algebraic multigrid); without it
  * the TS estimates Omega_max itself. */
 PETSC_EXTERN PetscErrorCode TSDrapeBESetStiffness(TS, PetscReal);
+/* The state was changed after the last step by more than the landing on the solid
+ * (the self-contact filter): the energy check of the next step starts from it. */
+PETSC_EXTERN PetscErrorCode TSDrapeBEStateChanged(TS);
 /* Impulse (N s) the contact constraints gave this rank's particles in the last step. */
 PETSC_EXTERN PetscErrorCode TSDrapeBEGetContactImpulse(TS, PetscReal[3]);
 /* Solves made and steps rejected so far, and the last failed solve in words. */

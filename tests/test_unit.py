@@ -49,3 +49,12 @@ def test_cusick_analysis_known_silhouettes(np_):
     star (exact areas, 4 and 7 maxima), the flat specimen (DC = 1), one hanging
     straight down the pedestal (DC = 0), a shrunk specimen (exact DC)."""
     run_unit_ranks("test_cusick", np_, ["-cloth_shape", "circle", "-cloth_size", "0.3", "-da_grid_x", "41", "-da_grid_y", "41"], 5)
+
+
+def test_self_contact_narrow_phase():
+    """Closest points (point-triangle, segment-segment) against brute force, cubic
+    roots, collision times with known answers (a point falling through a triangle, a
+    triangle rising through a point, a rotating triangle, crossing edges, in-plane
+    entry) and 2000 random sweeps: every crossing a dense sampling sees is found, no
+    later than it (no leaks)."""
+    run_unit_ranks("test_selfcontact", 1, [], 4)

@@ -319,6 +319,8 @@ PetscErrorCode ClothSetFromOptions(Cloth c)
   PetscCall(PetscOptionsRealArray("-cloth_center", "Centre of the initial flat sheet x,y,z (m)", "ClothSetFromOptions", c->origin, &n, &set));
   PetscCheck(!set || n == 3, c->comm, PETSC_ERR_USER_INPUT, "Option -cloth_center needs three components x,y,z; got %" PetscInt_FMT, n);
   PetscCall(PetscOptionsEList("-cloth_orientation", "Initial sheet: horizontal (warp x, weft y) or vertical (warp x, weft z)", "ClothSetFromOptions", orientation_names, 2, orientation_names[iorient], &iorient, NULL));
+  PetscCall(PetscOptionsReal("-cloth_tilt", "Initial sheet turned about its warp direction by this angle from -cloth_orientation (degrees; the weft rises towards +z)", "ClothSetFromOptions", c->tilt, &c->tilt, NULL));
+  PetscCall(DrapeCheckReal(c->comm, "-cloth_tilt", 1, &c->tilt, -180, 180, "degrees"));
   {
     PetscInt  ishape = (PetscInt) c->shape;
     PetscBool set_outline;
@@ -568,8 +570,14 @@ static void InitialPosition(Cloth c, PetscInt i, PetscInt j, PetscReal x[3])
 {
   PetscReal a = i * c->spacing[0] - 0.5 * c->size[0], b = j * c->spacing[1] - 0.5 * c->size[1];
   x[0] = c->origin[0] + a;
-  x[1] = c->origin[1] + (c->orientation == CLOTH_HORIZONTAL ? b : 0);
-  x[2] = c->origin[2] + (c->orientation == CLOTH_HORIZONTAL ? 0 : b);
+  if (c->tilt == 0) {
+    x[1] = c->origin[1] + (c->orientation == CLOTH_HORIZONTAL ? b : 0);
+    x[2] = c->origin[2] + (c->orientation == CLOTH_HORIZONTAL ? 0 : b);
+  } else { /* turned about the warp direction */
+    const PetscReal theta = (c->orientation == CLOTH_HORIZONTAL ? 0 : PETSC_PI / 2) + c->tilt * PETSC_PI / 180;
+    x[1]                  = c->origin[1] + b * PetscCosReal(theta);
+    x[2]                  = c->origin[2] + b * PetscSinReal(theta);
+  }
 }
 
 static PetscBool ActiveCallback(void *ctx, PetscInt i, PetscInt j) { return ClothIsActive((Cloth) ctx, i, j); }

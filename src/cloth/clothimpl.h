@@ -60,6 +60,7 @@ struct _p_Cloth {
   PetscReal        bend_coef[3];               /* per-area rigidities of the warp and weft triples and the diagonal pair (ClothBendCoefficients) */
   char             fabric[256];                /* named fabric the material came from, or "" */
   ClothOrientation orientation;
+  PetscReal        tilt; /* degrees about the warp direction, from the orientation's plane */
   ClothPinType     pin;
   ClothShape       shape;
   char             outline[PETSC_MAX_PATH_LEN]; /* polygon file (-cloth_outline)  */

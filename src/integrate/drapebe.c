@@ -582,7 +582,8 @@ static PetscErrorCode BESolve(TS ts, TS_DrapeBE *be, PetscBool *ok)
  * energy scale (M g L plus the kinetic and elastic energy it starts with) is failed
  * like a diverged solve: TSAdapt retries it at a quarter of the step. The energy
  * at the start of a step is the last accepted trial's (the landing after it only
- * removes kinetic energy). */
+ * removes kinetic energy), or that of U0 after TSDrapeBEStateChanged() (the
+ * self-contact filter moved particles, which can store elastic energy). */
 static PetscErrorCode BECheckEnergy(TS ts, TS_DrapeBE *be, PetscBool *ok)
 {
   ClothEnergies en;
@@ -937,6 +938,20 @@ PetscErrorCode TSDrapeBESetStiffness(TS ts, PetscReal omega)
   PetscFunctionReturn(0);
 }
 
+static PetscErrorCode TSDrapeBEStateChanged_DrapeBE(TS ts)
+{
+  PetscFunctionBeginUser;
+  ((TS_DrapeBE *) ts->data)->have_energy = PETSC_FALSE;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode TSDrapeBEStateChanged(TS ts)
+{
+  PetscFunctionBeginUser;
+  PetscTryMethod(ts, "TSDrapeBEStateChanged_C", (TS), (ts));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode TSDrapeBESetContact(TS ts, Contact contact)
 {
   PetscFunctionBeginUser;
@@ -962,7 +977,7 @@ PetscErrorCode TSDrapeBEGetStatistics(TS ts, PetscInt *solves, PetscInt *rejecte
   PetscFunctionReturn(0);
 }
 
-static const char *const methods[] = {"TSDrapeBESetCloth_C", "TSDrapeBESetContact_C", "TSDrapeBESetStiffness_C", "TSDrapeBEGetContactImpulse_C", "TSDrapeBEGetStatistics_C"};
+static const char *const methods[] = {"TSDrapeBESetCloth_C", "TSDrapeBESetContact_C", "TSDrapeBESetStiffness_C", "TSDrapeBEGetContactImpulse_C", "TSDrapeBEGetStatistics_C", "TSDrapeBEStateChanged_C"};
 
 static PetscErrorCode TSDestroy_DrapeBE(TS ts)
 {
@@ -1027,6 +1042,7 @@ static PetscErrorCode TSCreate_DrapeBE(TS ts)
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBESetStiffness_C", TSDrapeBESetStiffness_DrapeBE));
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBEGetContactImpulse_C", TSDrapeBEGetContactImpulse_DrapeBE));
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBEGetStatistics_C", TSDrapeBEGetStatistics_DrapeBE));
+  PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBEStateChanged_C", TSDrapeBEStateChanged_DrapeBE));
   /* drape's defaults; -snes_type, -ksp_type, -pc_type ... override them */
   PetscCall(TSGetSNES(ts, &snes));
   PetscCall(SNESSetType(snes, SNESKSPONLY));

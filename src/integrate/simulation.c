@@ -13,6 +13,7 @@
 #include <output.h>
 #include <report.h>
 #include <solid.h>
+#include <selfcontact.h>
 #include <analysis.h>
 #include <drape.h>
 #include <unistd.h>
@@ -31,6 +32,7 @@ struct _p_Simulation {
   PetscBool       json;
   Solid           solid;
   Contact         contact; /* NULL when the scene has no solid */
+  SelfContact     self;    /* NULL without -contact_self */
   PetscReal       depth;   /* deepest penetration since the last frame, m */
   PetscInt        ncontact;
   PetscReal       impulse[3], impulse_t0; /* contact impulse on this rank's particles since impulse_t0, N s */
@@ -120,6 +122,16 @@ static PetscErrorCode PreStep(TS ts)
   PetscCall(TSGetMaxTime(ts, &tmax));
   rest = tmax - t;
   if (rest > 0 && dt > rest * (1 + 1e-8)) PetscCall(TSSetTimeStep(ts, rest));
+  {
+    Simulation         s;
+    const PetscScalar *u;
+    PetscCall(TSGetApplicationContext(ts, &s));
+    if (s->self) {
+      PetscCall(VecGetArrayRead(s->U, &u));
+      PetscCall(SelfContactBeginStep(s->self, u));
+      PetscCall(VecRestoreArrayRead(s->U, &u));
+    }
+  }
   PetscFunctionReturn(0);
 }
 
@@ -176,6 +188,14 @@ static PetscErrorCode PostStep(TS ts)
     PetscCall(ContactProject(s->contact, s->n / 3, u, u + s->n, mass, pinned, h, &depth, &s->ncontact, s->impulse));
     s->depth = PetscMax(s->depth, depth);
   }
+  if (s->self) { /* last: the step ends without the cloth crossing itself */
+    PetscReal t0;
+    PetscCall(TSGetPrevTime(ts, &t0));
+    PetscCall(TSGetTime(ts, &t));
+    PetscBool changed;
+    PetscCall(SelfContactFilter(s->self, t - t0, u, u + s->n, &changed));
+    if (changed) PetscCall(TSDrapeBEStateChanged(ts));
+  }
   if (s->rest_tol > 0) {
     PetscReal loc[2] = {0, 0}, sum[2];
     for (PetscInt k = 0; k < s->n / 3; k++) {
@@ -221,6 +241,7 @@ PetscErrorCode SimulationCreate(MPI_Comm comm, Simulation *sim)
     s->progress = (PetscBool) (size == 1 && isatty(1) && !getenv("CI") && !getenv("OMPI_COMM_WORLD_SIZE") && !getenv("PMI_SIZE") && !getenv("PMIX_RANK") && !getenv("SLURM_STEP_ID"));
   }
   PetscCall(ClothCreate(comm, &s->cloth));
+  PetscCall(SelfContactCreate(comm, s->cloth, &s->self));
   PetscCall(SolidCreate(comm, &s->solid));
   PetscCall(OutputCreate(comm, &s->output));
   PetscCall(ReportCreate(comm, &s->report));
@@ -276,6 +297,7 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
   PetscCall(SolidSetFromOptions(s->solid));
   PetscCall(ContactCreate(s->comm, s->solid, &s->contact));
   PetscCall(ContactSetFromOptions(s->contact));
+  PetscCall(SelfContactSetFromOptions(s->self));
   PetscCall(OutputSetFromOptions(s->output));
   PetscFunctionReturn(0);
 }
@@ -306,6 +328,12 @@ PetscErrorCode SimulationSetUp(Simulation s)
     PetscBool empty;
     PetscCall(SolidIsEmpty(s->solid, &empty));
     if (empty) PetscCall(ContactDestroy(&s->contact)); /* no solid, no contact code */
+  }
+  {
+    PetscBool self;
+    PetscCall(SelfContactEnabled(s->self, &self));
+    if (self) PetscCall(SelfContactSetUp(s->self));
+    else PetscCall(SelfContactDestroy(&s->self)); /* no -contact_self, no self-contact code */
   }
   s->n = 3 * info.nowned;
   PetscCall(VecCreateMPI(s->comm, 2 * s->n, PETSC_DETERMINE, &s->U));
@@ -438,6 +466,7 @@ PetscErrorCode SimulationDestroy(Simulation *sim)
   PetscCall(OutputDestroy(&s->output));
   PetscCall(ReportDestroy(&s->report));
   PetscCall(ContactDestroy(&s->contact));
+  PetscCall(SelfContactDestroy(&s->self));
   PetscCall(SolidDestroy(&s->solid));
   PetscCall(PetscFree(s->x0));
   PetscCall(ClothDestroy(&s->cloth));
@@ -669,6 +698,7 @@ static PetscErrorCode SimulationViewStart(Simulation s)
   PetscCall(ClothView(s->cloth, viewer));
   PetscCall(SolidView(s->solid, viewer));
   if (s->contact) PetscCall(ContactView(s->contact, viewer));
+  if (s->self) PetscCall(SelfContactView(s->self, viewer));
   if (s->stability_its > 0) {
     PetscCall(PetscViewerASCIIPrintf(viewer, "Stability (estimated at t = 0, %" PetscInt_FMT " power iterations): Omega_max = %.4e rad/s\n", s->limits.iterations, (double) s->limits.omega));
     PetscCall(PetscViewerASCIIPrintf(viewer, "  symplectic Euler: stable for h < %.4e s (2/Omega_max, reduced by damping)\n", (double) s->limits.symplectic));
@@ -856,6 +886,16 @@ PetscErrorCode SimulationRun(Simulation s)
     PetscCall(ReportSetReal(r, "strain_max", s->strain_last));
     PetscCall(ReportSetBool(r, "at_rest", s->at_rest));
     PetscCall(ReportSetString(r, "stopped_by", s->interrupted == SIGTERM ? "SIGTERM" : s->interrupted ? "SIGINT" : ""));
+    PetscCall(ReportSetBool(r, "self_contact", (PetscBool) !!s->self));
+    if (s->self) {
+      SelfContactStats st;
+      PetscCall(SelfContactGetStats(s->self, &st));
+      PetscCall(ReportSetReal(r, "self_contact_thickness", st.thickness));
+      PetscCall(ReportSetInt(r, "self_contact_pairs", st.pairs));
+      PetscCall(ReportSetInt(r, "self_collisions", st.collisions));
+      PetscCall(ReportSetInt(r, "self_failsafe", st.failsafe));
+      PetscCall(ReportSetInt(r, "self_broad_phases", st.broad_phases));
+    }
     if (s->summary) {
       PetscCall(PetscPrintf(s->comm, "Summary: %" PetscInt_FMT " steps to t = %g s in %.3f s wall, %.4e particle-steps/s", run, (double) t, (double) wall, wall > 0 ? ((double) run * info.nparticles / wall) : 0.0));
       if (its > 0) PetscCall(PetscPrintf(s->comm, ", %.2f CG iterations per step", (double) its / PetscMax(run, 1)));

@@ -1,0 +1,52 @@
+/* Self-contact: the cloth does not pass through itself (src/selfcontact/).
+ *
+ * The cloth's surface is its lattice cells, two triangles each (split along the
+ * diagonal (i,j)-(i+1,j+1)). After every step, whatever the scheme, a velocity
+ * filter in the manner of Bridson, Fedkiw & Anderson (2002) acts on the step's
+ * motion from x0 (start) to x (end):
+ *   1. proximity: every point-triangle and edge-edge pair closer than the thickness
+ *      at the start of the step loses its approaching relative velocity (an
+ *      inelastic impulse, with Coulomb friction bounded by it) and is pushed apart
+ *      in position towards the thickness (at most a quarter of it per step);
+ *   2. collisions: every pair that the remaining motion would still make cross
+ *      (continuous detection: the coplanarity cubic) gets the inelastic impulse that
+ *      stops its relative normal motion; repeated -contact_self_its times;
+ *   3. fail-safe: pairs that still collide have their particles stopped at x0 (they
+ *      keep the start's collision-free positions), until no pair collides.
+ * An impulse changes the velocity and the position it leads to (x = x0 + h vbar):
+ * dx = h dv. Candidate pairs come from CGAL's box intersection over boxes of the
+ * step's sweep; pairs that share a particle are not candidates.
+ *
+ * Every rank gathers the whole cloth (natural order) and filters it, the same
+ * arithmetic in the same order on every rank: the result does not depend on the
+ * partition (cost O(N) per step on every rank; see README). Collective. */
+#pragma once
+
+#include <cloth.h>
+
+typedef struct _p_SelfContact *SelfContact;
+
+typedef struct {
+  PetscInt  pairs;       /* pairs closer than the thickness at the start of the last step */
+  PetscInt  collisions;  /* collision impulses since the start of the run */
+  PetscInt  failsafe;    /* particles stopped by the fail-safe since the start */
+  PetscInt  steps;       /* steps filtered */
+  PetscInt  broad_phases; /* candidate lists built */
+  PetscReal thickness;   /* m */
+} SelfContactStats;
+
+/* -contact_self, -contact_self_thickness, -contact_self_friction, -contact_self_its.
+ * Create is not collective; the others are. SelfContactSetUp after ClothSetUp. */
+PETSC_EXTERN PetscErrorCode SelfContactCreate(MPI_Comm, Cloth, SelfContact *);
+PETSC_EXTERN PetscErrorCode SelfContactSetFromOptions(SelfContact);
+PETSC_EXTERN PetscErrorCode SelfContactSetUp(SelfContact);
+PETSC_EXTERN PetscErrorCode SelfContactView(SelfContact, PetscViewer);
+PETSC_EXTERN PetscErrorCode SelfContactDestroy(SelfContact *);
+/* Was -contact_self given (true)? Not collective. */
+PETSC_EXTERN PetscErrorCode SelfContactEnabled(SelfContact, PetscBool *);
+/* Start of a step: the positions x (owned-particle order) it starts from. */
+PETSC_EXTERN PetscErrorCode SelfContactBeginStep(SelfContact, const PetscScalar *x);
+/* End of the step of length h: filter the owned particles' end positions x and
+ * velocities v in place; changed: whether any pair acted (the same on every rank). */
+PETSC_EXTERN PetscErrorCode SelfContactFilter(SelfContact, PetscReal h, PetscScalar *x, PetscScalar *v, PetscBool *changed);
+PETSC_EXTERN PetscErrorCode SelfContactGetStats(SelfContact, SelfContactStats *);
