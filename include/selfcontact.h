@@ -30,7 +30,6 @@ typedef struct {
   PetscInt  pairs;       /* pairs closer than the thickness at the start of the last step */
   PetscInt  collisions;  /* collision impulses since the start of the run */
   PetscInt  failsafe;    /* particles stopped by the fail-safe since the start */
-  PetscInt  steps;       /* steps filtered */
   PetscInt  broad_phases; /* candidate lists built */
   PetscReal thickness;   /* m */
 } SelfContactStats;

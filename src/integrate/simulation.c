@@ -115,14 +115,8 @@ static PetscErrorCode PreStep(TS ts)
   TSExactFinalTimeOption eftopt;
 
   PetscFunctionBeginUser;
-  PetscCall(TSGetExactFinalTime(ts, &eftopt));
-  if (eftopt != TS_EXACTFINALTIME_MATCHSTEP) PetscFunctionReturn(0);
-  PetscCall(TSGetTime(ts, &t));
-  PetscCall(TSGetTimeStep(ts, &dt));
-  PetscCall(TSGetMaxTime(ts, &tmax));
-  rest = tmax - t;
-  if (rest > 0 && dt > rest * (1 + 1e-8)) PetscCall(TSSetTimeStep(ts, rest));
   {
+    /* self-contact filters the motion from the step's start: whatever the final-time option */
     Simulation         s;
     const PetscScalar *u;
     PetscCall(TSGetApplicationContext(ts, &s));
@@ -132,6 +126,13 @@ static PetscErrorCode PreStep(TS ts)
       PetscCall(VecRestoreArrayRead(s->U, &u));
     }
   }
+  PetscCall(TSGetExactFinalTime(ts, &eftopt));
+  if (eftopt != TS_EXACTFINALTIME_MATCHSTEP) PetscFunctionReturn(0);
+  PetscCall(TSGetTime(ts, &t));
+  PetscCall(TSGetTimeStep(ts, &dt));
+  PetscCall(TSGetMaxTime(ts, &tmax));
+  rest = tmax - t;
+  if (rest > 0 && dt > rest * (1 + 1e-8)) PetscCall(TSSetTimeStep(ts, rest));
   PetscFunctionReturn(0);
 }
 

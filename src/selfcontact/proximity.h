@@ -210,22 +210,31 @@ static inline PetscInt CollisionTimes(const PetscReal c[4], PetscReal scale, Pet
   return CubicRootsUnit(c, times);
 }
 
-/* First time t in [0, 1] at which point p comes within tol of triangle (a, b, c),
- * each vertex moving from x0 by d over the step; w: barycentric weights there.
- * Returns PETSC_FALSE when they do not. */
-static inline PetscBool PointTriangleCollision(const PetscReal p0[3], const PetscReal dp[3], const PetscReal a0[3], const PetscReal da[3], const PetscReal b0[3], const PetscReal db[3], const PetscReal c0[3], const PetscReal dc[3], PetscReal tol, PetscReal *t, PetscReal w[3])
+/* The times at which points a, b, c, d (from x0 by d over the step) may be coplanar:
+ * those of the signed volume (b - a) x (c - a) . (d - a), a cubic in t. A point and a
+ * triangle, and two edges, can only meet at such a time. */
+static inline PetscInt CoplanarTimes(const PetscReal a0[3], const PetscReal da[3], const PetscReal b0[3], const PetscReal db[3], const PetscReal c0[3], const PetscReal dc[3], const PetscReal d0[3], const PetscReal dd[3], PetscReal times[9])
 {
-  PetscReal e1[3], D1[3], e2[3], D2[3], q[3], Dq[3], c[4], times[9], scale;
-  PetscInt  n;
+  PetscReal e1[3], D1[3], e2[3], D2[3], q[3], Dq[3], c[4], scale;
 
   V3Sub(b0, a0, e1);
   V3Sub(db, da, D1);
   V3Sub(c0, a0, e2);
   V3Sub(dc, da, D2);
-  V3Sub(p0, a0, q);
-  V3Sub(dp, da, Dq);
+  V3Sub(d0, a0, q);
+  V3Sub(dd, da, Dq);
   scale = TripleCubic(e1, D1, e2, D2, q, Dq, c);
-  n     = CollisionTimes(c, scale, times);
+  return CollisionTimes(c, scale, times);
+}
+
+/* First time t in [0, 1] at which point p comes within tol of triangle (a, b, c),
+ * each vertex moving from x0 by d over the step; w: barycentric weights there.
+ * Returns PETSC_FALSE when they do not. */
+static inline PetscBool PointTriangleCollision(const PetscReal p0[3], const PetscReal dp[3], const PetscReal a0[3], const PetscReal da[3], const PetscReal b0[3], const PetscReal db[3], const PetscReal c0[3], const PetscReal dc[3], PetscReal tol, PetscReal *t, PetscReal w[3])
+{
+  PetscReal times[9];
+  PetscInt  n = CoplanarTimes(a0, da, b0, db, c0, dc, p0, dp, times);
+
   for (PetscInt k = 0; k < n; k++) {
     PetscReal p[3], a[3], b[3], cc[3];
     V3At(p0, dp, times[k], p);
@@ -244,17 +253,9 @@ static inline PetscBool PointTriangleCollision(const PetscReal p0[3], const Pets
  * moving from x0 by d; s, u: the closest points' parameters there. */
 static inline PetscBool EdgeEdgeCollision(const PetscReal a0[3], const PetscReal da[3], const PetscReal b0[3], const PetscReal db[3], const PetscReal c0[3], const PetscReal dc[3], const PetscReal d0[3], const PetscReal dd[3], PetscReal tol, PetscReal *t, PetscReal *s, PetscReal *u)
 {
-  PetscReal e1[3], D1[3], e2[3], D2[3], q[3], Dq[3], c[4], times[9], scale;
-  PetscInt  n;
+  PetscReal times[9];
+  PetscInt  n = CoplanarTimes(a0, da, b0, db, c0, dc, d0, dd, times);
 
-  V3Sub(b0, a0, e1);
-  V3Sub(db, da, D1);
-  V3Sub(d0, c0, e2);
-  V3Sub(dd, dc, D2);
-  V3Sub(c0, a0, q);
-  V3Sub(dc, da, Dq);
-  scale = TripleCubic(e1, D1, e2, D2, q, Dq, c);
-  n     = CollisionTimes(c, scale, times);
   for (PetscInt k = 0; k < n; k++) {
     PetscReal a[3], b[3], cc[3], d[3];
     V3At(a0, da, times[k], a);

@@ -286,35 +286,37 @@ static void PairParticles(const SelfContact sc, PetscInt kind, PetscInt k, Petsc
   }
 }
 
-/* Point-triangle candidate k: particles and, at positions X, the closest point's
- * weights, the unit normal from triangle to point and the distance. */
-static PetscReal PairPT(const SelfContact sc, PetscInt k, const PetscReal *X, Pair *pr, PetscReal n[3])
+static inline void WeightsPT(Pair *pr, const PetscReal w[3])
 {
-  const PetscInt  v = sc->mesh.vert[sc->pt[2 * k]], *T = sc->mesh.tri + 3 * sc->pt[2 * k + 1];
-  const PetscReal *p = X + 3 * v, *a = X + 3 * T[0], *b = X + 3 * T[1], *c = X + 3 * T[2];
-  PetscReal        w[3], dist;
-
-  dist  = PointTriangleClosest(p, a, b, c, w);
-  pr->p[0] = v, pr->p[1] = T[0], pr->p[2] = T[1], pr->p[3] = T[2];
   pr->w[0] = 1, pr->w[1] = -w[0], pr->w[2] = -w[1], pr->w[3] = -w[2];
-  for (PetscInt d = 0; d < 3; d++) n[d] = p[d] - (w[0] * a[d] + w[1] * b[d] + w[2] * c[d]);
-  if (dist > 0) for (PetscInt d = 0; d < 3; d++) n[d] /= dist;
-  return dist;
+}
+static inline void WeightsEE(Pair *pr, PetscReal s, PetscReal u)
+{
+  pr->w[0] = -(1 - s), pr->w[1] = -s, pr->w[2] = 1 - u, pr->w[3] = u;
 }
 
-/* Edge-edge candidate k: the normal points from the first edge to the second. */
-static PetscReal PairEE(const SelfContact sc, PetscInt k, const PetscReal *X, Pair *pr, PetscReal n[3])
+/* The pair's closest points at positions X (its particles set by PairParticles):
+ * the weights, the unit normal from the first primitive (triangle, first edge) to
+ * the second (point, second edge) and the distance. */
+static PetscReal PairClosest(PetscInt kind, const PetscReal *X, Pair *pr, PetscReal n[3])
 {
-  const PetscInt *e = sc->mesh.edge + 2 * sc->ee[2 * k], *f = sc->mesh.edge + 2 * sc->ee[2 * k + 1];
-  PetscReal       s, u, dist;
+  const PetscInt *p = pr->p;
+  PetscReal       dist;
 
-  dist  = SegmentSegmentClosest(X + 3 * e[0], X + 3 * e[1], X + 3 * f[0], X + 3 * f[1], &s, &u);
-  pr->p[0] = e[0], pr->p[1] = e[1], pr->p[2] = f[0], pr->p[3] = f[1];
-  pr->w[0] = -(1 - s), pr->w[1] = -s, pr->w[2] = 1 - u, pr->w[3] = u;
+  if (kind == 0) {
+    PetscReal w[3];
+    dist = PointTriangleClosest(X + 3 * p[0], X + 3 * p[1], X + 3 * p[2], X + 3 * p[3], w);
+    WeightsPT(pr, w);
+  } else {
+    PetscReal s, u;
+    dist = SegmentSegmentClosest(X + 3 * p[0], X + 3 * p[1], X + 3 * p[2], X + 3 * p[3], &s, &u);
+    WeightsEE(pr, s, u);
+  }
   for (PetscInt d = 0; d < 3; d++) n[d] = 0;
   for (PetscInt i = 0; i < 4; i++)
-    for (PetscInt d = 0; d < 3; d++) n[d] += pr->w[i] * X[3 * pr->p[i] + d];
-  if (dist > 0) for (PetscInt d = 0; d < 3; d++) n[d] /= dist;
+    for (PetscInt d = 0; d < 3; d++) n[d] += pr->w[i] * X[3 * p[i] + d];
+  if (dist > 0)
+    for (PetscInt d = 0; d < 3; d++) n[d] /= dist;
   return dist;
 }
 
@@ -361,7 +363,7 @@ static PetscInt Proximity(SelfContact sc, PetscReal h)
       PetscReal n[3], dist, disp;
       PairParticles(sc, kind, k, pr.p);
       if (!PairBoxesOverlap(pr.p, kind == 0 ? 1 : 2, sc->x0, sc->x0, H)) continue;
-      dist = kind ? PairEE(sc, k, sc->x0, &pr, n) : PairPT(sc, k, sc->x0, &pr, n);
+      dist = PairClosest(kind, sc->x0, &pr, n);
       if (dist >= H || dist <= 0) continue; /* dist 0: touching at the start, no direction: the collision pass sees it */
       close++;
       disp = PairDisplacement(sc, &pr, n);
@@ -403,11 +405,11 @@ static PetscBool Collides(SelfContact sc, PetscInt kind, PetscInt k, Pair *pr, P
     if (kind == 0) {
       PetscReal w[3];
       if (!PointTriangleCollision(x0 + 3 * p[0], D[0], x0 + 3 * p[1], D[1], x0 + 3 * p[2], D[2], x0 + 3 * p[3], D[3], tol, &t, w)) return PETSC_FALSE;
-      pr->w[0] = 1, pr->w[1] = -w[0], pr->w[2] = -w[1], pr->w[3] = -w[2];
+      WeightsPT(pr, w);
     } else {
       PetscReal s, u;
       if (!EdgeEdgeCollision(x0 + 3 * p[0], D[0], x0 + 3 * p[1], D[1], x0 + 3 * p[2], D[2], x0 + 3 * p[3], D[3], tol, &t, &s, &u)) return PETSC_FALSE;
-      pr->w[0] = -(1 - s), pr->w[1] = -s, pr->w[2] = 1 - u, pr->w[3] = u;
+      WeightsEE(pr, s, u);
     }
     for (PetscInt i = 0; i < 4; i++) V3At(x0 + 3 * p[i], D[i], t, X[i]);
   }
@@ -524,7 +526,6 @@ PetscErrorCode SelfContactFilter(SelfContact sc, PetscReal h, PetscScalar *x, Pe
       frozen_total += frozen;
     } while (frozen);
   }
-  sc->stats.steps++;
   *changed = (PetscBool) (sc->stats.pairs || ncol_total || frozen_total);
   {
     const PetscInt *natural;
