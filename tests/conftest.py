@@ -1,8 +1,13 @@
 """Shared helpers for drape's test suite: run the program (scripts/drape_run.py, whose
 Result has the run's report) and read its HDF5 output (scripts/drape_h5.py).
 
-Every successful run is made with -malloc_debug -malloc_dump -options_left and is
-checked for leaks and unused options, so each test also guards those."""
+Every successful run is made with -malloc_dump -options_left and is checked for
+leaks and unused options, so each test also guards those; one-rank runs (and the
+multi-rank runs that ask for it) add -malloc_debug, PETSc's check of the whole heap
+at every allocation. On several ranks that check costs 4-7x the run (measured on a
+25^2 drapebe run: 0.6 -> 2.7 s on 2 ranks, 1.0 -> 6.8 s on 4, oversubscribed):
+PETSc's communication allocates at every exchange, and each allocation walks the
+heap. tests/test_integration.py's 1/2/4-rank runs keep it on every rank count."""
 import os
 import re
 import sys
@@ -41,11 +46,14 @@ def printed(res, pattern, cast=float):
     return cast(m.group(1))
 
 
-def run(args, np_=1, check=True, checks=True, timeout=600):
-    """Run drape with `args` (a list or a string) on np_ ranks; returns its drape_run.Result."""
+def run(args, np_=1, check=True, checks=True, timeout=600, malloc_debug=None):
+    """Run drape with `args` (a list or a string) on np_ ranks; returns its drape_run.Result.
+    malloc_debug: check the heap at every allocation (default: on one rank only)."""
     if isinstance(args, str):
         args = args.split()
-    extra = ["-malloc_debug", "-malloc_dump", "-options_left"] if check and checks else []
+    if malloc_debug is None:
+        malloc_debug = np_ == 1
+    extra = (["-malloc_debug"] if malloc_debug else []) + ["-malloc_dump", "-options_left"] if check and checks else []
     res = drape_run.run(DRAPE, list(args) + extra, np_, timeout)
     if check:
         assert res.returncode == 0, f"{res.cmd} failed:\n{res.stdout}\n{res.stderr}"

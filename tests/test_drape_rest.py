@@ -22,8 +22,10 @@ def scheme_args(base, scheme, fraction):
 
 @pytest.fixture(scope="module")
 def sphere_rest(tmp_path_factory):
-    """The sphere scene (runs/sphere.opts, 41^2, 3 s) with a measured fabric, one run per
-    fabric and scheme, cached for the tests of this module."""
+    """The sphere scene (runs/sphere.opts, 41^2) to 1.5 s with a measured fabric, one run
+    per fabric and scheme, cached for the tests of this module. The landing's strain is
+    frozen by then: the largest strain of every case is the one measured at 3 s to
+    three digits (polyester drapebe 0.349 %, denim symplectic 3.56 %)."""
     out, cache = tmp_path_factory.mktemp("sphere_rest"), {}
 
     def get(fabric, scheme):
@@ -32,7 +34,7 @@ def sphere_rest(tmp_path_factory):
             # self-contact off: these runs measure the contact with the sphere (the folds'
             # contact with each other is tests/test_self_contact.py's)
             args = scheme_args(f"-options_file runs/sphere.opts -contact_self 0 -cloth_fabric {fabric}", scheme, 0.5)
-            res = run(f"{args} -output_interval 1 -output_file {h5}", checks=False)
+            res = run(f"{args} -ts_max_time 1.5 -output_interval 0.5 -output_file {h5}", checks=False)
             fr = drape_h5.load(h5)
             cache[fabric, scheme] = (res, fr)
         return cache[fabric, scheme]
@@ -51,7 +53,8 @@ def test_sphere_scene_rests_without_stretch(sphere_rest, fabric, scheme):
     3.5 %; before contact entered the implicit solve polyester rested at 29 % with three
     times the released gravitational energy stored as stretch. So: max edge strain under
     3 % for the two stiff wovens, within 2v/c (+10 %) for all three, and the stretch
-    energy at rest under 2 % of the gravitational energy released (measured 0.15-1.15 %).
+    energy at rest under 2 % of the gravitational energy released (measured 0.14-1.19 % at 1.5 s,
+    0.15-1.15 % at 3 s).
     Symplectic Euler runs at half the limit estimated for the flat sheet, the README's
     safe choice: at 0.9 of it the folds' tension takes the run to the edge of stability,
     and the frozen landing strain then depends on the last digit of the step (royal-target
@@ -68,6 +71,9 @@ def test_sphere_scene_rests_without_stretch(sphere_rest, fabric, scheme):
         assert strain < 0.03
     released = fr.energies["gravity"][0] - fr.energies["gravity"][-1]
     assert released > 0.3 and fr.energies["stretch"][-1] < 0.02 * released, (fr.energies["stretch"][-1], released)
+    # settled: the kinetic energy left is under 1 % of what the fall released (measured
+    # 0.03-0.06 % drapebe, 0.27-0.54 % symplectic Euler, whose hanging corners still sway)
+    assert fr.energies["kinetic"][-1] < 0.01 * released, (fr.energies["kinetic"][-1], released)
     # and it did drape: on the sphere, nothing inside it, the corners hanging below its top
     r = np.linalg.norm(fr.positions[-1] - np.array([0, 0, 0.25]), axis=-1)
     assert r.min() >= 0.25 + 0.002 - 1e-9 and fr.positions[-1, ..., 2].min() < 0.25

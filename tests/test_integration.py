@@ -24,7 +24,7 @@ def test_same_frames_on_1_2_4_ranks(tmp, scheme, args, tol):
     frames = {}
     for np_ in (1, 2, 4):
         out = tmp / f"{scheme}{np_}.h5"
-        run(f"{SCENE} {args} -output_file {out}", np_=np_)
+        run(f"{SCENE} {args} -output_file {out}", np_=np_, malloc_debug=True)  # the heap checked on every rank count
         frames[np_] = drape_h5.load(out)
     ref = frames[1]
     assert len(ref.time) >= 5
