@@ -200,6 +200,9 @@ static PetscErrorCode RestartCheck(MPI_Comm comm, const char file[], RestartInfo
   PetscFunctionReturn(0);
 }
 
+/* options PETSc reads in PetscInitialize() only */
+static const char *const startup_only[] = {"-malloc_debug", "-malloc_dump", "-malloc_test", "-malloc_view", "-malloc_view_threshold", "-malloc_coalesce", "-malloc_requested_size", "-log_view", "-log_view_memory", "-log_trace", "-info", "-history", "-on_error_abort", "-on_error_attach_debugger", "-on_error_malloc_dump", "-start_in_debugger", "-stop_for_debugger", "-debugger_ranks", "-fp_trap", "-checkstack"};
+
 PetscErrorCode RestartInsertOptions(MPI_Comm comm, const char file[])
 {
   PetscMPIInt rank;
@@ -220,10 +223,17 @@ PetscErrorCode RestartInsertOptions(MPI_Comm comm, const char file[])
   PetscCallMPI(MPI_Bcast(&len, 1, MPIU_INT, 0, comm));
   if (rank) PetscCall(PetscCalloc1(len + 1, &r.options));
   PetscCallMPI(MPI_Bcast(r.options, (PetscMPIInt) len + 1, MPI_CHAR, 0, comm));
-  /* the stored run's options, then the command line again: it wins */
+  /* the stored run's options, less those PETSc reads only as it starts (memory
+   * tracing, logging, debugging: too late now, and -options_left would call them
+   * unused), then the command line again: it wins */
   PetscCall(PetscOptionsInsertString(NULL, r.options));
+  for (size_t k = 0; k < sizeof(startup_only) / sizeof(startup_only[0]); k++) PetscCall(PetscOptionsClearValue(NULL, startup_only[k]));
   PetscCall(PetscGetArgs(&argc, &argv));
   PetscCall(PetscOptionsInsert(NULL, &argc, &argv, NULL));
+  for (size_t k = 0; k < sizeof(startup_only) / sizeof(startup_only[0]); k++) { /* given now: PetscInitialize() used them */
+    PetscBool given;
+    PetscCall(PetscOptionsHasName(NULL, NULL, startup_only[k], &given));
+  }
   PetscCall(RestartInfoDestroy(&r));
   PetscFunctionReturn(0);
 }
