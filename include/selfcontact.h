@@ -27,11 +27,11 @@
 typedef struct _p_SelfContact *SelfContact;
 
 typedef struct {
-  PetscInt  pairs;       /* pairs closer than the thickness at the start of the last step */
-  PetscInt  collisions;  /* collision impulses since the start of the run */
-  PetscInt  failsafe;    /* particles stopped by the fail-safe since the start */
+  PetscInt  pairs;        /* pairs closer than the thickness at the start of the last step */
+  PetscInt  collisions;   /* collision impulses since the start of the run */
+  PetscInt  failsafe;     /* particles stopped by the fail-safe since the start */
   PetscInt  broad_phases; /* candidate lists built */
-  PetscReal thickness;   /* m */
+  PetscReal thickness;    /* m */
 } SelfContactStats;
 
 /* -contact_self, -contact_self_thickness, -contact_self_friction, -contact_self_its.

@@ -333,8 +333,10 @@ PetscErrorCode SimulationSetUp(Simulation s)
   {
     PetscBool self;
     PetscCall(SelfContactEnabled(s->self, &self));
-    if (self) PetscCall(SelfContactSetUp(s->self));
-    else PetscCall(SelfContactDestroy(&s->self)); /* no -contact_self, no self-contact code */
+    if (self)
+      PetscCall(SelfContactSetUp(s->self));
+    else
+      PetscCall(SelfContactDestroy(&s->self)); /* no -contact_self, no self-contact code */
   }
   s->n = 3 * info.nowned;
   PetscCall(VecCreateMPI(s->comm, 2 * s->n, PETSC_DETERMINE, &s->U));

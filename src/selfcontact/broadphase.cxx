@@ -12,8 +12,7 @@
 
 typedef CGAL::Box_intersection_d::Box_with_info_d<double, 3, PetscInt> Box;
 
-template <int NV>
-static void MakeBoxes(PetscInt n, const PetscInt *prim, const PetscReal *x0, const PetscReal *x1, PetscReal r, std::vector<Box> &boxes)
+template <int NV> static void MakeBoxes(PetscInt n, const PetscInt *prim, const PetscReal *x0, const PetscReal *x1, PetscReal r, std::vector<Box> &boxes)
 {
   boxes.clear();
   boxes.reserve(n);
@@ -39,7 +38,7 @@ static PetscErrorCode Store(std::vector<std::pair<PetscInt, PetscInt>> &pairs, P
   PetscFunctionBeginUser;
   std::sort(pairs.begin(), pairs.end()); /* the order of the sweeps is the same on every rank and run */
   pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
-  *n = (PetscInt)pairs.size();
+  *n = (PetscInt) pairs.size();
   PetscCall(PetscMalloc1(2 * pairs.size() + 1, out));
   for (size_t k = 0; k < pairs.size(); k++) {
     (*out)[2 * k]     = pairs[k].first;

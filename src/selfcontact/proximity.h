@@ -91,7 +91,7 @@ done:
  * their distance. */
 static inline PetscReal SegmentSegmentClosest(const PetscReal a[3], const PetscReal b[3], const PetscReal c[3], const PetscReal d[3], PetscReal *s_, PetscReal *t_)
 {
-  PetscReal d1[3], d2[3], r[3], q[3], A, E, F, s, t;
+  PetscReal       d1[3], d2[3], r[3], q[3], A, E, F, s, t;
   const PetscReal tiny = 1e-300;
 
   V3Sub(b, a, d1);
@@ -100,7 +100,8 @@ static inline PetscReal SegmentSegmentClosest(const PetscReal a[3], const PetscR
   A = V3Dot(d1, d1);
   E = V3Dot(d2, d2);
   F = V3Dot(d2, r);
-  if (A <= tiny && E <= tiny) s = t = 0;
+  if (A <= tiny && E <= tiny)
+    s = t = 0;
   else if (A <= tiny) {
     s = 0;
     t = PetscClipInterval(F / E, 0, 1);
@@ -163,10 +164,11 @@ static inline PetscInt CubicRootsUnit(const PetscReal c[4], PetscReal roots[3])
       PetscReal disc = B * B - 4 * A * C;
       if (disc >= 0) {
         PetscReal sq = PetscSqrtReal(disc), qq = -0.5 * (B + (B >= 0 ? sq : -sq));
-        r[nr++]      = qq / A;
+        r[nr++] = qq / A;
         if (qq != 0) r[nr++] = C / qq;
       }
-    } else if (B != 0) r[nr++] = -C / B;
+    } else if (B != 0)
+      r[nr++] = -C / B;
     if (nr == 2 && r[0] > r[1]) {
       PetscReal tmp = r[0];
       r[0]          = r[1];
@@ -189,8 +191,10 @@ static inline PetscInt CubicRootsUnit(const PetscReal c[4], PetscReal roots[3])
     if ((flo < 0) == (fhi < 0)) continue;
     for (PetscInt it = 0; it < 80 && hi - lo > 1e-15; it++) {
       PetscReal mid = 0.5 * (lo + hi), fm = CubicEval(c, mid);
-      if ((fm < 0) == (flo < 0)) lo = mid, flo = fm;
-      else hi = mid;
+      if ((fm < 0) == (flo < 0))
+        lo = mid, flo = fm;
+      else
+        hi = mid;
     }
     roots[nroot++] = 0.5 * (lo + hi);
   }
@@ -230,7 +234,8 @@ static inline PetscInt CoplanarTimes(const PetscReal a0[3], const PetscReal da[3
 /* First time t in [0, 1] at which point p comes within tol of triangle (a, b, c),
  * each vertex moving from x0 by d over the step; w: barycentric weights there.
  * Returns PETSC_FALSE when they do not. */
-static inline PetscBool PointTriangleCollision(const PetscReal p0[3], const PetscReal dp[3], const PetscReal a0[3], const PetscReal da[3], const PetscReal b0[3], const PetscReal db[3], const PetscReal c0[3], const PetscReal dc[3], PetscReal tol, PetscReal *t, PetscReal w[3])
+static inline PetscBool PointTriangleCollision(const PetscReal p0[3], const PetscReal dp[3], const PetscReal a0[3], const PetscReal da[3], const PetscReal b0[3], const PetscReal db[3], const PetscReal c0[3], const PetscReal dc[3], PetscReal tol,
+                                               PetscReal *t, PetscReal w[3])
 {
   PetscReal times[9];
   PetscInt  n = CoplanarTimes(a0, da, b0, db, c0, dc, p0, dp, times);
@@ -251,7 +256,8 @@ static inline PetscBool PointTriangleCollision(const PetscReal p0[3], const Pets
 
 /* First time t in [0, 1] at which segments ab and cd come within tol, each vertex
  * moving from x0 by d; s, u: the closest points' parameters there. */
-static inline PetscBool EdgeEdgeCollision(const PetscReal a0[3], const PetscReal da[3], const PetscReal b0[3], const PetscReal db[3], const PetscReal c0[3], const PetscReal dc[3], const PetscReal d0[3], const PetscReal dd[3], PetscReal tol, PetscReal *t, PetscReal *s, PetscReal *u)
+static inline PetscBool EdgeEdgeCollision(const PetscReal a0[3], const PetscReal da[3], const PetscReal b0[3], const PetscReal db[3], const PetscReal c0[3], const PetscReal dc[3], const PetscReal d0[3], const PetscReal dd[3], PetscReal tol,
+                                          PetscReal *t, PetscReal *s, PetscReal *u)
 {
   PetscReal times[9];
   PetscInt  n = CoplanarTimes(a0, da, b0, db, c0, dc, d0, dd, times);

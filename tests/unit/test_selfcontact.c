@@ -7,9 +7,9 @@ static const char help[] = "Unit tests of the self-contact narrow phase (src/sel
 
 static PetscInt npassed = 0;
 
-#define CHECK(cond, ...) \
-  do { \
-    PetscCheck(cond, PETSC_COMM_SELF, PETSC_ERR_PLIB, __VA_ARGS__); \
+#define CHECK(cond, ...)                                                                                                                                                                                                                                 \
+  do {                                                                                                                                                                                                                                                   \
+    PetscCheck(cond, PETSC_COMM_SELF, PETSC_ERR_PLIB, __VA_ARGS__);                                                                                                                                                                                      \
   } while (0)
 
 /* point-triangle and segment-segment distances against a fine brute-force search */
@@ -50,13 +50,8 @@ static PetscErrorCode GroupClosest(PetscRandom rnd)
  * apart (a grazing contact) may be found as one, but the first is found */
 static PetscErrorCode GroupCubic(void)
 {
-  const PetscReal cases[][3] = {
-    {0.1, 0.5, 0.9},
-    {0.25, 1.5, -2},
-    {-0.5, 0.75, 0.7501},
-    {0.3, 0.3 + 1e-9, 2}
-  };
-  const PetscInt expect[] = {3, 1, 2, 2};
+  const PetscReal cases[][3] = {{0.1, 0.5, 0.9}, {0.25, 1.5, -2}, {-0.5, 0.75, 0.7501}, {0.3, 0.3 + 1e-9, 2}};
+  const PetscInt  expect[]   = {3, 1, 2, 2};
 
   PetscFunctionBeginUser;
   for (PetscInt k = 0; k < 4; k++) {
