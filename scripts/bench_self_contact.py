@@ -6,8 +6,10 @@ the landing and the folding) with and without -contact_self on n x n lattices of
 the same 1 m cloth, and reports the wall time of each, their ratio, the share of a
 run spent in the self-contact filter (the DrapeSelfContact event of -log_view:
 gathering the cloth, the broad phase, proximity and collision passes), the filter's
-time per step and how often the candidate list was rebuilt. Medians of --repeat
-runs, one after the other on an otherwise idle machine.
+time per step, the broad phase's time per candidate list (DrapeSelfBroad) and how
+often the list was rebuilt, for each broad phase of --broad-phase (CGAL's box
+intersection, the spatial hash: the same pairs, so the same collisions). Medians of
+--repeat runs, one after the other on an otherwise idle machine.
 
     .venv/bin/python scripts/bench_self_contact.py --sizes 41,61,81 --repeat 3
     .venv/bin/python scripts/bench_self_contact.py --quick      # smoke run (the test suite's)
@@ -22,17 +24,27 @@ from bench_common import machine, md_table, median  # noqa: E402
 from drape_run import Drape, fail  # noqa: E402
 
 PROG = "bench_self_contact.py"
-EVENT = re.compile(r"^DrapeSelfContact\s+(\d+)\s+\S+\s+(\S+)", re.M)
+KINDS = ("cgal", "hash")
 
 
-def one(drape, n, t, self_contact):
+def event(stdout, name):
+    """Calls and seconds of a -log_view event (0, 0 when absent)."""
+    m = re.search(rf"^{name}\s+(\d+)\s+\S+\s+(\S+)", stdout, re.M)
+    return (int(m.group(1)), float(m.group(2))) if m else (0, 0.0)
+
+
+def one(drape, n, t, kind):
+    """One run without self-contact (kind None) or with the broad phase `kind`: the
+    report, the filter's seconds and the broad phase's seconds per call."""
     args = ["-options_file", "runs/sphere.opts", "-da_grid_x", n, "-da_grid_y", n, "-ts_max_time", t,
-            "-contact_self", "1" if self_contact else "0", "-log_view"]
+            "-contact_self", "0" if kind is None else "1", "-log_view"]
+    if kind:
+        args += ["-contact_self_broad_phase", kind]
     r = drape.run(args)
     if r.returncode:
         fail(PROG, f"the run failed:\n{r.tail()}")
-    m = EVENT.search(r.stdout)
-    return r.report, float(m.group(2)) if m else 0.0
+    calls, broad = event(r.stdout, "DrapeSelfBroad")
+    return r.report, event(r.stdout, "DrapeSelfContact")[1], broad / max(calls, 1)
 
 
 def main():
@@ -40,6 +52,7 @@ def main():
     ap.add_argument("--sizes", default="41,61,81", help="lattice sizes n (n x n), comma-separated")
     ap.add_argument("--time", type=float, default=1.0, help="simulated time of each run (s)")
     ap.add_argument("--repeat", type=int, default=3, help="runs per case (medians)")
+    ap.add_argument("--broad-phase", default="cgal,hash", help="broad phases to time, comma-separated (cgal, hash)")
     ap.add_argument("--build", default="build")
     ap.add_argument("--quick", action="store_true", help="one 21^2 run of 0.4 s each way (a smoke test)")
     a = ap.parse_args()
@@ -51,24 +64,32 @@ def main():
         fail(PROG, f"--sizes takes integers separated by commas; got {a.sizes!r}")
     if any(n < 3 or n > 1025 for n in sizes) or a.repeat < 1 or not 0 < a.time <= 100:
         fail(PROG, "--sizes must lie in 3..1025, --repeat be at least 1 and --time in (0, 100] s")
+    kinds = a.broad_phase.split(",")
+    if not kinds or any(k not in KINDS for k in kinds):
+        fail(PROG, f"--broad-phase takes {' and '.join(KINDS)}, comma-separated; got {a.broad_phase!r}")
     drape = Drape(PROG, a.build)
     rows = []
     for n in sizes:
-        off, on, share = [], [], []
+        off, on, share, broad = [], {k: [] for k in kinds}, {k: [] for k in kinds}, {k: [] for k in kinds}
+        reps = {}
         for _ in range(a.repeat):
-            rep0, _ = one(drape, n, a.time, False)
-            rep1, ev = one(drape, n, a.time, True)
-            off.append(rep0["wall"])
-            on.append(rep1["wall"])
-            share.append(ev / rep1["wall"])
-        steps = rep1["steps"]
-        rows.append([f"{n}^2", f"{median(off):.2f}", f"{median(on):.2f}", f"{median(on) / median(off):.2f}",
-                     f"{100 * median(share):.0f} %", f"{1e3 * median(share) * median(on) / steps:.2f}",
-                     f"{rep1['self_broad_phases']} / {steps}", str(rep1["self_collisions"]), str(rep1["self_failsafe"])])
+            off.append(one(drape, n, a.time, None)[0]["wall"])
+            for k in kinds:
+                rep, ev, bp = one(drape, n, a.time, k)
+                on[k].append(rep["wall"])
+                share[k].append(ev / rep["wall"])
+                broad[k].append(bp)
+                reps[k] = rep
+        for k in kinds:
+            rep, steps = reps[k], reps[k]["steps"]
+            rows.append([f"{n}^2", k, f"{median(off):.2f}", f"{median(on[k]):.2f}", f"{median(on[k]) / median(off):.2f}",
+                         f"{100 * median(share[k]):.0f} %", f"{1e3 * median(share[k]) * median(on[k]) / steps:.2f}",
+                         f"{1e3 * median(broad[k]):.2f}", f"{rep['self_broad_phases']} / {steps}", str(rep["self_collisions"]),
+                         str(rep["self_failsafe"])])
     print(f"# {machine()}")
     print(f"# sphere scene, {a.time:g} s simulated, medians of {a.repeat}")
-    print(md_table(["lattice", "wall without (s)", "with (s)", "ratio", "filter share", "filter ms/step",
-                    "candidate lists / steps", "collisions", "fail-safe"], rows))
+    print(md_table(["lattice", "broad phase", "wall without (s)", "with (s)", "ratio", "filter share", "filter ms/step",
+                    "broad phase ms/list", "candidate lists / steps", "collisions", "fail-safe"], rows))
 
 
 if __name__ == "__main__":

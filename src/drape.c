@@ -181,6 +181,7 @@ PetscErrorCode DrapeInitialize(void)
   PetscCall(PetscLogEventRegister("DrapeStability", drape_log.classid, &drape_log.stability));
   PetscCall(PetscLogEventRegister("DrapeContact", drape_log.classid, &drape_log.contact));
   PetscCall(PetscLogEventRegister("DrapeSelfContact", drape_log.classid, &drape_log.self_contact));
+  PetscCall(PetscLogEventRegister("DrapeSelfBroad", drape_log.classid, &drape_log.self_broad));
   PetscCall(PetscLogStageRegister("Setup", &drape_log.setup));
   PetscCall(PetscLogStageRegister("Time loop", &drape_log.timeloop));
   PetscFunctionReturn(0);

@@ -98,6 +98,12 @@ def test_fast_fold_never_crosses(tmp, scheme):
     assert crossings(out).max() == 0
     if "drapebe" in scheme:
         assert rep["self_collisions"] > 0, rep  # the continuous pass acted
+        # CGAL's broad phase instead of the spatial hash (the default): the same pairs
+        # in the same order, so the same arithmetic: the same frames, bitwise
+        cgal = tmp / "cgal.h5"
+        rep2 = run(f"{base} -contact_self -contact_self_broad_phase cgal -output_file {cgal}").report
+        assert rep2["self_collisions"] == rep["self_collisions"] and rep2["self_broad_phases"] == rep["self_broad_phases"]
+        assert np.array_equal(drape_h5.load(cgal).positions, drape_h5.load(out).positions)
     run(f"{base} -output_file {free}")
     assert crossings(free).max() > 0
 
@@ -121,22 +127,25 @@ def test_self_contact_options_are_checked(tmp):
     """Out-of-range self-contact options end with one sentence naming the option and
     the allowed range."""
     for opt, why in (("-contact_self_thickness -1", "-contact_self_thickness"), ("-contact_self_friction nan", "-contact_self_friction"),
-                     ("-contact_self_its 5000", "-contact_self_its")):
+                     ("-contact_self_its 5000", "-contact_self_its"), ("-contact_self_broad_phase octree", "-contact_self_broad_phase")):
         res = run(f"-da_grid_x 8 -da_grid_y 8 -ts_max_steps 1 -contact_self {opt}", check=False)
         lines = [l for l in res.stderr.splitlines() if l.strip()]
         assert res.returncode != 0 and len(lines) == 1 and why in lines[0], res.stderr
 
 
 def test_bench_self_contact_quick(tmp):
-    """scripts/bench_self_contact.py --quick: one row for 21^2 with both wall times,
-    a ratio above 1 (the filter costs something) and the filter's share of the run
-    between 0 and 100 %."""
+    """scripts/bench_self_contact.py --quick: a row for 21^2 per broad phase (CGAL, the
+    spatial hash) with both wall times, a ratio above 1 (the filter costs something),
+    the filter's share of the run between 0 and 100 %, a positive broad-phase time, and
+    the same candidate lists, collisions and fail-safe stops for both (they find the
+    same pairs in the same order, so the runs are the same)."""
     import subprocess
     import sys
     from conftest import ROOT
     p = subprocess.run([sys.executable, "scripts/bench_self_contact.py", "--quick"], cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stdout + p.stderr
-    row = [l for l in p.stdout.splitlines() if l.startswith("| 21^2")]
-    assert len(row) == 1, p.stdout
-    cells = [c.strip() for c in row[0].strip("|").split("|")]
-    assert float(cells[3]) > 1 and 0 < float(cells[4].rstrip(" %")) < 100, row
+    rows = [[c.strip() for c in l.strip().strip("|").split("|")] for l in p.stdout.splitlines() if l.startswith("| 21^2")]
+    assert [r[1] for r in rows] == ["cgal", "hash"], p.stdout
+    for cells in rows:
+        assert float(cells[4]) > 1 and 0 < float(cells[5].rstrip(" %")) < 100 and float(cells[7]) > 0, cells
+    assert rows[0][8:] == rows[1][8:], rows

@@ -58,3 +58,11 @@ def test_self_contact_narrow_phase():
     entry) and 2000 random sweeps: every crossing a dense sampling sees is found, no
     later than it (no leaks)."""
     run_unit_ranks("test_selfcontact", 1, [], 4)
+
+
+def test_self_contact_broad_phases():
+    """CGAL's box intersection and the spatial hash return exactly the pairs (and their
+    order) of a brute-force test of every pair of boxes, on two flat layers, crumpled
+    layers, a tangle and a sheet with long sweeps (the hash's cells grow), and agree
+    with each other on a folded 121^2 lattice (no leaks)."""
+    run_unit_ranks("test_broadphase", 1, [], 2)

@@ -201,7 +201,9 @@ static PetscErrorCode RestartCheck(MPI_Comm comm, const char file[], RestartInfo
 }
 
 /* options PETSc reads in PetscInitialize() only */
-static const char *const startup_only[] = {"-malloc_debug", "-malloc_dump", "-malloc_test", "-malloc_view", "-malloc_view_threshold", "-malloc_coalesce", "-malloc_requested_size", "-log_view", "-log_view_memory", "-log_trace", "-info", "-history", "-on_error_abort", "-on_error_attach_debugger", "-on_error_malloc_dump", "-start_in_debugger", "-stop_for_debugger", "-debugger_ranks", "-fp_trap", "-checkstack"};
+static const char *const startup_only[] = {"-malloc_debug",      "-malloc_dump",    "-malloc_test", "-malloc_view", "-malloc_view_threshold", "-malloc_coalesce",          "-malloc_requested_size", "-log_view",
+                                           "-log_view_memory",   "-log_trace",      "-info",        "-history",     "-on_error_abort",        "-on_error_attach_debugger", "-on_error_malloc_dump",  "-start_in_debugger",
+                                           "-stop_for_debugger", "-debugger_ranks", "-fp_trap",     "-checkstack"};
 
 PetscErrorCode RestartInsertOptions(MPI_Comm comm, const char file[])
 {

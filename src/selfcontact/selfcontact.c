@@ -27,6 +27,7 @@ struct _p_SelfContact {
   PetscReal        thickness, mu;
   PetscInt         its;
   PetscReal        margin; /* of the Verlet list, in thicknesses */
+  PetscBool        hash;   /* broad phase by the spatial hash (else CGAL) */
   SelfMesh         mesh;
   PetscInt         N, nowned;
   PetscMPIInt     *counts3, *displs3, *counts6, *displs6; /* Allgatherv layouts, reals */
@@ -46,12 +47,13 @@ PetscErrorCode SelfContactCreate(MPI_Comm comm, Cloth cloth, SelfContact *self)
 
   PetscFunctionBeginUser;
   PetscCall(PetscNew(&sc));
-  sc->comm  = comm;
-  sc->cloth = cloth;
-  sc->mu    = 0.3;
-  sc->its   = 8;
+  sc->comm   = comm;
+  sc->cloth  = cloth;
+  sc->mu     = 0.3;
+  sc->its    = 8;
   sc->margin = 1;
-  *self     = sc;
+  sc->hash   = PETSC_TRUE;
+  *self      = sc;
   PetscFunctionReturn(0);
 }
 
@@ -63,6 +65,12 @@ PetscErrorCode SelfContactSetFromOptions(SelfContact sc)
   PetscCall(PetscOptionsReal("-contact_self_thickness", "Distance the cloth keeps from itself (m; 0: a quarter of the lattice spacing)", "SelfContactSetFromOptions", sc->thickness, &sc->thickness, NULL));
   PetscCall(PetscOptionsReal("-contact_self_friction", "Coulomb friction coefficient between layers of the cloth", "SelfContactSetFromOptions", sc->mu, &sc->mu, NULL));
   PetscCall(PetscOptionsReal("-contact_self_margin", "Candidate pairs are kept while no particle moved more than this many thicknesses beyond its sweep when they were found", "SelfContactSetFromOptions", sc->margin, &sc->margin, NULL));
+  {
+    const char *const kinds[] = {"cgal", "hash"};
+    PetscInt          kind    = sc->hash;
+    PetscCall(PetscOptionsEList("-contact_self_broad_phase", "Broad phase: CGAL's box intersection or a uniform spatial hash (the same pairs)", "SelfContactSetFromOptions", kinds, 2, kinds[kind], &kind, NULL));
+    sc->hash = (PetscBool) (kind == 1);
+  }
   PetscCall(PetscOptionsInt("-contact_self_its", "Passes of collision impulses before the fail-safe stops the particles still colliding", "SelfContactSetFromOptions", sc->its, &sc->its, NULL));
   PetscOptionsEnd();
   PetscCall(DrapeCheckReal(sc->comm, "-contact_self_thickness", 1, &sc->thickness, 0, 1, "m (0: a quarter of the lattice spacing)"));
@@ -153,8 +161,7 @@ PetscErrorCode SelfContactSetUp(SelfContact sc)
   sc->stats.thickness = sc->thickness;
   sc->N               = info.nparticles;
   sc->nowned          = info.nowned;
-  PetscCheck(6 * (PetscInt64) sc->N < PETSC_MPI_INT_MAX, sc->comm, PETSC_ERR_SUP, "-contact_self gathers the whole cloth on every rank; %" PetscInt_FMT " particles are more than one MPI message holds (at most %d)", sc->N,
-             PETSC_MPI_INT_MAX / 6);
+  PetscCheck(6 * (PetscInt64) sc->N < PETSC_MPI_INT_MAX, sc->comm, PETSC_ERR_SUP, "-contact_self gathers the whole cloth on every rank; %" PetscInt_FMT " particles are more than one MPI message holds (at most %d)", sc->N, PETSC_MPI_INT_MAX / 6);
   PetscCallMPI(MPI_Comm_size(sc->comm, &size));
   PetscCall(PetscMPIIntCast(sc->nowned, &nown));
   PetscCall(PetscMalloc4(size, &sc->counts3, size, &sc->displs3, size, &sc->counts6, size, &sc->displs6));
@@ -266,8 +273,10 @@ static PetscBool PairBoxesOverlap(const PetscInt p[4], PetscInt na, const PetscR
     PetscReal alo = PETSC_MAX_REAL, ahi = -PETSC_MAX_REAL, blo = PETSC_MAX_REAL, bhi = -PETSC_MAX_REAL;
     for (PetscInt i = 0; i < 4; i++) {
       const PetscReal a = X[3 * p[i] + d], b = Y[3 * p[i] + d];
-      if (i < na) alo = PetscMin(alo, PetscMin(a, b)), ahi = PetscMax(ahi, PetscMax(a, b));
-      else blo = PetscMin(blo, PetscMin(a, b)), bhi = PetscMax(bhi, PetscMax(a, b));
+      if (i < na)
+        alo = PetscMin(alo, PetscMin(a, b)), ahi = PetscMax(ahi, PetscMax(a, b));
+      else
+        blo = PetscMin(blo, PetscMin(a, b)), bhi = PetscMax(bhi, PetscMax(a, b));
     }
     if (alo > bhi + tol || blo > ahi + tol) return PETSC_FALSE;
   }
@@ -286,14 +295,8 @@ static void PairParticles(const SelfContact sc, PetscInt kind, PetscInt k, Petsc
   }
 }
 
-static inline void WeightsPT(Pair *pr, const PetscReal w[3])
-{
-  pr->w[0] = 1, pr->w[1] = -w[0], pr->w[2] = -w[1], pr->w[3] = -w[2];
-}
-static inline void WeightsEE(Pair *pr, PetscReal s, PetscReal u)
-{
-  pr->w[0] = -(1 - s), pr->w[1] = -s, pr->w[2] = 1 - u, pr->w[3] = u;
-}
+static inline void WeightsPT(Pair *pr, const PetscReal w[3]) { pr->w[0] = 1, pr->w[1] = -w[0], pr->w[2] = -w[1], pr->w[3] = -w[2]; }
+static inline void WeightsEE(Pair *pr, PetscReal s, PetscReal u) { pr->w[0] = -(1 - s), pr->w[1] = -s, pr->w[2] = 1 - u, pr->w[3] = u; }
 
 /* The pair's closest points at positions X (its particles set by PairParticles):
  * the weights, the unit normal from the first primitive (triangle, first edge) to
@@ -354,7 +357,7 @@ static PetscBool PairPush(SelfContact sc, const Pair *pr, const PetscReal n[3], 
  * position towards the thickness. Returns the number of such pairs. */
 static PetscInt Proximity(SelfContact sc, PetscReal h)
 {
-  const PetscReal H = sc->thickness;
+  const PetscReal H     = sc->thickness;
   PetscInt        close = 0;
 
   for (PetscInt kind = 0; kind < 2; kind++)
@@ -454,7 +457,9 @@ static PetscErrorCode BroadPhase(SelfContact sc)
   PetscFunctionBeginUser;
   PetscCall(PetscFree(sc->pt));
   PetscCall(PetscFree(sc->ee));
-  PetscCall(SelfBroadPhase(&sc->mesh, sc->x0, sc->x1, (0.5 + sc->margin) * sc->thickness, &sc->npt, &sc->pt, &sc->nee, &sc->ee));
+  PetscCall(PetscLogEventBegin(drape_log.self_broad, 0, 0, 0, 0));
+  PetscCall((sc->hash ? SelfBroadPhaseHash : SelfBroadPhase)(&sc->mesh, sc->x0, sc->x1, (0.5 + sc->margin) * sc->thickness, &sc->npt, &sc->pt, &sc->nee, &sc->ee));
+  PetscCall(PetscLogEventEnd(drape_log.self_broad, 0, 0, 0, 0));
   for (PetscInt k = 0; k < 3 * sc->N; k++) {
     sc->lo[k] = PetscMin(sc->x0[k], sc->x1[k]);
     sc->hi[k] = PetscMax(sc->x0[k], sc->x1[k]);
@@ -465,7 +470,7 @@ static PetscErrorCode BroadPhase(SelfContact sc)
 
 static PetscErrorCode BroadPhaseIfMoved(SelfContact sc)
 {
-  const PetscReal m = sc->margin * sc->thickness;
+  const PetscReal m     = sc->margin * sc->thickness;
   PetscBool       valid = sc->pt ? PETSC_TRUE : PETSC_FALSE;
 
   PetscFunctionBeginUser;

@@ -1,0 +1,212 @@
+/* Broad phase of self-contact by a uniform spatial hash (Teschner et al. 2003): the
+ * same candidate pairs as CGAL's box intersection (broadphase.cxx), in time linear
+ * in the boxes and the pairs found.
+ *
+ * The boxes of the triangles (or edges) are entered in every cell of a uniform grid
+ * they overlap, the cells hashed into a table of buckets stored as one sorted array
+ * (a counting sort: no allocation per cell). A vertex (or an edge) looks in the cells
+ * its box overlaps; a pair whose boxes overlap is reported from one cell only, the
+ * one that holds the lower corner of the boxes' intersection, so no pair is found
+ * twice. The cell size is the mean extent of the entered boxes, doubled while the
+ * boxes would take more than 8 cells each on average (a few long sweeps). */
+#include "selfcontactimpl.h"
+
+typedef struct {
+  PetscReal lo[3], hi[3];
+} SelfBox;
+
+typedef struct {
+  PetscReal   inv;   /* 1 / cell size                                        */
+  PetscInt64  mask;  /* buckets - 1 (a power of two)                         */
+  PetscInt   *start; /* entries of bucket b: start[b] .. start[b + 1] - 1     */
+  PetscInt   *item;  /* the box of each entry                                 */
+  PetscInt64 *cell;  /* its cell, 3 coordinates                              */
+} SelfGrid;
+
+static void MakeBoxes(PetscInt n, PetscInt nv, const PetscInt *prim, const PetscReal *x0, const PetscReal *x1, PetscReal r, SelfBox *b)
+{
+  for (PetscInt k = 0; k < n; k++) {
+    for (PetscInt d = 0; d < 3; d++) b[k].lo[d] = PETSC_MAX_REAL, b[k].hi[d] = -PETSC_MAX_REAL;
+    for (PetscInt v = 0; v < nv; v++) {
+      const PetscInt p = prim[nv * k + v];
+      for (PetscInt d = 0; d < 3; d++) {
+        b[k].lo[d] = PetscMin(b[k].lo[d], PetscMin(x0[3 * p + d], x1[3 * p + d]));
+        b[k].hi[d] = PetscMax(b[k].hi[d], PetscMax(x0[3 * p + d], x1[3 * p + d]));
+      }
+    }
+    for (PetscInt d = 0; d < 3; d++) b[k].lo[d] -= r, b[k].hi[d] += r;
+  }
+}
+
+static inline PetscInt64 CellOf(const SelfGrid *g, PetscReal x) { return (PetscInt64) PetscFloorReal(x * g->inv); }
+
+static inline PetscInt64 Bucket(const SelfGrid *g, PetscInt64 i, PetscInt64 j, PetscInt64 k)
+{
+  const unsigned long long h = ((unsigned long long) i * 73856093ULL) ^ ((unsigned long long) j * 19349663ULL) ^ ((unsigned long long) k * 83492791ULL);
+  return (PetscInt64) (h & (unsigned long long) g->mask);
+}
+
+static inline PetscBool Overlap(const SelfBox *a, const SelfBox *b)
+{
+  for (PetscInt d = 0; d < 3; d++)
+    if (a->lo[d] > b->hi[d] || b->lo[d] > a->hi[d]) return PETSC_FALSE;
+  return PETSC_TRUE;
+}
+
+/* Is (i, j, k) the cell of the lower corner of the intersection of a and b? */
+static inline PetscBool FirstCell(const SelfGrid *g, const SelfBox *a, const SelfBox *b, const PetscInt64 c[3])
+{
+  for (PetscInt d = 0; d < 3; d++)
+    if (CellOf(g, PetscMax(a->lo[d], b->lo[d])) != c[d]) return PETSC_FALSE;
+  return PETSC_TRUE;
+}
+
+static PetscInt64 CellsOf(const SelfGrid *g, const SelfBox *b)
+{
+  PetscInt64 n = 1;
+  for (PetscInt d = 0; d < 3; d++) n *= CellOf(g, b->hi[d]) - CellOf(g, b->lo[d]) + 1;
+  return n;
+}
+
+#define FOR_CELLS(g, b, c)                                                                                                                                                                                                                               \
+  for (c[0] = CellOf(g, (b)->lo[0]); c[0] <= CellOf(g, (b)->hi[0]); c[0]++)                                                                                                                                                                              \
+    for (c[1] = CellOf(g, (b)->lo[1]); c[1] <= CellOf(g, (b)->hi[1]); c[1]++)                                                                                                                                                                            \
+      for (c[2] = CellOf(g, (b)->lo[2]); c[2] <= CellOf(g, (b)->hi[2]); c[2]++)
+
+static PetscErrorCode GridCreate(PetscInt n, const SelfBox *b, SelfGrid *g)
+{
+  PetscReal  ext = 0;
+  PetscInt64 nent, nb = 1;
+  PetscInt  *fill;
+
+  PetscFunctionBeginUser;
+  for (PetscInt k = 0; k < n; k++)
+    for (PetscInt d = 0; d < 3; d++) ext += (b[k].hi[d] - b[k].lo[d]) / (3 * (PetscReal) PetscMax(n, 1));
+  g->inv = ext > 0 ? 1 / ext : 1;
+  for (;;) {
+    nent = 0;
+    for (PetscInt k = 0; k < n; k++) nent += CellsOf(g, &b[k]);
+    if (nent <= 8 * (PetscInt64) PetscMax(n, 1)) break;
+    g->inv /= 2;
+  }
+  while (nb < 2 * nent) nb *= 2;
+  g->mask = nb - 1;
+  PetscCall(PetscCalloc1(nb + 1, &g->start));
+  PetscCall(PetscMalloc2(nent + 1, &g->item, 3 * nent + 3, &g->cell));
+  PetscCall(PetscMalloc1(nb, &fill));
+  for (PetscInt k = 0; k < n; k++) {
+    PetscInt64 c[3];
+    FOR_CELLS(g, &b[k], c) g->start[Bucket(g, c[0], c[1], c[2]) + 1]++;
+  }
+  for (PetscInt64 i = 0; i < nb; i++) g->start[i + 1] += g->start[i];
+  for (PetscInt64 i = 0; i < nb; i++) fill[i] = g->start[i];
+  for (PetscInt k = 0; k < n; k++) {
+    PetscInt64 c[3];
+    FOR_CELLS(g, &b[k], c)
+    {
+      const PetscInt e = fill[Bucket(g, c[0], c[1], c[2])]++;
+      g->item[e]       = k;
+      for (PetscInt d = 0; d < 3; d++) g->cell[3 * e + d] = c[d];
+    }
+  }
+  PetscCall(PetscFree(fill));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode GridDestroy(SelfGrid *g)
+{
+  PetscFunctionBeginUser;
+  PetscCall(PetscFree(g->start));
+  PetscCall(PetscFree2(g->item, g->cell));
+  PetscFunctionReturn(0);
+}
+
+/* a growing array of pair keys first * n2 + second */
+typedef struct {
+  PetscInt64 *key;
+  PetscInt    n, cap;
+} Keys;
+
+static PetscErrorCode KeysPush(Keys *k, PetscInt64 key)
+{
+  PetscFunctionBeginUser;
+  if (k->n == k->cap) {
+    PetscInt64 *nk;
+    k->cap = PetscMax(2 * k->cap, 1024);
+    PetscCall(PetscMalloc1(k->cap, &nk));
+    PetscCall(PetscArraycpy(nk, k->key, k->n));
+    PetscCall(PetscFree(k->key));
+    k->key = nk;
+  }
+  k->key[k->n++] = key;
+  PetscFunctionReturn(0);
+}
+
+/* sorted pairs (first, second), 2 entries each, as SelfBroadPhase returns them */
+static PetscErrorCode KeysStore(Keys *k, PetscInt n2, PetscInt *n, PetscInt **out)
+{
+  PetscFunctionBeginUser;
+  PetscCall(PetscSortInt64(k->n, k->key));
+  PetscCall(PetscMalloc1(2 * k->n + 1, out));
+  for (PetscInt i = 0; i < k->n; i++) {
+    (*out)[2 * i]     = (PetscInt) (k->key[i] / n2);
+    (*out)[2 * i + 1] = (PetscInt) (k->key[i] % n2);
+  }
+  *n = k->n;
+  PetscCall(PetscFree(k->key));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SelfBroadPhaseHash(const SelfMesh *m, const PetscReal *x0, const PetscReal *x1, PetscReal r, PetscInt *npt, PetscInt **pt, PetscInt *nee, PetscInt **ee)
+{
+  SelfBox *vb, *tb, *eb;
+  SelfGrid g;
+  Keys     keys = {NULL, 0, 0};
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscMalloc3(m->nv + 1, &vb, m->nt + 1, &tb, m->ne + 1, &eb));
+  MakeBoxes(m->nv, 1, m->vert, x0, x1, r, vb);
+  MakeBoxes(m->nt, 3, m->tri, x0, x1, r, tb);
+  MakeBoxes(m->ne, 2, m->edge, x0, x1, r, eb);
+  /* vertex - triangle */
+  PetscCall(GridCreate(m->nt, tb, &g));
+  for (PetscInt v = 0; v < m->nv; v++) {
+    const PetscInt p = m->vert[v];
+    PetscInt64     c[3];
+    FOR_CELLS(&g, &vb[v], c)
+    {
+      const PetscInt64 bk = Bucket(&g, c[0], c[1], c[2]);
+      for (PetscInt e = g.start[bk]; e < g.start[bk + 1]; e++) {
+        const PetscInt  t = g.item[e];
+        const PetscInt *T = m->tri + 3 * t;
+        if (g.cell[3 * e] != c[0] || g.cell[3 * e + 1] != c[1] || g.cell[3 * e + 2] != c[2]) continue;
+        if (p == T[0] || p == T[1] || p == T[2] || !Overlap(&vb[v], &tb[t]) || !FirstCell(&g, &vb[v], &tb[t], c)) continue;
+        PetscCall(KeysPush(&keys, (PetscInt64) v * m->nt + t));
+      }
+    }
+  }
+  PetscCall(GridDestroy(&g));
+  PetscCall(KeysStore(&keys, m->nt, npt, pt));
+  /* edge - edge */
+  keys.n = keys.cap = 0;
+  PetscCall(GridCreate(m->ne, eb, &g));
+  for (PetscInt a = 0; a < m->ne; a++) {
+    const PetscInt *A = m->edge + 2 * a;
+    PetscInt64      c[3];
+    FOR_CELLS(&g, &eb[a], c)
+    {
+      const PetscInt64 bk = Bucket(&g, c[0], c[1], c[2]);
+      for (PetscInt e = g.start[bk]; e < g.start[bk + 1]; e++) {
+        const PetscInt  b = g.item[e];
+        const PetscInt *B = m->edge + 2 * b;
+        if (b <= a || g.cell[3 * e] != c[0] || g.cell[3 * e + 1] != c[1] || g.cell[3 * e + 2] != c[2]) continue;
+        if (A[0] == B[0] || A[0] == B[1] || A[1] == B[0] || A[1] == B[1] || !Overlap(&eb[a], &eb[b]) || !FirstCell(&g, &eb[a], &eb[b], c)) continue;
+        PetscCall(KeysPush(&keys, (PetscInt64) a * m->ne + b));
+      }
+    }
+  }
+  PetscCall(GridDestroy(&g));
+  PetscCall(KeysStore(&keys, m->ne, nee, ee));
+  PetscCall(PetscFree3(vb, tb, eb));
+  PetscFunctionReturn(0);
+}
