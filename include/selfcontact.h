@@ -11,11 +11,13 @@
  *   2. collisions: every pair that the remaining motion would still make cross
  *      (continuous detection: the coplanarity cubic) gets the inelastic impulse that
  *      stops its relative normal motion; repeated -contact_self_its times;
- *   3. fail-safe: pairs that still collide have their particles stopped at x0 (they
- *      keep the start's collision-free positions), until no pair collides.
+ *   3. fail-safe: the particles of pairs that still collide are merged into rigid
+ *      impact zones, each moving rigidly over the step with its particles' linear
+ *      and angular momentum, until no pair collides (-contact_self_failsafe freeze:
+ *      stopped at x0 instead).
  * An impulse changes the velocity and the position it leads to (x = x0 + h vbar):
- * dx = h dv. Candidate pairs come from CGAL's box intersection over boxes of the
- * step's sweep; pairs that share a particle are not candidates.
+ * dx = h dv. Candidate pairs come from a spatial hash (or CGAL's box intersection)
+ * over boxes of the step's sweep; pairs that share a particle are not candidates.
  *
  * Every rank gathers the whole cloth (natural order) and filters it, the same
  * arithmetic in the same order on every rank: the result does not depend on the
@@ -29,12 +31,13 @@ typedef struct _p_SelfContact *SelfContact;
 typedef struct {
   PetscInt  pairs;        /* pairs closer than the thickness at the start of the last step */
   PetscInt  collisions;   /* collision impulses since the start of the run */
-  PetscInt  failsafe;     /* particles stopped by the fail-safe since the start */
+  PetscInt  failsafe;     /* particles put in impact zones (or stopped) by the fail-safe since the start */
   PetscInt  broad_phases; /* candidate lists built */
   PetscReal thickness;    /* m */
 } SelfContactStats;
 
-/* -contact_self, -contact_self_thickness, -contact_self_friction, -contact_self_its.
+/* -contact_self, -contact_self_thickness, -contact_self_friction, -contact_self_its,
+ * -contact_self_margin, -contact_self_failsafe, -contact_self_broad_phase.
  * Create is not collective; the others are. SelfContactSetUp after ClothSetUp. */
 PETSC_EXTERN PetscErrorCode SelfContactCreate(MPI_Comm, Cloth, SelfContact *);
 PETSC_EXTERN PetscErrorCode SelfContactSetFromOptions(SelfContact);

@@ -37,6 +37,8 @@ struct _p_SelfContact {
   PetscReal       *lo, *hi;                               /* each particle's sweep at the last broad phase */
   PetscReal       *send, *recv;
   PetscBool       *frozen;
+  PetscInt        *zone;               /* impact zones: union-find parent of each particle, -1 outside */
+  PetscBool        zones;              /* fail-safe by rigid impact zones (else stop the particles) */
   PetscInt         npt, nee, *pt, *ee; /* candidate pairs */
   SelfContactStats stats;
 };
@@ -53,6 +55,7 @@ PetscErrorCode SelfContactCreate(MPI_Comm comm, Cloth cloth, SelfContact *self)
   sc->its    = 8;
   sc->margin = 1;
   sc->hash   = PETSC_TRUE;
+  sc->zones  = PETSC_TRUE;
   *self      = sc;
   PetscFunctionReturn(0);
 }
@@ -71,7 +74,14 @@ PetscErrorCode SelfContactSetFromOptions(SelfContact sc)
     PetscCall(PetscOptionsEList("-contact_self_broad_phase", "Broad phase: CGAL's box intersection or a uniform spatial hash (the same pairs)", "SelfContactSetFromOptions", kinds, 2, kinds[kind], &kind, NULL));
     sc->hash = (PetscBool) (kind == 1);
   }
-  PetscCall(PetscOptionsInt("-contact_self_its", "Passes of collision impulses before the fail-safe stops the particles still colliding", "SelfContactSetFromOptions", sc->its, &sc->its, NULL));
+  {
+    const char *const kinds[] = {"freeze", "zones"};
+    PetscInt          kind    = sc->zones;
+    PetscCall(
+      PetscOptionsEList("-contact_self_failsafe", "Fail-safe for pairs still colliding after the collision passes: rigid impact zones, or stop the particles at the start of the step", "SelfContactSetFromOptions", kinds, 2, kinds[kind], &kind, NULL));
+    sc->zones = (PetscBool) (kind == 1);
+  }
+  PetscCall(PetscOptionsInt("-contact_self_its", "Passes of collision impulses before the fail-safe takes the pairs still colliding", "SelfContactSetFromOptions", sc->its, &sc->its, NULL));
   PetscOptionsEnd();
   PetscCall(DrapeCheckReal(sc->comm, "-contact_self_thickness", 1, &sc->thickness, 0, 1, "m (0: a quarter of the lattice spacing)"));
   PetscCall(DrapeCheckReal(sc->comm, "-contact_self_friction", 1, &sc->mu, 0, 10, ""));
@@ -186,7 +196,7 @@ PetscErrorCode SelfContactSetUp(SelfContact sc)
   for (PetscInt k = 0; k < sc->N; k++) sc->invm[sc->gather_nat[k]] = sc->recv[k];
   PetscCall(PetscFree2(counts1, displs1));
   PetscCall(PetscMalloc5(3 * sc->N, &sc->x0, 3 * sc->N, &sc->x1, 3 * sc->N, &sc->v, 3 * sc->N, &sc->lo, 3 * sc->N, &sc->hi));
-  PetscCall(PetscMalloc1(sc->N, &sc->frozen));
+  PetscCall(PetscMalloc2(sc->N, &sc->frozen, sc->N, &sc->zone));
   PetscCall(SelfMeshCreate(sc->cloth, info.Mx, info.My, &sc->mesh));
   PetscFunctionReturn(0);
 }
@@ -210,7 +220,7 @@ PetscErrorCode SelfContactDestroy(SelfContact *self)
   PetscCall(PetscFree2(sc->recv, sc->send));
   PetscCall(PetscFree(sc->invm));
   PetscCall(PetscFree5(sc->x0, sc->x1, sc->v, sc->lo, sc->hi));
-  PetscCall(PetscFree(sc->frozen));
+  PetscCall(PetscFree2(sc->frozen, sc->zone));
   PetscCall(PetscFree(sc->pt));
   PetscCall(PetscFree(sc->ee));
   PetscCall(PetscFree(sc->mesh.vert));
@@ -480,6 +490,152 @@ static PetscErrorCode BroadPhaseIfMoved(SelfContact sc)
   PetscFunctionReturn(0);
 }
 
+/* ---- rigid impact zones (Provot 1997; Bridson, Fedkiw & Anderson 2002, 7.4) ----
+ * The particles of pairs that still collide are merged into zones (union-find, the
+ * root the zone's smallest particle: the same zones in any order), and each zone
+ * moves rigidly over the step: the translation and rotation that keep the linear
+ * and angular momentum of its particles' displacements. Straight-line
+ * interpolation of a rotation by less than pi is an invertible affine map, so a
+ * zone, collision-free at the start, does not collide with itself; zones that
+ * collide with each other merge, until none does (at worst the whole cloth moves
+ * rigidly). A zone holding a pinned particle stays where it was. */
+
+static PetscInt ZoneRoot(PetscInt *parent, PetscInt p)
+{
+  while (parent[p] != p) {
+    parent[p] = parent[parent[p]];
+    p         = parent[p];
+  }
+  return p;
+}
+
+/* Put the pair's particles in one zone; PETSC_TRUE if that changed any zone. */
+static PetscBool ZoneMerge(PetscInt *parent, const PetscInt p[4])
+{
+  PetscBool changed = PETSC_FALSE;
+  PetscInt  r;
+
+  for (PetscInt i = 0; i < 4; i++)
+    if (parent[p[i]] < 0) parent[p[i]] = p[i], changed = PETSC_TRUE;
+  r = ZoneRoot(parent, p[0]);
+  for (PetscInt i = 1; i < 4; i++) {
+    const PetscInt q = ZoneRoot(parent, p[i]);
+    if (q == r) continue;
+    parent[PetscMax(q, r)] = PetscMin(q, r);
+    r                      = PetscMin(q, r);
+    changed                = PETSC_TRUE;
+  }
+  return changed;
+}
+
+/* Rodrigues: R a for the rotation vector th */
+static void Rotate(const PetscReal th[3], const PetscReal a[3], PetscReal Ra[3])
+{
+  const PetscReal ang = V3Norm(th);
+  PetscReal       k[3], kxa[3], c, s, ka;
+
+  if (ang == 0) {
+    for (PetscInt d = 0; d < 3; d++) Ra[d] = a[d];
+    return;
+  }
+  for (PetscInt d = 0; d < 3; d++) k[d] = th[d] / ang;
+  V3Cross(k, a, kxa);
+  c = PetscCosReal(ang), s = PetscSinReal(ang), ka = V3Dot(k, a);
+  for (PetscInt d = 0; d < 3; d++) Ra[d] = a[d] * c + kxa[d] * s + k[d] * ka * (1 - c);
+}
+
+/* Move every zone rigidly (see above); returns the number of particles in zones. */
+static PetscErrorCode ZonesRigidify(SelfContact sc, PetscReal h, PetscInt *inzones)
+{
+  const PetscInt N = sc->N;
+  PetscReal     *m, *c, *u, *L, *In; /* per root: mass, mass-weighted start and displacement, then centre, translation, angular momentum, inertia */
+  PetscBool     *pinned;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscCalloc5(N, &m, 3 * N, &c, 3 * N, &u, 3 * N, &L, 6 * N, &In));
+  PetscCall(PetscCalloc1(N, &pinned));
+  *inzones = 0;
+  for (PetscInt p = 0; p < N; p++) {
+    PetscInt r;
+    if (sc->zone[p] < 0) continue;
+    r = ZoneRoot(sc->zone, p);
+    (*inzones)++;
+    if (sc->invm[p] == 0) {
+      pinned[r] = PETSC_TRUE;
+      continue;
+    }
+    m[r] += 1 / sc->invm[p];
+    for (PetscInt d = 0; d < 3; d++) {
+      c[3 * r + d] += sc->x0[3 * p + d] / sc->invm[p];
+      u[3 * r + d] += (sc->x1[3 * p + d] - sc->x0[3 * p + d]) / sc->invm[p];
+    }
+  }
+  for (PetscInt r = 0; r < N; r++)
+    if (m[r] > 0)
+      for (PetscInt d = 0; d < 3; d++) c[3 * r + d] /= m[r], u[3 * r + d] /= m[r];
+  for (PetscInt p = 0; p < N; p++) {
+    PetscInt  r;
+    PetscReal rp[3], up[3], l[3], mp;
+    if (sc->zone[p] < 0 || sc->invm[p] == 0) continue;
+    r = ZoneRoot(sc->zone, p);
+    if (pinned[r]) continue;
+    mp = 1 / sc->invm[p];
+    for (PetscInt d = 0; d < 3; d++) rp[d] = sc->x0[3 * p + d] - c[3 * r + d], up[d] = sc->x1[3 * p + d] - sc->x0[3 * p + d] - u[3 * r + d];
+    V3Cross(rp, up, l);
+    for (PetscInt d = 0; d < 3; d++) L[3 * r + d] += mp * l[d];
+    /* inertia: m (|r|^2 1 - r r^T), upper triangle xx xy xz yy yz zz */
+    In[6 * r + 0] += mp * (rp[1] * rp[1] + rp[2] * rp[2]);
+    In[6 * r + 1] -= mp * rp[0] * rp[1];
+    In[6 * r + 2] -= mp * rp[0] * rp[2];
+    In[6 * r + 3] += mp * (rp[0] * rp[0] + rp[2] * rp[2]);
+    In[6 * r + 4] -= mp * rp[1] * rp[2];
+    In[6 * r + 5] += mp * (rp[0] * rp[0] + rp[1] * rp[1]);
+  }
+  /* the rotation over the step: theta = I^-1 L (by cofactors; none if I is singular,
+   * a zone of collinear particles, or the angle reaches pi/2) */
+  for (PetscInt r = 0; r < N; r++) {
+    const PetscReal *A = In + 6 * r;
+    PetscReal        cof[6], det, th[3];
+    if (!(m[r] > 0) || pinned[r]) continue;
+    cof[0] = A[3] * A[5] - A[4] * A[4];
+    cof[1] = A[2] * A[4] - A[1] * A[5];
+    cof[2] = A[1] * A[4] - A[2] * A[3];
+    cof[3] = A[0] * A[5] - A[2] * A[2];
+    cof[4] = A[1] * A[2] - A[0] * A[4];
+    cof[5] = A[0] * A[3] - A[1] * A[1];
+    det    = A[0] * cof[0] + A[1] * cof[1] + A[2] * cof[2];
+    th[0] = th[1] = th[2] = 0;
+    if (det > 1e-12 * PetscPowReal(A[0] + A[3] + A[5], 3)) {
+      const PetscReal *l = L + 3 * r;
+      th[0]              = (cof[0] * l[0] + cof[1] * l[1] + cof[2] * l[2]) / det;
+      th[1]              = (cof[1] * l[0] + cof[3] * l[1] + cof[4] * l[2]) / det;
+      th[2]              = (cof[2] * l[0] + cof[4] * l[1] + cof[5] * l[2]) / det;
+      if (V3Norm(th) >= PETSC_PI / 2) th[0] = th[1] = th[2] = 0;
+    }
+    for (PetscInt d = 0; d < 3; d++) L[3 * r + d] = th[d]; /* L now holds the rotation */
+  }
+  for (PetscInt p = 0; p < N; p++) {
+    PetscInt  r;
+    PetscReal rp[3], Rr[3], w[3], wxr[3];
+    if (sc->zone[p] < 0 || sc->invm[p] == 0) continue;
+    r = ZoneRoot(sc->zone, p);
+    if (pinned[r]) {
+      for (PetscInt d = 0; d < 3; d++) sc->x1[3 * p + d] = sc->x0[3 * p + d], sc->v[3 * p + d] = 0;
+      continue;
+    }
+    for (PetscInt d = 0; d < 3; d++) rp[d] = sc->x0[3 * p + d] - c[3 * r + d], w[d] = L[3 * r + d] / h;
+    Rotate(L + 3 * r, rp, Rr);
+    V3Cross(w, Rr, wxr);
+    for (PetscInt d = 0; d < 3; d++) {
+      sc->x1[3 * p + d] = c[3 * r + d] + u[3 * r + d] + Rr[d];
+      sc->v[3 * p + d]  = u[3 * r + d] / h + wxr[d];
+    }
+  }
+  PetscCall(PetscFree5(m, c, u, L, In));
+  PetscCall(PetscFree(pinned));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode SelfContactFilter(SelfContact sc, PetscReal h, PetscScalar *x, PetscScalar *v, PetscBool *changed)
 {
   PetscInt ncol = 1, ncol_total = 0, frozen_total = 0;
@@ -503,7 +659,25 @@ PetscErrorCode SelfContactFilter(SelfContact sc, PetscReal h, PetscScalar *x, Pe
     sc->stats.collisions += ncol;
     ncol_total += ncol;
   }
-  if (ncol || sc->its == 0) {
+  if ((ncol || sc->its == 0) && sc->zones) {
+    PetscInt merged, inzones = 0, rounds = 0;
+    for (PetscInt p = 0; p < sc->N; p++) sc->zone[p] = -1;
+    do {
+      PetscCall(BroadPhaseIfMoved(sc));
+      merged = 0;
+      for (PetscInt kind = 0; kind < 2; kind++)
+        for (PetscInt k = 0; k < (kind ? sc->nee : sc->npt); k++) {
+          Pair      pr;
+          PetscReal n[3];
+          if (Collides(sc, kind, k, &pr, n) && ZoneMerge(sc->zone, pr.p)) merged++;
+        }
+      if (merged) PetscCall(ZonesRigidify(sc, h, &inzones));
+      /* each round merges zones or adds particles to them: at most 2 N rounds */
+      PetscCheck(++rounds <= 2 * sc->N + 1, PETSC_COMM_SELF, PETSC_ERR_PLIB, "Self-contact impact zones did not settle in %" PetscInt_FMT " rounds", rounds);
+    } while (merged);
+    sc->stats.failsafe += inzones;
+    frozen_total += inzones;
+  } else if (ncol || sc->its == 0) {
     /* fail-safe: stop the particles of every pair that still collides where they
      * were at the start (collision-free); the ones they now collide with follow */
     PetscInt frozen;
