@@ -145,14 +145,20 @@ run: deps venv
 	$(VENV)/bin/python scripts/render.py $(OUT)/hang.h5 -o $(OUT)/hang.png
 	@echo "drape: wrote $(OUT)/hang.h5, $(OUT)/hang.xmf (ParaView) and $(OUT)/hang.png"
 
+# The test files run on TEST_JOBS pytest-xdist workers (scripts/requirements.txt), a
+# file's tests one after the other in one worker (their module fixtures once);
+# TEST_JOBS=1, or a Python without pytest-xdist (make check), runs them one at a time.
+TEST_JOBS ?= 2
+xdist = $(if $(filter-out 0 1,$(TEST_JOBS)),$(shell $(1) -c 'import xdist' 2>/dev/null && printf '%s' '-n $(TEST_JOBS) --dist loadfile'))
+
 test: deps venv
 	@$(MAKE) --no-print-directory -j$$(nproc) all
-	DRAPE_BUILD=$(BUILD) $(VENV)/bin/python -m pytest -q $(TESTS)
+	DRAPE_BUILD=$(BUILD) $(VENV)/bin/python -m pytest -q $(call xdist,$(VENV)/bin/python) $(TESTS)
 
 # build and test with what is installed: no apt-get, no pip
 check: check-python
 	@$(MAKE) --no-print-directory -j$$(nproc) all
-	DRAPE_BUILD=$(BUILD) $(PYTHON) -m pytest -q $(TESTS)
+	DRAPE_BUILD=$(BUILD) $(PYTHON) -m pytest -q $(call xdist,$(PYTHON)) $(TESTS)
 
 bench: deps venv
 	@$(MAKE) --no-print-directory -j$$(nproc) all

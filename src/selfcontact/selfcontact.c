@@ -465,6 +465,8 @@ static PetscBool Collides(SelfContact sc, PetscInt kind, PetscInt k, Pair *pr, P
 static PetscErrorCode BroadPhase(SelfContact sc)
 {
   PetscFunctionBeginUser;
+  for (PetscInt k = 0; k < 3 * sc->N; k++) /* a non-finite box has no cells (the hash) or no order (CGAL) */
+    PetscCheck(!PetscIsInfOrNanReal(sc->x0[k]) && !PetscIsInfOrNanReal(sc->x1[k]), PETSC_COMM_SELF, PETSC_ERR_FP, "Self-contact: a particle's position is not finite (the step diverged); reduce -ts_dt or use -ts_type drapebe");
   PetscCall(PetscFree(sc->pt));
   PetscCall(PetscFree(sc->ee));
   PetscCall(PetscLogEventBegin(drape_log.self_broad, 0, 0, 0, 0));
