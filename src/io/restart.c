@@ -200,10 +200,41 @@ static PetscErrorCode RestartCheck(MPI_Comm comm, const char file[], RestartInfo
   PetscFunctionReturn(0);
 }
 
-/* options PETSc reads in PetscInitialize() only */
-static const char *const startup_only[] = {"-malloc_debug",      "-malloc_dump",    "-malloc_test", "-malloc_view", "-malloc_view_threshold", "-malloc_coalesce",          "-malloc_requested_size", "-log_view",
-                                           "-log_view_memory",   "-log_trace",      "-info",        "-history",     "-on_error_abort",        "-on_error_attach_debugger", "-on_error_malloc_dump",  "-start_in_debugger",
-                                           "-stop_for_debugger", "-debugger_ranks", "-fp_trap",     "-checkstack"};
+/* options PETSc 3.18 acts on in PetscInitialize() (some again in PetscFinalize(),
+ * where a stored one would dump or log what this run never traced) */
+static const char *const startup_only[] = {"-malloc_debug",
+                                           "-malloc_dump",
+                                           "-malloc_test",
+                                           "-malloc_view",
+                                           "-malloc_view_threshold",
+                                           "-malloc_coalesce",
+                                           "-malloc_requested_size",
+                                           "-malloc_hbw",
+                                           "-malloc_info",
+                                           "-memory_view",
+                                           "-log_view",
+                                           "-log_view_memory",
+                                           "-log_summary",
+                                           "-log_all",
+                                           "-log",
+                                           "-log_mpe",
+                                           "-log_sync",
+                                           "-log_threshold",
+                                           "-log_trace",
+                                           "-info",
+                                           "-history",
+                                           "-objects_dump",
+                                           "-no_signal_handler",
+                                           "-on_error_abort",
+                                           "-on_error_attach_debugger",
+                                           "-on_error_emacs",
+                                           "-on_error_mpiabort",
+                                           "-start_in_debugger",
+                                           "-stop_for_debugger",
+                                           "-debugger_ranks",
+                                           "-debugger_nodes",
+                                           "-debug_terminal",
+                                           "-fp_trap"};
 
 PetscErrorCode RestartInsertOptions(MPI_Comm comm, const char file[])
 {
@@ -225,7 +256,7 @@ PetscErrorCode RestartInsertOptions(MPI_Comm comm, const char file[])
   PetscCallMPI(MPI_Bcast(&len, 1, MPIU_INT, 0, comm));
   if (rank) PetscCall(PetscCalloc1(len + 1, &r.options));
   PetscCallMPI(MPI_Bcast(r.options, (PetscMPIInt) len + 1, MPI_CHAR, 0, comm));
-  /* the stored run's options, less those PETSc reads only as it starts (memory
+  /* the stored run's options, less those PETSc acts on as it starts (memory
    * tracing, logging, debugging: too late now, and -options_left would call them
    * unused), then the command line again: it wins */
   PetscCall(PetscOptionsInsertString(NULL, r.options));

@@ -61,10 +61,11 @@ static inline PetscBool FirstCell(const SelfGrid *g, const SelfBox *a, const Sel
   return PETSC_TRUE;
 }
 
-static PetscInt64 CellsOf(const SelfGrid *g, const SelfBox *b)
+/* the number of cells box b overlaps (real: no overflow for a box much larger than a cell) */
+static PetscReal CellsOf(const SelfGrid *g, const SelfBox *b)
 {
-  PetscInt64 n = 1;
-  for (PetscInt d = 0; d < 3; d++) n *= CellOf(g, b->hi[d]) - CellOf(g, b->lo[d]) + 1;
+  PetscReal n = 1;
+  for (PetscInt d = 0; d < 3; d++) n *= PetscFloorReal(b->hi[d] * g->inv) - PetscFloorReal(b->lo[d] * g->inv) + 1;
   return n;
 }
 
@@ -75,20 +76,27 @@ static PetscInt64 CellsOf(const SelfGrid *g, const SelfBox *b)
 
 static PetscErrorCode GridCreate(PetscInt n, const SelfBox *b, SelfGrid *g)
 {
-  PetscReal  ext = 0;
-  PetscInt64 nent, nb = 1;
+  PetscReal  ext = 0, far = 0, cells;
+  PetscInt64 nent, nb     = 1;
   PetscInt  *fill;
 
   PetscFunctionBeginUser;
   for (PetscInt k = 0; k < n; k++)
-    for (PetscInt d = 0; d < 3; d++) ext += (b[k].hi[d] - b[k].lo[d]) / (3 * (PetscReal) PetscMax(n, 1));
+    for (PetscInt d = 0; d < 3; d++) {
+      ext += (b[k].hi[d] - b[k].lo[d]) / (3 * (PetscReal) PetscMax(n, 1));
+      far = PetscMax(far, PetscMax(PetscAbsReal(b[k].lo[d]), PetscAbsReal(b[k].hi[d])));
+    }
   g->inv = ext > 0 ? 1 / ext : 1;
   for (;;) {
-    nent = 0;
-    for (PetscInt k = 0; k < n; k++) nent += CellsOf(g, &b[k]);
-    if (nent <= 8 * (PetscInt64) PetscMax(n, 1)) break;
+    cells = 0;
+    for (PetscInt k = 0; k < n; k++) cells += CellsOf(g, &b[k]);
+    if (cells <= 8 * (PetscReal) PetscMax(n, 1)) break;
     g->inv /= 2;
   }
+  /* cell coordinates are 64-bit integers (exact in a double below 2^52) */
+  PetscCheck(far * g->inv < 4503599627370496.0, PETSC_COMM_SELF, PETSC_ERR_FP, "Self-contact: a particle is %g m from the origin, %g times the size of the particles' boxes (the step diverged); reduce -ts_dt or use -ts_type drapebe", (double) far,
+             (double) (far * g->inv));
+  nent = (PetscInt64) cells;
   while (nb < 2 * nent) nb *= 2;
   g->mask = nb - 1;
   PetscCall(PetscCalloc1(nb + 1, &g->start));

@@ -546,16 +546,19 @@ static void Rotate(const PetscReal th[3], const PetscReal a[3], PetscReal Ra[3])
   for (PetscInt d = 0; d < 3; d++) Ra[d] = a[d] * c + kxa[d] * s + k[d] * ka * (1 - c);
 }
 
-/* Move every zone rigidly (see above); returns the number of particles in zones. */
-static PetscErrorCode ZonesRigidify(SelfContact sc, PetscReal h, PetscInt *inzones)
+/* Move every zone rigidly (see above) from the end positions xs the step had when
+ * the fail-safe began (not from a previous round's rigid motion, which would lose a
+ * little rotation at every round); returns the number of particles in zones. work:
+ * 16 N reals, pinned: N flags. */
+static PetscErrorCode ZonesRigidify(SelfContact sc, PetscReal h, const PetscReal *xs, PetscReal *work, PetscBool *pinned, PetscInt *inzones)
 {
   const PetscInt N = sc->N;
-  PetscReal     *m, *c, *u, *L, *In; /* per root: mass, mass-weighted start and displacement, then centre, translation, angular momentum, inertia */
-  PetscBool     *pinned;
+  /* per root: mass, mass-weighted start and displacement, then centre, translation, angular momentum (then rotation), inertia */
+  PetscReal *m = work, *c = m + N, *u = c + 3 * N, *L = u + 3 * N, *In = L + 3 * N;
 
   PetscFunctionBeginUser;
-  PetscCall(PetscCalloc5(N, &m, 3 * N, &c, 3 * N, &u, 3 * N, &L, 6 * N, &In));
-  PetscCall(PetscCalloc1(N, &pinned));
+  PetscCall(PetscArrayzero(work, 16 * N));
+  PetscCall(PetscArrayzero(pinned, N));
   *inzones = 0;
   for (PetscInt p = 0; p < N; p++) {
     PetscInt r;
@@ -569,7 +572,7 @@ static PetscErrorCode ZonesRigidify(SelfContact sc, PetscReal h, PetscInt *inzon
     m[r] += 1 / sc->invm[p];
     for (PetscInt d = 0; d < 3; d++) {
       c[3 * r + d] += sc->x0[3 * p + d] / sc->invm[p];
-      u[3 * r + d] += (sc->x1[3 * p + d] - sc->x0[3 * p + d]) / sc->invm[p];
+      u[3 * r + d] += (xs[3 * p + d] - sc->x0[3 * p + d]) / sc->invm[p];
     }
   }
   for (PetscInt r = 0; r < N; r++)
@@ -582,7 +585,7 @@ static PetscErrorCode ZonesRigidify(SelfContact sc, PetscReal h, PetscInt *inzon
     r = ZoneRoot(sc->zone, p);
     if (pinned[r]) continue;
     mp = 1 / sc->invm[p];
-    for (PetscInt d = 0; d < 3; d++) rp[d] = sc->x0[3 * p + d] - c[3 * r + d], up[d] = sc->x1[3 * p + d] - sc->x0[3 * p + d] - u[3 * r + d];
+    for (PetscInt d = 0; d < 3; d++) rp[d] = sc->x0[3 * p + d] - c[3 * r + d], up[d] = xs[3 * p + d] - sc->x0[3 * p + d] - u[3 * r + d];
     V3Cross(rp, up, l);
     for (PetscInt d = 0; d < 3; d++) L[3 * r + d] += mp * l[d];
     /* inertia: m (|r|^2 1 - r r^T), upper triangle xx xy xz yy yz zz */
@@ -593,8 +596,10 @@ static PetscErrorCode ZonesRigidify(SelfContact sc, PetscReal h, PetscInt *inzon
     In[6 * r + 4] -= mp * rp[1] * rp[2];
     In[6 * r + 5] += mp * (rp[0] * rp[0] + rp[1] * rp[1]);
   }
-  /* the rotation over the step: theta = I^-1 L (by cofactors; none if I is singular,
-   * a zone of collinear particles, or the angle reaches pi/2) */
+  /* the rotation over the step: theta = I^-1 L (by cofactors). Translation only (the
+   * angular momentum not kept) if I is singular, a zone of collinear particles, or
+   * the angle reaches pi/2. The velocity set after is the rigid motion's at the end,
+   * u/h + omega x R r: to second order in the angle the displacement over h. */
   for (PetscInt r = 0; r < N; r++) {
     const PetscReal *A = In + 6 * r;
     PetscReal        cof[6], det, th[3];
@@ -633,8 +638,6 @@ static PetscErrorCode ZonesRigidify(SelfContact sc, PetscReal h, PetscInt *inzon
       sc->v[3 * p + d]  = u[3 * r + d] / h + wxr[d];
     }
   }
-  PetscCall(PetscFree5(m, c, u, L, In));
-  PetscCall(PetscFree(pinned));
   PetscFunctionReturn(0);
 }
 
@@ -662,7 +665,11 @@ PetscErrorCode SelfContactFilter(SelfContact sc, PetscReal h, PetscScalar *x, Pe
     ncol_total += ncol;
   }
   if ((ncol || sc->its == 0) && sc->zones) {
-    PetscInt merged, inzones = 0, rounds = 0;
+    PetscInt   merged, inzones = 0, rounds = 0;
+    PetscReal *xs, *work;
+    PetscBool *pinned;
+    PetscCall(PetscMalloc3(3 * sc->N, &xs, 16 * sc->N, &work, sc->N, &pinned));
+    PetscCall(PetscArraycpy(xs, sc->x1, 3 * sc->N));
     for (PetscInt p = 0; p < sc->N; p++) sc->zone[p] = -1;
     do {
       PetscCall(BroadPhaseIfMoved(sc));
@@ -673,10 +680,11 @@ PetscErrorCode SelfContactFilter(SelfContact sc, PetscReal h, PetscScalar *x, Pe
           PetscReal n[3];
           if (Collides(sc, kind, k, &pr, n) && ZoneMerge(sc->zone, pr.p)) merged++;
         }
-      if (merged) PetscCall(ZonesRigidify(sc, h, &inzones));
+      if (merged) PetscCall(ZonesRigidify(sc, h, xs, work, pinned, &inzones));
       /* each round merges zones or adds particles to them: at most 2 N rounds */
       PetscCheck(++rounds <= 2 * sc->N + 1, PETSC_COMM_SELF, PETSC_ERR_PLIB, "Self-contact impact zones did not settle in %" PetscInt_FMT " rounds", rounds);
     } while (merged);
+    PetscCall(PetscFree3(xs, work, pinned));
     sc->stats.failsafe += inzones;
     frozen_total += inzones;
   } else if (ncol || sc->its == 0) {
