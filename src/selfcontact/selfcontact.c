@@ -39,8 +39,6 @@ struct _p_SelfContact {
   PetscReal       *x0, *x1, *v;                           /* natural, 3 each */
   PetscReal       *lo, *hi;                               /* each particle's sweep at the last broad phase */
   PetscReal       *send, *recv;
-  PetscBool       *frozen;
-  PetscInt        *zone;               /* impact zones: union-find parent of each particle, -1 outside */
   PetscBool        zones;              /* fail-safe by rigid impact zones (else stop the particles) */
   PetscInt         npt, nee, *pt, *ee; /* candidate pairs */
   SelfContactStats stats;
@@ -199,7 +197,6 @@ PetscErrorCode SelfContactSetUp(SelfContact sc)
   for (PetscInt k = 0; k < sc->N; k++) sc->invm[sc->gather_nat[k]] = sc->recv[k];
   PetscCall(PetscFree2(counts1, displs1));
   PetscCall(PetscMalloc5(3 * sc->N, &sc->x0, 3 * sc->N, &sc->x1, 3 * sc->N, &sc->v, 3 * sc->N, &sc->lo, 3 * sc->N, &sc->hi));
-  PetscCall(PetscMalloc2(sc->N, &sc->frozen, sc->N, &sc->zone));
   PetscCall(SelfMeshCreate(sc->cloth, info.Mx, info.My, &sc->mesh));
   PetscFunctionReturn(0);
 }
@@ -223,7 +220,6 @@ PetscErrorCode SelfContactDestroy(SelfContact *self)
   PetscCall(PetscFree2(sc->recv, sc->send));
   PetscCall(PetscFree(sc->invm));
   PetscCall(PetscFree5(sc->x0, sc->x1, sc->v, sc->lo, sc->hi));
-  PetscCall(PetscFree2(sc->frozen, sc->zone));
   PetscCall(PetscFree(sc->pt));
   PetscCall(PetscFree(sc->ee));
   PetscCall(PetscFree(sc->mesh.vert));
@@ -470,11 +466,11 @@ static PetscBool Collides(SelfContact sc, PetscInt kind, PetscInt k, Pair *pr, P
 static PetscErrorCode BroadPhase(SelfContact sc)
 {
   PetscFunctionBeginUser;
-  for (PetscInt k = 0; k < 3 * sc->N; k++) /* a non-finite box has no cells (the hash) or no order (CGAL) */
-    PetscCheck(!PetscIsInfOrNanReal(sc->x0[k]) && !PetscIsInfOrNanReal(sc->x1[k]), PETSC_COMM_SELF, PETSC_ERR_FP, "Self-contact: a particle's position is not finite (the step diverged); reduce -ts_dt or use -ts_type drapebe");
   PetscCall(PetscFree(sc->pt));
   PetscCall(PetscFree(sc->ee));
   for (PetscInt k = 0; k < 3 * sc->N; k++) {
+    /* a non-finite box has no cells (the hash) or no order (CGAL) */
+    PetscCheck(!PetscIsInfOrNanReal(sc->x0[k]) && !PetscIsInfOrNanReal(sc->x1[k]), PETSC_COMM_SELF, PETSC_ERR_FP, "Self-contact: a particle's position is not finite (the step diverged); reduce -ts_dt or use -ts_type drapebe");
     const PetscReal ahead = sc->x1[k] + SELF_PREDICT_STEPS * (sc->x1[k] - sc->x0[k]);
     sc->lo[k]             = PetscMin(PetscMin(sc->x0[k], sc->x1[k]), ahead);
     sc->hi[k]             = PetscMax(PetscMax(sc->x0[k], sc->x1[k]), ahead);
@@ -555,8 +551,8 @@ static void Rotate(const PetscReal th[3], const PetscReal a[3], PetscReal Ra[3])
 /* Move every zone rigidly (see above) from the end positions xs the step had when
  * the fail-safe began (not from a previous round's rigid motion, which would lose a
  * little rotation at every round); returns the number of particles in zones. work:
- * 16 N reals, pinned: N flags. */
-static PetscErrorCode ZonesRigidify(SelfContact sc, PetscReal h, const PetscReal *xs, PetscReal *work, PetscBool *pinned, PetscInt *inzones)
+ * 16 N reals, pinned: N flags; zone: the union-find parents (-1 outside a zone). */
+static PetscErrorCode ZonesRigidify(SelfContact sc, PetscReal h, PetscInt *zone, const PetscReal *xs, PetscReal *work, PetscBool *pinned, PetscInt *inzones)
 {
   const PetscInt N = sc->N;
   /* per root: mass, mass-weighted start and displacement, then centre, translation, angular momentum (then rotation), inertia */
@@ -568,8 +564,8 @@ static PetscErrorCode ZonesRigidify(SelfContact sc, PetscReal h, const PetscReal
   *inzones = 0;
   for (PetscInt p = 0; p < N; p++) {
     PetscInt r;
-    if (sc->zone[p] < 0) continue;
-    r = ZoneRoot(sc->zone, p);
+    if (zone[p] < 0) continue;
+    r = ZoneRoot(zone, p);
     (*inzones)++;
     if (sc->invm[p] == 0) {
       pinned[r] = PETSC_TRUE;
@@ -587,8 +583,8 @@ static PetscErrorCode ZonesRigidify(SelfContact sc, PetscReal h, const PetscReal
   for (PetscInt p = 0; p < N; p++) {
     PetscInt  r;
     PetscReal rp[3], up[3], l[3], mp;
-    if (sc->zone[p] < 0 || sc->invm[p] == 0) continue;
-    r = ZoneRoot(sc->zone, p);
+    if (zone[p] < 0 || sc->invm[p] == 0) continue;
+    r = ZoneRoot(zone, p);
     if (pinned[r]) continue;
     mp = 1 / sc->invm[p];
     for (PetscInt d = 0; d < 3; d++) rp[d] = sc->x0[3 * p + d] - c[3 * r + d], up[d] = xs[3 * p + d] - sc->x0[3 * p + d] - u[3 * r + d];
@@ -630,8 +626,8 @@ static PetscErrorCode ZonesRigidify(SelfContact sc, PetscReal h, const PetscReal
   for (PetscInt p = 0; p < N; p++) {
     PetscInt  r;
     PetscReal rp[3], Rr[3], w[3], wxr[3];
-    if (sc->zone[p] < 0 || sc->invm[p] == 0) continue;
-    r = ZoneRoot(sc->zone, p);
+    if (zone[p] < 0 || sc->invm[p] == 0) continue;
+    r = ZoneRoot(zone, p);
     if (pinned[r]) {
       for (PetscInt d = 0; d < 3; d++) sc->x1[3 * p + d] = sc->x0[3 * p + d], sc->v[3 * p + d] = 0;
       continue;
@@ -647,9 +643,74 @@ static PetscErrorCode ZonesRigidify(SelfContact sc, PetscReal h, const PetscReal
   PetscFunctionReturn(0);
 }
 
+/* The fail-safe by impact zones: *count particles in zones. */
+static PetscErrorCode FailSafeZones(SelfContact sc, PetscReal h, PetscInt *count)
+{
+  PetscInt   merged, rounds = 0, *zone;
+  PetscReal *xs, *work;
+  PetscBool *pinned;
+
+  PetscFunctionBeginUser;
+  *count = 0;
+  PetscCall(PetscMalloc4(sc->N, &zone, 3 * sc->N, &xs, 16 * sc->N, &work, sc->N, &pinned));
+  PetscCall(PetscArraycpy(xs, sc->x1, 3 * sc->N));
+  for (PetscInt p = 0; p < sc->N; p++) zone[p] = -1;
+  do {
+    PetscCall(BroadPhaseIfMoved(sc));
+    merged = 0;
+    for (PetscInt kind = 0; kind < 2; kind++)
+      for (PetscInt k = 0; k < (kind ? sc->nee : sc->npt); k++) {
+        Pair      pr;
+        PetscReal n[3];
+        if (Collides(sc, kind, k, &pr, n) && ZoneMerge(zone, pr.p)) merged++;
+      }
+    if (merged) PetscCall(ZonesRigidify(sc, h, zone, xs, work, pinned, count));
+    /* each round merges zones or adds particles to them: at most 2 N rounds */
+    PetscCheck(++rounds <= 2 * sc->N + 1, PETSC_COMM_SELF, PETSC_ERR_PLIB, "Self-contact impact zones did not settle in %" PetscInt_FMT " rounds", rounds);
+  } while (merged);
+  PetscCall(PetscFree4(zone, xs, work, pinned));
+  PetscFunctionReturn(0);
+}
+
+/* The fail-safe by stopping: the particles of every pair that still collides stay
+ * where they were at the start (collision-free); the ones they now collide with
+ * follow. *count particles stopped. */
+static PetscErrorCode FailSafeFreeze(SelfContact sc, PetscInt *count)
+{
+  PetscInt   frozen;
+  PetscBool *stopped;
+
+  PetscFunctionBeginUser;
+  *count = 0;
+  PetscCall(PetscCalloc1(sc->N, &stopped));
+  do {
+    PetscCall(BroadPhaseIfMoved(sc));
+    frozen = 0;
+    for (PetscInt kind = 0; kind < 2; kind++)
+      for (PetscInt k = 0; k < (kind ? sc->nee : sc->npt); k++) {
+        Pair      pr;
+        PetscReal n[3];
+        if (!Collides(sc, kind, k, &pr, n)) continue;
+        for (PetscInt i = 0; i < 4; i++) {
+          const PetscInt p = pr.p[i];
+          if (stopped[p] || sc->invm[p] == 0) continue;
+          stopped[p] = PETSC_TRUE;
+          for (PetscInt d = 0; d < 3; d++) {
+            sc->x1[3 * p + d] = sc->x0[3 * p + d];
+            sc->v[3 * p + d]  = 0;
+          }
+          frozen++;
+        }
+      }
+    *count += frozen;
+  } while (frozen);
+  PetscCall(PetscFree(stopped));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode SelfContactFilter(SelfContact sc, PetscReal h, PetscScalar *x, PetscScalar *v, PetscBool *changed)
 {
-  PetscInt ncol = 1, ncol_total = 0, frozen_total = 0;
+  PetscInt ncol = 1, ncol_total = 0, failsafe = 0;
 
   PetscFunctionBeginUser;
   PetscCall(PetscLogEventBegin(drape_log.self_contact, 0, 0, 0, 0));
@@ -670,58 +731,11 @@ PetscErrorCode SelfContactFilter(SelfContact sc, PetscReal h, PetscScalar *x, Pe
     sc->stats.collisions += ncol;
     ncol_total += ncol;
   }
-  if ((ncol || sc->its == 0) && sc->zones) {
-    PetscInt   merged, inzones = 0, rounds = 0;
-    PetscReal *xs, *work;
-    PetscBool *pinned;
-    PetscCall(PetscMalloc3(3 * sc->N, &xs, 16 * sc->N, &work, sc->N, &pinned));
-    PetscCall(PetscArraycpy(xs, sc->x1, 3 * sc->N));
-    for (PetscInt p = 0; p < sc->N; p++) sc->zone[p] = -1;
-    do {
-      PetscCall(BroadPhaseIfMoved(sc));
-      merged = 0;
-      for (PetscInt kind = 0; kind < 2; kind++)
-        for (PetscInt k = 0; k < (kind ? sc->nee : sc->npt); k++) {
-          Pair      pr;
-          PetscReal n[3];
-          if (Collides(sc, kind, k, &pr, n) && ZoneMerge(sc->zone, pr.p)) merged++;
-        }
-      if (merged) PetscCall(ZonesRigidify(sc, h, xs, work, pinned, &inzones));
-      /* each round merges zones or adds particles to them: at most 2 N rounds */
-      PetscCheck(++rounds <= 2 * sc->N + 1, PETSC_COMM_SELF, PETSC_ERR_PLIB, "Self-contact impact zones did not settle in %" PetscInt_FMT " rounds", rounds);
-    } while (merged);
-    PetscCall(PetscFree3(xs, work, pinned));
-    sc->stats.failsafe += inzones;
-    frozen_total += inzones;
-  } else if (ncol || sc->its == 0) {
-    /* fail-safe: stop the particles of every pair that still collides where they
-     * were at the start (collision-free); the ones they now collide with follow */
-    PetscInt frozen;
-    PetscCall(PetscArrayzero(sc->frozen, sc->N));
-    do {
-      PetscCall(BroadPhaseIfMoved(sc));
-      frozen = 0;
-      for (PetscInt kind = 0; kind < 2; kind++)
-        for (PetscInt k = 0; k < (kind ? sc->nee : sc->npt); k++) {
-          Pair      pr;
-          PetscReal n[3];
-          if (!Collides(sc, kind, k, &pr, n)) continue;
-          for (PetscInt i = 0; i < 4; i++) {
-            const PetscInt p = pr.p[i];
-            if (sc->frozen[p] || sc->invm[p] == 0) continue;
-            sc->frozen[p] = PETSC_TRUE;
-            for (PetscInt d = 0; d < 3; d++) {
-              sc->x1[3 * p + d] = sc->x0[3 * p + d];
-              sc->v[3 * p + d]  = 0;
-            }
-            frozen++;
-          }
-        }
-      sc->stats.failsafe += frozen;
-      frozen_total += frozen;
-    } while (frozen);
+  if (ncol || sc->its == 0) {
+    PetscCall(sc->zones ? FailSafeZones(sc, h, &failsafe) : FailSafeFreeze(sc, &failsafe));
+    sc->stats.failsafe += failsafe;
   }
-  *changed = (PetscBool) (sc->stats.pairs || ncol_total || frozen_total);
+  *changed = (PetscBool) (sc->stats.pairs || ncol_total || failsafe);
   {
     const PetscInt *natural;
     PetscCall(ClothGetNatural(sc->cloth, &natural));
