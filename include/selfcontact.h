@@ -10,7 +10,8 @@
  *      in position towards the thickness (at most a quarter of it per step);
  *   2. collisions: every pair that the remaining motion would still make cross
  *      (continuous detection: the coplanarity cubic) gets the inelastic impulse that
- *      stops its relative normal motion; repeated -contact_self_its times;
+ *      stops its relative normal motion if that moves the pair by at most the
+ *      thickness; repeated -contact_self_its times;
  *   3. fail-safe: the particles of pairs that still collide are merged into rigid
  *      impact zones, each moving rigidly over the step with its particles' linear
  *      and angular momentum, until no pair collides (-contact_self_failsafe freeze:
@@ -19,9 +20,10 @@
  * dx = h dv. Candidate pairs come from a spatial hash (or CGAL's box intersection)
  * over boxes of the step's sweep; pairs that share a particle are not candidates.
  *
- * Every rank gathers the whole cloth (natural order) and filters it, the same
- * arithmetic in the same order on every rank: the result does not depend on the
- * partition (cost O(N) per step on every rank; see README). Collective. */
+ * Each rank holds its own particles and a geometric halo (the triangles near its
+ * own, moved by a PetscSF) and evaluates the pairs with one of its own particles;
+ * groups of contacts across ranks are gathered and taken on every rank in one
+ * order: the result is that of one rank, on any partition (README). Collective. */
 #pragma once
 
 #include <cloth.h>
@@ -33,6 +35,9 @@ typedef struct {
   PetscInt  collisions;   /* collision impulses since the start of the run */
   PetscInt  failsafe;     /* particles put in impact zones (or stopped) by the fail-safe since the start */
   PetscInt  broad_phases; /* candidate lists built */
+  PetscInt  halo;         /* the largest halo of a rank at the last list, particles (0 on one rank) */
+  PetscInt  gathered;     /* pairs of contact groups across ranks, gathered on every rank, since the start */
+  PetscInt  failsafe_steps; /* steps whose fail-safe gathered the whole cloth */
   PetscReal thickness;    /* m */
 } SelfContactStats;
 

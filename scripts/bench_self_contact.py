@@ -13,6 +13,14 @@ intersection, the spatial hash: the same pairs, so the same collisions). Medians
 
     .venv/bin/python scripts/bench_self_contact.py --sizes 41,61,81 --repeat 3
     .venv/bin/python scripts/bench_self_contact.py --quick      # smoke run (the test suite's)
+
+With --ranks R1,R2,... it times instead the filter on each number of ranks: the
+pile scene (runs/pile.opts) in symplectic Euler (h = 0.1 ms), whose frames are
+bitwise the same on any partition, so every rank count does the same work; the
+filter's seconds (the slowest rank's), the speed-up over the first rank count, the
+largest halo and the pairs gathered across ranks.
+
+    .venv/bin/python scripts/bench_self_contact.py --ranks 1,2 --sizes 61,81 --time 0.3
 """
 import argparse
 import re
@@ -47,6 +55,30 @@ def one(drape, n, t, kind):
     return r.report, event(r.stdout, "DrapeSelfContact")[1], broad / max(calls, 1)
 
 
+def ranks(a, sizes, counts):
+    """The --ranks table."""
+    rows = []
+    for n in sizes:
+        base = None
+        for r in counts:
+            walls, filt, reps = [], [], None
+            for _ in range(a.repeat):
+                res = Drape(PROG, a.build, r).run(["-options_file", "runs/pile.opts", "-da_grid_x", n, "-da_grid_y", n, "-ts_type", "basicsymplectic",
+                                                   "-ts_dt", "1e-4", "-ts_max_time", a.time, "-output_interval", a.time, "-log_view"])
+                if res.returncode:
+                    fail(PROG, f"the run failed:\n{res.tail()}")
+                reps = res.report
+                walls.append(reps["wall"])
+                filt.append(event(res.stdout, "DrapeSelfContact")[1])
+            base = base or median(filt)
+            rows.append([f"{n}^2", str(r), f"{median(walls):.2f}", f"{median(filt):.2f}", f"{1e3 * median(filt) / reps['steps']:.2f}",
+                         f"{base / median(filt):.2f}", str(reps["self_halo_max"]), str(reps["self_gathered"]), str(reps["self_contact_pairs"])])
+    print(f"# {machine()}")
+    print(f"# pile scene, symplectic Euler h = 0.1 ms, {a.time:g} s simulated, medians of {a.repeat}")
+    print(md_table(["lattice", "ranks", "wall (s)", "filter (s)", "filter ms/step", "filter speed-up", "largest halo",
+                    "pairs gathered", "close pairs at the end"], rows))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sizes", default="41,61,81", help="lattice sizes n (n x n), comma-separated")
@@ -54,6 +86,7 @@ def main():
     ap.add_argument("--repeat", type=int, default=3, help="runs per case (medians)")
     ap.add_argument("--broad-phase", default="cgal,hash", help="broad phases to time, comma-separated (cgal, hash)")
     ap.add_argument("--build", default="build")
+    ap.add_argument("--ranks", help="time the filter on these numbers of ranks instead (comma-separated; the pile scene)")
     ap.add_argument("--quick", action="store_true", help="one 21^2 run of 0.4 s each way (a smoke test)")
     a = ap.parse_args()
     if a.quick:
@@ -64,6 +97,15 @@ def main():
         fail(PROG, f"--sizes takes integers separated by commas; got {a.sizes!r}")
     if any(n < 3 or n > 1025 for n in sizes) or a.repeat < 1 or not 0 < a.time <= 100:
         fail(PROG, "--sizes must lie in 3..1025, --repeat be at least 1 and --time in (0, 100] s")
+    if a.ranks:
+        try:
+            counts = [int(r) for r in a.ranks.split(",")]
+        except ValueError:
+            fail(PROG, f"--ranks takes integers separated by commas; got {a.ranks!r}")
+        if any(r < 1 or r > 1024 for r in counts):
+            fail(PROG, "--ranks must lie in 1..1024")
+        ranks(a, sizes, counts)
+        return
     kinds = a.broad_phase.split(",")
     if not kinds or any(k not in KINDS for k in kinds):
         fail(PROG, f"--broad-phase takes {' and '.join(KINDS)}, comma-separated; got {a.broad_phase!r}")

@@ -898,6 +898,9 @@ PetscErrorCode SimulationRun(Simulation s)
       PetscCall(ReportSetInt(r, "self_collisions", st.collisions));
       PetscCall(ReportSetInt(r, "self_failsafe", st.failsafe));
       PetscCall(ReportSetInt(r, "self_broad_phases", st.broad_phases));
+      PetscCall(ReportSetInt(r, "self_halo_max", st.halo));
+      PetscCall(ReportSetInt(r, "self_gathered", st.gathered));
+      PetscCall(ReportSetInt(r, "self_failsafe_steps", st.failsafe_steps));
     }
     if (s->summary) {
       PetscCall(PetscPrintf(s->comm, "Summary: %" PetscInt_FMT " steps to t = %g s in %.3f s wall, %.4e particle-steps/s", run, (double) t, (double) wall, wall > 0 ? ((double) run * info.nparticles / wall) : 0.0));
