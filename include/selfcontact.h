@@ -37,7 +37,7 @@ typedef struct {
   PetscInt  broad_phases; /* candidate lists built */
   PetscInt  halo;         /* the largest halo of a rank at the last list, particles (0 on one rank) */
   PetscInt  gathered;     /* pairs of contact groups across ranks, gathered on every rank, since the start */
-  PetscInt  failsafe_steps; /* steps whose fail-safe gathered the whole cloth */
+  PetscInt  failsafe_steps; /* steps in which the fail-safe ran */
   PetscReal thickness;    /* m */
 } SelfContactStats;
 

@@ -357,6 +357,8 @@ PetscErrorCode SelfContactSetUp(SelfContact sc)
   sc->stats.thickness = sc->thickness;
   sc->N               = info.nparticles;
   sc->nowned          = info.nowned;
+  /* particles and primitives (up to 3 N edges) travel as reals when contacts are gathered */
+  PetscCheck(3 * (PetscReal) sc->N < 1 / PETSC_MACHINE_EPSILON, sc->comm, PETSC_ERR_SUP, "-contact_self sends particle indices as reals: %" PetscInt_FMT " particles are more than this precision counts exactly (at most %g)", sc->N, (double) (1 / (3 * PETSC_MACHINE_EPSILON)));
   PetscCallMPI(MPI_Comm_rank(sc->comm, &sc->rank));
   PetscCallMPI(MPI_Comm_size(sc->comm, &sc->size));
   PetscCall(PetscMPIIntCast(sc->nowned, &nown));
@@ -531,14 +533,31 @@ static PetscBool SetBoxes(SelfSet *s)
  * Extra candidates do nothing (the passes act on close or colliding pairs), so the
  * list's extent changes the cost, not the result. Only pairs with an own particle
  * are kept. The boxes are set (SetBoxes). */
+typedef struct {
+  SelfContact sc;
+  SelfSet    *s;
+} BroadCtx;
+
+static PetscErrorCode BroadPhaseRun(void *ctx)
+{
+  const BroadCtx *b = (const BroadCtx *) ctx;
+  SelfSet        *s = b->s;
+
+  PetscFunctionBeginUser;
+  PetscCall((b->sc->hash ? SelfBroadPhaseHash : SelfBroadPhase)(&s->mesh, s->lo, s->hi, (0.5 + b->sc->margin) * b->sc->thickness, &s->npt, &s->pt, &s->nee, &s->ee));
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode SetBroadPhase(SelfContact sc, SelfSet *s)
 {
   PetscInt n = 0;
+  BroadCtx ctx = {sc, s};
 
   PetscFunctionBeginUser;
   PetscCall(SetFreeList(s));
   PetscCall(PetscLogEventBegin(drape_log.self_broad, 0, 0, 0, 0));
-  PetscCall((sc->hash ? SelfBroadPhaseHash : SelfBroadPhase)(&s->mesh, s->lo, s->hi, (0.5 + sc->margin) * sc->thickness, &s->npt, &s->pt, &s->nee, &s->ee));
+  /* its refusals (a runaway coordinate, memory) may come from one rank's part only: raised on every rank */
+  PetscCall(DrapeCollective(sc->comm, BroadPhaseRun, &ctx));
   PetscCall(PetscLogEventEnd(drape_log.self_broad, 0, 0, 0, 0));
   if (s->nown < s->n) {
     for (PetscInt kind = 0; kind < 2; kind++) {
@@ -588,7 +607,8 @@ static PetscErrorCode CheckFinite(SelfContact sc, PetscBool finite)
 static PetscErrorCode HaloRebuild(SelfContact sc)
 {
   SelfSet        *s = &sc->local;
-  const PetscReal grow = 2 * (0.5 + sc->margin) * sc->thickness;
+  /* a little more than the broad phase's two radii, so that rounding never drops a pair */
+  const PetscReal grow = 2.01 * (0.5 + sc->margin) * sc->thickness;
   PetscReal       mine[6], *boxes;
   PetscInt64     *key = NULL;
   PetscInt        nkey = 0, mkey = 0, nhalo, *halo, nrecv = 0, *send, *recv;
@@ -944,6 +964,7 @@ static void PackPair(const SelfSet *s, PetscInt kind, PetscInt k, const PetscInt
 {
   pk[0] = (PetscReal) kind;
   if (k >= 0) PairPrimitives(s, kind, k, pk + 1);
+  else pk[1] = pk[2] = 0;
   for (PetscInt i = 0; i < 4; i++) {
     pk[3 + i] = (PetscReal) s->nat[p[i]];
     for (PetscInt d = 0; d < 3; d++) pk[7 + 9 * i + d] = s->x0[3 * p[i] + d], pk[10 + 9 * i + d] = s->x1[3 * p[i] + d], pk[13 + 9 * i + d] = s->v[3 * p[i] + d];
