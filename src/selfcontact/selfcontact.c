@@ -604,6 +604,19 @@ static PetscErrorCode CheckFinite(SelfContact sc, PetscBool finite)
  * rank's particle, whose box reaches this rank's box: so both primitives of every
  * pair a rank evaluates are in its local set, and the local list is the whole
  * cloth's list restricted to the pairs with an own particle, in the same order. */
+/* The box of the whole cloth's triangle t over the local set's particle boxes. */
+static void TriangleBox(const SelfContact sc, PetscInt t, PetscReal lo[3], PetscReal hi[3])
+{
+  const SelfSet  *s = &sc->local;
+  const PetscInt *T = sc->mesh.tri + 3 * t;
+
+  for (PetscInt d = 0; d < 3; d++) lo[d] = PETSC_MAX_REAL, hi[d] = -PETSC_MAX_REAL;
+  for (PetscInt c = 0; c < 3; c++) {
+    const PetscInt q = sc->local_of[T[c]];
+    for (PetscInt d = 0; d < 3; d++) lo[d] = PetscMin(lo[d], s->lo[3 * q + d]), hi[d] = PetscMax(hi[d], s->hi[3 * q + d]);
+  }
+}
+
 static PetscErrorCode HaloRebuild(SelfContact sc)
 {
   SelfSet        *s = &sc->local;
@@ -617,11 +630,11 @@ static PetscErrorCode HaloRebuild(SelfContact sc)
   PetscFunctionBeginUser;
   for (PetscInt d = 0; d < 3; d++) mine[d] = PETSC_MAX_REAL, mine[3 + d] = -PETSC_MAX_REAL;
   for (PetscInt k = 0; k < s->nown; k++)
-    for (PetscInt a = sc->tri_ptr[s->nat[k]]; a < sc->tri_ptr[s->nat[k] + 1]; a++)
-      for (PetscInt c = 0; c < 3; c++) {
-        const PetscInt q = sc->local_of[sc->mesh.tri[3 * sc->tri_adj[a] + c]];
-        for (PetscInt d = 0; d < 3; d++) mine[d] = PetscMin(mine[d], s->lo[3 * q + d] - grow), mine[3 + d] = PetscMax(mine[3 + d], s->hi[3 * q + d] + grow);
-      }
+    for (PetscInt a = sc->tri_ptr[s->nat[k]]; a < sc->tri_ptr[s->nat[k] + 1]; a++) {
+      PetscReal lo[3], hi[3];
+      TriangleBox(sc, sc->tri_adj[a], lo, hi);
+      for (PetscInt d = 0; d < 3; d++) mine[d] = PetscMin(mine[d], lo[d] - grow), mine[3 + d] = PetscMax(mine[3 + d], hi[d] + grow);
+    }
   PetscCall(PetscMalloc1(6 * sc->size, &boxes));
   PetscCallMPI(MPI_Allgather(mine, 6, MPIU_REAL, boxes, 6, MPIU_REAL, sc->comm));
   /* (rank, particle) keys to send */
@@ -629,19 +642,14 @@ static PetscErrorCode HaloRebuild(SelfContact sc)
   for (PetscInt k = 0; k < s->nown; k++)
     for (PetscInt a = sc->tri_ptr[s->nat[k]]; a < sc->tri_ptr[s->nat[k] + 1]; a++) {
       const PetscInt *T = sc->mesh.tri + 3 * sc->tri_adj[a];
-      PetscReal       lo[3] = {PETSC_MAX_REAL, PETSC_MAX_REAL, PETSC_MAX_REAL}, hi[3] = {-PETSC_MAX_REAL, -PETSC_MAX_REAL, -PETSC_MAX_REAL};
-      for (PetscInt c = 0; c < 3; c++)
-        for (PetscInt d = 0; d < 3; d++) lo[d] = PetscMin(lo[d], s->lo[3 * sc->local_of[T[c]] + d]), hi[d] = PetscMax(hi[d], s->hi[3 * sc->local_of[T[c]] + d]);
+      PetscReal       lo[3], hi[3];
+      TriangleBox(sc, sc->tri_adj[a], lo, hi);
       for (PetscMPIInt r = 0; r < sc->size; r++) {
         const PetscReal *B = boxes + 6 * r;
         if (r == sc->rank || lo[0] > B[3] || lo[1] > B[4] || lo[2] > B[5] || hi[0] < B[0] || hi[1] < B[1] || hi[2] < B[2]) continue;
         if (nkey + 3 > mkey) {
-          PetscInt64 *more;
           mkey = 2 * mkey + 64;
-          PetscCall(PetscMalloc1(mkey, &more));
-          PetscCall(PetscArraycpy(more, key, nkey));
-          PetscCall(PetscFree(key));
-          key = more;
+          PetscCall(PetscRealloc(mkey * sizeof(*key), &key));
         }
         for (PetscInt c = 0; c < 3; c++) key[nkey++] = (PetscInt64) r * sc->N + T[c];
       }
@@ -1269,12 +1277,8 @@ static PetscErrorCode FailSafeZones(SelfContact sc, PetscReal h, PetscInt *count
         PairParticles(s, kind, k, pr.p);
         if (!PairCountedHere(s, pr.p) || !Collides(sc, s, kind, &pr, n)) continue;
         if (here[0] == cap) {
-          PetscReal *more;
           cap = 2 * cap + 16;
-          PetscCall(PetscMalloc1(SELF_PACK * cap, &more));
-          PetscCall(PetscArraycpy(more, pack, SELF_PACK * here[0]));
-          PetscCall(PetscFree(pack));
-          pack = more;
+          PetscCall(PetscRealloc(SELF_PACK * cap * sizeof(*pack), &pack));
         }
         PackPair(s, kind, -1, pr.p, pack + SELF_PACK * here[0]++);
       }
