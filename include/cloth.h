@@ -118,5 +118,12 @@ typedef enum {
   CLOTH_FIXED
 } ClothConstraint;
 PETSC_EXTERN PetscErrorCode ClothSetConstraints(Cloth, const ClothConstraint type[], const PetscReal normal[], const PetscReal block[]);
+/* Blocks of the implicit matrix besides the cloth's (self-contact in the solve):
+ * n blocks (owned particle rows[e], global block column cols[e]; neither pinned),
+ * 9 values each (row-major), added times b to J = a M + b H by the next
+ * ClothAssembleMatrix (copied). *fits: PETSC_FALSE if a block is outside the
+ * pattern of the matrix ClothCreateMatrix made last: make a new one, which holds
+ * them. Not collective. */
+PETSC_EXTERN PetscErrorCode ClothSetExtraBlocks(Cloth, PetscInt n, const PetscInt rows[], const PetscInt cols[], const PetscReal vals[], PetscBool *fits);
 /* d of owned particle k for J = a M + b H at the last assembly (m before any). */
 PETSC_EXTERN PetscErrorCode ClothGetConstraintScale(Cloth, PetscReal a, PetscReal b, PetscInt k, PetscReal *d);

@@ -811,6 +811,7 @@ PetscErrorCode ClothDestroy(Cloth *cloth)
     PetscCall(PetscFree(c->hdiag));
     PetscCall(PetscFree6(c->rb_start, c->rb_ncols, c->rb_colstart, c->rb_cols, c->rb_map, c->rb_diag));
     PetscCall(PetscFree(c->rb_val));
+    PetscCall(PetscFree4(c->ex_row, c->ex_col, c->ex_map, c->ex_val));
   }
   PetscCall(VecDestroy(&c->Xg));
   PetscCall(VecDestroy(&c->Xl));

@@ -106,9 +106,13 @@ struct _p_Cloth {
    * block pair the position of its (0,0) entry, or -1; rb_coo: the buffer goes to
    * rb_mat by MatSetValuesCOO (in buffer order), else by MatSetValuesBlocked rows */
   Mat        rb_mat;
-  PetscBool  rb_coo;
+  PetscBool  rb_coo, rb_sym;
   PetscInt  *rb_start, *rb_ncols, *rb_colstart, *rb_cols, *rb_map, *rb_diag;
   PetscReal *rb_val;
+  /* blocks besides the elements' (ClothSetExtraBlocks): owned row, global block
+   * column, 9 values, position in rb_val (-1: not held) */
+  PetscInt   ex_n, ex_m, *ex_row, *ex_col, *ex_map;
+  PetscReal *ex_val;
 };
 
 /* forces.c */

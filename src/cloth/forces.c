@@ -435,6 +435,51 @@ static inline PetscBool RowBufferHolds(Cloth c, PetscBool sym, PetscInt a, Petsc
   return (PetscBool) (a < c->nowned && c->row_map[a] >= 0 && col >= 0 && !(sym && col < c->row_map[a]));
 }
 
+/* Does the row buffer hold extra block e (not in the lower half for symmetric storage)? */
+static inline PetscBool ExtraHeld(Cloth c, PetscBool sym, PetscInt e) { return (PetscBool) (c->row_map[c->ex_row[e]] >= 0 && !(sym && c->ex_col[e] < c->row_map[c->ex_row[e]])); }
+
+/* The extra blocks' positions in the row buffer; *fits: all held blocks found. */
+static PetscErrorCode ExtraMap(Cloth c, PetscBool *fits)
+{
+  PetscFunctionBeginUser;
+  if (fits) *fits = PETSC_TRUE;
+  for (PetscInt e = 0; e < c->ex_n; e++) {
+    const PetscInt k   = c->ex_row[e];
+    PetscInt       loc = -1;
+    c->ex_map[e]       = -1;
+    if (!ExtraHeld(c, c->rb_sym, e)) continue;
+    PetscCall(PetscFindInt(c->ex_col[e], c->rb_ncols[k], c->rb_cols + c->rb_colstart[k], &loc));
+    if (loc < 0) {
+      if (fits) *fits = PETSC_FALSE;
+      continue;
+    }
+    c->ex_map[e] = c->rb_start[k] + 3 * loc;
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ClothSetExtraBlocks(Cloth c, PetscInt n, const PetscInt rows[], const PetscInt cols[], const PetscReal vals[], PetscBool *fits)
+{
+  PetscFunctionBeginUser;
+  if (n > c->ex_m) {
+    PetscCall(PetscFree4(c->ex_row, c->ex_col, c->ex_map, c->ex_val));
+    c->ex_m = PetscMax(n, 2 * c->ex_m);
+    PetscCall(PetscMalloc4(c->ex_m, &c->ex_row, c->ex_m, &c->ex_col, c->ex_m, &c->ex_map, 9 * c->ex_m, &c->ex_val));
+  }
+  c->ex_n = n;
+  for (PetscInt e = 0; e < n; e++) {
+    PetscCheck(rows[e] >= 0 && rows[e] < c->nowned, PETSC_COMM_SELF, PETSC_ERR_ARG_OUTOFRANGE, "Extra block row %" PetscInt_FMT " is not an owned particle (0..%" PetscInt_FMT ")", rows[e], c->nowned - 1);
+    c->ex_row[e] = rows[e];
+    c->ex_col[e] = cols[e];
+  }
+  PetscCall(PetscArraycpy(c->ex_val, vals, 9 * n));
+  if (c->rb_start)
+    PetscCall(ExtraMap(c, fits));
+  else
+    *fits = PETSC_FALSE;
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
 {
   const ClothElements *lists[3] = {&c->stretch_el, &c->shear_el, &c->bend_el};
@@ -457,6 +502,8 @@ static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
       npairs += n * n;
     }
   }
+  for (PetscInt e = 0; e < c->ex_n; e++)
+    if (ExtraHeld(c, sym, e)) count[c->ex_row[e]]++;
   for (PetscInt k = 0; k < c->nowned; k++) total += count[k];
   PetscCall(PetscMalloc6(c->nowned + 1, &c->rb_start, c->nowned, &c->rb_ncols, c->nowned + 1, &c->rb_colstart, total, &c->rb_cols, npairs, &c->rb_map, c->nowned, &c->rb_diag));
   c->rb_colstart[0] = 0;
@@ -474,6 +521,8 @@ static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
           if (RowBufferHolds(c, sym, p[a], p[b])) c->rb_cols[c->rb_colstart[p[a]] + c->rb_ncols[p[a]]++] = c->col_map[p[b]];
     }
   }
+  for (PetscInt e = 0; e < c->ex_n; e++)
+    if (ExtraHeld(c, sym, e)) c->rb_cols[c->rb_colstart[c->ex_row[e]] + c->rb_ncols[c->ex_row[e]]++] = c->ex_col[e];
   c->rb_start[0] = 0;
   for (PetscInt k = 0; k < c->nowned; k++) {
     PetscCall(PetscSortRemoveDupsInt(&c->rb_ncols[k], c->rb_cols + c->rb_colstart[k]));
@@ -502,6 +551,8 @@ static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
   PetscCall(PetscMalloc1(c->rb_start[c->nowned] + 1, &c->rb_val));
   PetscCall(PetscFree(count));
   c->rb_mat = J;
+  c->rb_sym = sym;
+  PetscCall(ExtraMap(c, NULL));
   PetscFunctionReturn(0);
 }
 
@@ -530,6 +581,12 @@ static PetscErrorCode ClothAddToMatrixRows(Cloth c, const PetscReal *xl, PetscRe
         }
       }
     }
+  }
+  for (PetscInt e = 0; e < c->ex_n; e++) {
+    const PetscInt pos = c->ex_map[e], ld = 3 * c->rb_ncols[c->ex_row[e]];
+    if (pos < 0) continue;
+    for (PetscInt i = 0; i < 3; i++)
+      for (PetscInt j = 0; j < 3; j++) c->rb_val[pos + ld * i + j] += b * c->ex_val[9 * e + 3 * i + j];
   }
   for (PetscInt k = 0; k < c->nowned; k++) {
     const PetscInt ld = 3 * c->rb_ncols[k];
