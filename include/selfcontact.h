@@ -31,14 +31,16 @@
 typedef struct _p_SelfContact *SelfContact;
 
 typedef struct {
-  PetscInt  pairs;        /* pairs closer than the thickness at the start of the last step */
-  PetscInt  collisions;   /* collision impulses since the start of the run */
-  PetscInt  failsafe;     /* particles put in impact zones (or stopped) by the fail-safe since the start */
-  PetscInt  broad_phases; /* candidate lists built */
-  PetscInt  halo;         /* the largest halo of a rank at the last list, particles (0 on one rank) */
-  PetscInt  gathered;     /* pairs of contact groups across ranks, gathered on every rank, since the start */
-  PetscInt  failsafe_steps; /* steps in which the fail-safe ran */
-  PetscReal thickness;    /* m */
+  PetscInt  pairs;           /* pairs closer than the thickness at the start of the last step */
+  PetscInt  collisions;      /* collision impulses since the start of the run */
+  PetscInt  failsafe;        /* particles put in impact zones (or stopped) by the fail-safe since the start */
+  PetscInt  broad_phases;    /* candidate lists built */
+  PetscInt  halo;            /* the largest halo of a rank at the last list, particles (0 on one rank) */
+  PetscInt  gathered;        /* pairs of contact groups across ranks, gathered on every rank, since the start */
+  PetscInt  failsafe_steps;  /* steps in which the fail-safe ran */
+  PetscInt  solve_pairs;     /* pairs pressing in the last implicit step's solve (-contact_self_solve) */
+  PetscInt  solve_pairs_max; /* the most of any step since the start */
+  PetscReal thickness;       /* m */
 } SelfContactStats;
 
 /* -contact_self, -contact_self_thickness, -contact_self_friction, -contact_self_its,
@@ -57,3 +59,31 @@ PETSC_EXTERN PetscErrorCode SelfContactBeginStep(SelfContact, const PetscScalar 
  * velocities v in place; changed: whether any pair acted (the same on every rank). */
 PETSC_EXTERN PetscErrorCode SelfContactFilter(SelfContact, PetscReal h, PetscScalar *x, PetscScalar *v, PetscBool *changed);
 PETSC_EXTERN PetscErrorCode SelfContactGetStats(SelfContact, SelfContactStats *);
+
+/* Self-contact inside an implicit step (TSDRAPEBE; src/selfcontact/implicit.c).
+ * Every candidate pair within reach of the thickness H at the start of the step
+ * (x0), or at the end of its free motion x0 + h v0, becomes a one-sided penalty
+ * of the step: with its closest points' weights w_i and unit normal n fixed at x0,
+ * its gap is C(x) = sum_i w_i n.x_i, and it pushes, while active, with the force
+ * f_i = k (g - C(x)) w_i n on particle i: the gradient of k/2 (g - C)^2, whose
+ * Hessian k (w (x) n)(w (x) n)^T is positive semi-definite (no projection). Its
+ * rest gap g = min(H, C(x0)) holds a pair already inside the layer where it is
+ * (the filter after the step pushes it out in position, without velocity). An
+ * active set, like the solid's: active are the pairs whose free motion ends below
+ * g; after a solve, a pair the step carries below g joins, and an active one that
+ * ends above g (pulled, not pushed) is released, once a step.
+ * SolveBegin: collective; x0, v0 owned. SolveEnabled: -contact_self_solve was not
+ * turned off (not collective). */
+PETSC_EXTERN PetscErrorCode SelfContactSolveEnabled(SelfContact, PetscBool *);
+PETSC_EXTERN PetscErrorCode SelfContactSolveBegin(SelfContact, PetscReal h, const PetscScalar *x0, const PetscScalar *v0);
+/* The solid contact's constraints of the step (owned; NULL: none): the pairs' rows
+ * and columns of the matrix are filtered like the cloth's. Collective. */
+PETSC_EXTERN PetscErrorCode SelfContactSolveSetConstraints(SelfContact, const ClothConstraint type[], const PetscReal normal[]);
+/* a += f/m for the owned particles, f the active pairs' forces at owned positions x. Collective. */
+PETSC_EXTERN PetscErrorCode SelfContactSolveAddAcceleration(SelfContact, const PetscScalar *x, PetscScalar *a);
+/* The active pairs' Hessian blocks (constraint-filtered; zero for the inactive):
+ * rows (owned particle index), columns (global block index), 9 values each. */
+PETSC_EXTERN PetscErrorCode SelfContactSolveGetBlocks(SelfContact, PetscInt *n, const PetscInt **rows, const PetscInt **cols, const PetscReal **vals);
+/* After a solve that ends at owned positions x: the active set's changes (the same
+ * on every rank). Collective. */
+PETSC_EXTERN PetscErrorCode SelfContactSolveUpdate(SelfContact, const PetscScalar *x, PetscInt *changes);

@@ -8,6 +8,7 @@
 #include <petscts.h>
 #include <cloth.h>
 #include <solid.h>
+#include <selfcontact.h>
 
 typedef struct _p_Simulation *Simulation;
 
@@ -33,6 +34,8 @@ PETSC_EXTERN PetscErrorCode SimulationInterrupted(Simulation, PetscBool *);
 PETSC_EXTERN PetscErrorCode DrapeTSRegister(void);
 PETSC_EXTERN PetscErrorCode TSDrapeBESetCloth(TS, Cloth);
 PETSC_EXTERN PetscErrorCode TSDrapeBESetContact(TS, Contact);
+/* Self-contact's close pairs in the step's solve (include/selfcontact.h); NULL: none. */
+PETSC_EXTERN PetscErrorCode TSDrapeBESetSelfContact(TS, SelfContact);
 /* Omega_max of the cloth at the start (rad/s): with (h Omega_max)^2 the default
  * preconditioner is chosen (block Jacobi/ICC or algebraic multigrid); without it
  * the TS estimates Omega_max itself. */

@@ -102,25 +102,33 @@ def test_stacked_sheets_rest_a_thickness_apart(tmp):
 def test_fast_fold_never_crosses(tmp, scheme):
     """A sheet held along its middle row swings both halves down into each other
     under 100 m/s^2: at impact they close 2 to 5 cm in one backward-Euler step of 2
-    to 5 ms, four to ten thicknesses, so the collision pass (continuous detection)
-    and the impact zones must stop them, not only the proximity pass. No crossing in
-    any frame (every 5 ms), no blow-up (the run ends with exit 0: before collision
-    impulses were bounded by the thickness, 3 and 5 ms steps stored 0.4 J of stretch
-    at the impact and ended as diverged), strain below 10 % (measured 2.3-7.1 %);
-    without -contact_self the halves pass through each other."""
+    to 5 ms, four to ten thicknesses. In backward Euler the close pairs enter the
+    solve as penalties and stop the halves there (at 4 ms: no collision impulse and
+    no impact zone left for the filter); with -contact_self_solve 0, and in the
+    symplectic scheme, the filter alone must: its collision pass (continuous
+    detection) and impact zones. No crossing in any frame (every 5 ms), no blow-up
+    (the run ends with exit 0: before collision impulses were bounded by the
+    thickness, 3 and 5 ms steps stored 0.4 J of stretch at the impact and ended as
+    diverged), strain below 10 % (measured 1.3-3.5 % with the penalties, 2.3-7.1 %
+    without); without -contact_self the halves pass through each other."""
     out, free = tmp / "fold.h5", tmp / "free.h5"
     base = f"{FOLD} {scheme} -gravity 0,0,-100 -ts_max_time 0.15"
     rep = run(f"{base} -contact_self -output_file {out}").report
     assert crossings(out).max() == 0
     assert rep["strain_max"] < 0.1, rep
+    assert (rep["self_solve_pairs_max"] > 0) == ("drapebe" in scheme), rep  # only an implicit step takes the penalties
     if "4e-3" in scheme:
-        assert rep["self_collisions"] > 0 and rep["self_failsafe"] > 0, rep  # the continuous pass and the zones acted
+        assert rep["self_collisions"] == 0 and rep["self_failsafe"] == 0, rep  # the solve stopped the halves
+        filt = tmp / "filter.h5"
+        rep1 = run(f"{base} -contact_self -contact_self_solve 0 -output_file {filt}").report
+        assert crossings(filt).max() == 0 and rep1["strain_max"] < 0.1, rep1
+        assert rep1["self_collisions"] > 0 and rep1["self_failsafe"] > 0 and rep1["self_solve_pairs_max"] == 0, rep1  # the continuous pass and the zones acted
         # CGAL's broad phase instead of the spatial hash (the default): the same pairs
         # in the same order, so the same arithmetic: the same frames, bitwise
         cgal = tmp / "cgal.h5"
-        rep2 = run(f"{base} -contact_self -contact_self_broad_phase cgal -output_file {cgal}").report
-        assert rep2["self_collisions"] == rep["self_collisions"] and rep2["self_broad_phases"] == rep["self_broad_phases"]
-        assert np.array_equal(drape_h5.load(cgal).positions, drape_h5.load(out).positions)
+        rep2 = run(f"{base} -contact_self -contact_self_solve 0 -contact_self_broad_phase cgal -output_file {cgal}").report
+        assert rep2["self_collisions"] == rep1["self_collisions"] and rep2["self_broad_phases"] == rep1["self_broad_phases"]
+        assert np.array_equal(drape_h5.load(cgal).positions, drape_h5.load(filt).positions)
         run(f"{base} -output_file {free}")
         assert crossings(free).max() > 0
 
@@ -130,11 +138,12 @@ def test_impact_zones_keep_momentum(tmp, failsafe):
     """The two layers of a hairpin, no gravity, no damping, driven into each other at
     15 m/s relative (6 cm per 4 ms step, three times their gap, so the proximity pass
     cannot see them coming) with the collision passes off (-contact_self_its 0): every
-    collision goes to the fail-safe. Rigid impact zones (the default) keep the total
+    collision goes to the fail-safe (the filter's; the penalties in the solve are off,
+    -contact_self_solve 0). Rigid impact zones (the default) keep the total
     momentum (measured drift 7e-14 of sum m|v|) and do not strain the cloth (3e-5);
     stopping the particles (-contact_self_failsafe freeze) loses a third of it
     (measured 0.32). Neither crosses."""
-    start = hairpin(tmp, "start", f"-gravity 0,0,0 -cloth_damping 0 -contact_self -contact_self_its 0 -contact_self_failsafe {failsafe} "
+    start = hairpin(tmp, "start", f"-gravity 0,0,0 -cloth_damping 0 -contact_self -contact_self_its 0 -contact_self_solve 0 -contact_self_failsafe {failsafe} "
                     "-ts_type drapebe -ts_dt 4e-3 -ksp_rtol 1e-12 -output_interval 0.004", vz=(5.0, -10.0))
     out = tmp / "out.h5"
     rep = run(f"-restart {start} -output_file {out} -ts_max_steps 100000 -ts_max_time 0.04").report
@@ -154,15 +163,22 @@ def test_impact_zones_keep_momentum(tmp, failsafe):
         assert drift > 0.05, (drift, rep["strain_max"])
 
 
-def test_same_fold_on_1_2_4_ranks(tmp):
-    """The fast fold (its halves meet at t ~ 0.08 s: proximity, collision impulses and
-    impact zones all act) on 1, 2 and 4 ranks (CG to 1e-10): partitions differ only
-    by the solves, within 1e-8 m in every frame."""
+@pytest.mark.parametrize("in_solve", [1, 0], ids=["penalties-in-solve", "filter-only"])
+def test_same_fold_on_1_2_4_ranks(tmp, in_solve):
+    """The fast fold (its halves meet at t ~ 0.08 s) on 1, 2 and 4 ranks (CG to
+    1e-10): with the close pairs in the solve (each rank adds the penalties of the
+    pairs of its own particles, from positions its halo's PetscSF moved in, so every
+    rank that holds a pair decides its activity alike), and with the filter alone
+    (proximity, collision impulses and impact zones all act): partitions differ only
+    by the solves, within 1e-8 m in every frame (measured 6e-10 m)."""
     frames = []
     for np_ in (1, 2, 4):
         out = tmp / f"fold{np_}.h5"
-        rep = run(f"{FOLD} -gravity 0,0,-100 -ts_type drapebe -ts_dt 2e-3 -ksp_rtol 1e-10 -ts_max_time 0.15 -contact_self -output_file {out}", np_=np_).report
-        assert rep["self_contact_pairs"] > 0 and rep["self_collisions"] > 0 and rep["self_failsafe"] > 0, rep
+        rep = run(f"{FOLD} -gravity 0,0,-100 -ts_type drapebe -ts_dt 2e-3 -ksp_rtol 1e-10 -ts_max_time 0.15 -contact_self -contact_self_solve {in_solve} -output_file {out}", np_=np_).report
+        if in_solve:
+            assert rep["self_solve_pairs_max"] > 1000 and rep["self_failsafe"] == 0, rep
+        else:
+            assert rep["self_contact_pairs"] > 0 and rep["self_collisions"] > 0 and rep["self_failsafe"] > 0, rep
         frames.append(drape_h5.load(out).positions)
     assert frames[0].shape[0] == 31
     for other in frames[1:]:
@@ -197,7 +213,7 @@ def test_self_contact_options_are_checked(tmp):
     """Out-of-range self-contact options end with one sentence naming the option and
     the allowed range."""
     for opt, why in (("-contact_self_thickness -1", "-contact_self_thickness"), ("-contact_self_friction nan", "-contact_self_friction"),
-                     ("-contact_self_its 5000", "-contact_self_its"), ("-contact_self_broad_phase octree", "-contact_self_broad_phase"),
+                     ("-contact_self_its 5000", "-contact_self_its"), ("-contact_self_stiffness -5", "-contact_self_stiffness"), ("-contact_self_broad_phase octree", "-contact_self_broad_phase"),
                      ("-contact_self_failsafe glue", "-contact_self_failsafe")):
         res = run(f"-da_grid_x 8 -da_grid_y 8 -ts_max_steps 1 -contact_self {opt}", check=False)
         lines = [l for l in res.stderr.splitlines() if l.strip()]

@@ -55,6 +55,7 @@
 #include <drape.h>
 #include <simulation.h>
 #include <solid.h>
+#include <selfcontact.h>
 
 /* A particle that a step carries less than this fraction of the contact thickness
  * into the contact layer is not made a constraint of the step: the projection
@@ -66,6 +67,8 @@
 typedef struct {
   Cloth              cloth;
   Contact            contact;    /* NULL: no solid */
+  SelfContact        self;       /* NULL: no self-contact in the solve */
+  MatType            mattype;    /* of J (a new J when self-contact needs more blocks) */
   Vec                U0;         /* the state at the start of the step */
   Vec                DV, R, W;   /* W: work vector of the CG start */
   Vec                nullvec[6]; /* near null space (BENearNullSpace) */
@@ -145,6 +148,16 @@ static PetscErrorCode TrialState(TS_DrapeBE *be, Vec DV)
   PetscFunctionReturn(0);
 }
 
+/* be->at: the accelerations at the trial state, the self-contact penalties' with
+ * the cloth's. */
+static PetscErrorCode BEAcceleration(TS_DrapeBE *be)
+{
+  PetscFunctionBeginUser;
+  PetscCall(ClothComputeAcceleration(be->cloth, be->xt, be->vt, be->at));
+  if (be->self) PetscCall(SelfContactSolveAddAcceleration(be->self, be->xt, be->at));
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode BEFunction(SNES snes, Vec DV, Vec R, void *ctx)
 {
   TS_DrapeBE        *be = (TS_DrapeBE *) ctx;
@@ -153,7 +166,7 @@ static PetscErrorCode BEFunction(SNES snes, Vec DV, Vec R, void *ctx)
 
   PetscFunctionBeginUser;
   PetscCall(TrialState(be, DV));
-  PetscCall(ClothComputeAcceleration(be->cloth, be->xt, be->vt, be->at));
+  PetscCall(BEAcceleration(be));
   PetscCall(VecGetArrayRead(DV, &dv));
   PetscCall(VecGetArray(R, &r));
   for (PetscInt i = 0; i < be->n; i++) r[i] = be->mass[i / 3] * (be->pinned[i / 3] ? dv[i] : be->vt[i] - be->v0[i] - be->h * be->at[i]);
@@ -254,6 +267,7 @@ static PetscErrorCode BEApplyConstraints(TS_DrapeBE *be)
   PetscCall(MPIU_Allreduce(MPI_IN_PLACE, counts, 2, MPIU_INT, MPI_SUM, PetscObjectComm((PetscObject) be->J)));
   be->constrained = (PetscBool) (counts[0] > 0);
   PetscCall(ClothSetConstraints(be->cloth, be->constrained ? be->ctype : NULL, be->cnormal, be->mode == CONTACT_FRICTION ? be->fblock : NULL));
+  if (be->self) PetscCall(SelfContactSolveSetConstraints(be->self, be->constrained ? be->ctype : NULL, be->cnormal));
   /* a constraint that comes or goes changes its row of the matrix, and a factorisation
    * (ICC) of the old one is then a poor preconditioner: rebuilt (cheap); an algebraic
    * multigrid hierarchy, costly to build, copes with a few particles more or less in
@@ -379,7 +393,7 @@ static PetscErrorCode BEUpdateActiveSet(TS_DrapeBE *be, PetscInt *changes)
   PetscInt        kinds[2] = {0, 0}, sums[2]; /* new, released */
 
   PetscFunctionBeginUser;
-  PetscCall(ClothComputeAcceleration(be->cloth, be->xt, be->vt, be->at));
+  PetscCall(BEAcceleration(be));
   PetscCall(ClothGetHessianDiagonal(be->cloth, &be->hdiag));
   for (PetscInt k = 0; k < be->n / 3; k++) {
     const PetscReal m = be->mass[k], *vt = be->vt + 3 * k;
@@ -614,6 +628,34 @@ static PetscErrorCode BECheckEnergy(TS ts, TS_DrapeBE *be, PetscBool *ok)
   PetscFunctionReturn(0);
 }
 
+/* The self-contact penalties' blocks to the cloth's matrix; a new matrix (and
+ * preconditioner) when a block is outside its pattern. Collective. */
+static PetscErrorCode BESelfBlocks(TS ts, TS_DrapeBE *be)
+{
+  const PetscInt  *rows, *cols;
+  const PetscReal *vals;
+  PetscInt         n;
+  PetscBool        fits;
+  PetscMPIInt      all, mine;
+
+  PetscFunctionBeginUser;
+  PetscCall(SelfContactSolveGetBlocks(be->self, &n, &rows, &cols, &vals));
+  PetscCall(ClothSetExtraBlocks(be->cloth, n, rows, cols, vals, &fits));
+  mine = fits;
+  PetscCallMPI(MPI_Allreduce(&mine, &all, 1, MPI_INT, MPI_MIN, PetscObjectComm((PetscObject) ts)));
+  if (!all) {
+    SNES snes;
+    Mat  J;
+    PetscCall(ClothCreateMatrix(be->cloth, be->mattype, &J));
+    PetscCall(TSGetSNES(ts, &snes));
+    PetscCall(SNESSetJacobian(snes, J, J, BEJacobian, be));
+    PetscCall(MatDestroy(&be->J));
+    be->J        = J;
+    be->pc_stale = PETSC_TRUE;
+  }
+  PetscFunctionReturn(0);
+}
+
 /* The step at h = ts->time_step from U0: solves until the contact constraints are
  * consistent with the motion they allow. *ok false: a solve failed. */
 static PetscErrorCode BEStep(TS ts, TS_DrapeBE *be, PetscBool *ok)
@@ -632,17 +674,19 @@ static PetscErrorCode BEStep(TS ts, TS_DrapeBE *be, PetscBool *ok)
      * solves do: it stops there too, unless -snes_atol says otherwise */
     if (!be->snes_atol_set) PetscCall(SNESSetTolerances(snes, rtol * be->h * be->weight, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT));
   }
+  if (be->self) PetscCall(SelfContactSolveBegin(be->self, be->h, be->x0, be->v0));
   if (be->contact) {
     PetscCall(PetscLogEventBegin(drape_log.contact, 0, 0, 0, 0));
     PetscCall(BEInitialConstraints(be));
     PetscCall(BEApplyConstraints(be));
     PetscCall(PetscLogEventEnd(drape_log.contact, 0, 0, 0, 0));
   }
+  if (be->self) PetscCall(BESelfBlocks(ts, be));
   /* the matrix changes little from step to step: CG keeps the last factorisation as
    * its preconditioner for lag - 1 steps, unless contact constraints came or went
    * (the matrix itself is new every solve, so the answer is not affected) */
   for (PetscInt it = 0;; it++) {
-    PetscInt  changes;
+    PetscInt  changes, self_changes = 0;
     PetscBool rebuild = PETSC_TRUE;
     if (be->lag > 1) {
       rebuild = (PetscBool) (be->pc_stale || (it == 0 && ts->steps % be->lag == 0));
@@ -656,12 +700,19 @@ static PetscErrorCode BEStep(TS ts, TS_DrapeBE *be, PetscBool *ok)
     PetscCall(BESolve(ts, be, ok));
     if (!*ok) PetscFunctionReturn(0);
     PetscCall(TrialState(be, be->DV));
-    if (!be->contact || it + 1 >= be->contact_its) break;
-    PetscCall(PetscLogEventBegin(drape_log.contact, 0, 0, 0, 0));
-    PetscCall(BEUpdateActiveSet(be, &changes));
-    if (changes) PetscCall(BEApplyConstraints(be));
-    PetscCall(PetscLogEventEnd(drape_log.contact, 0, 0, 0, 0));
-    if (!changes) break;
+    if (be->self) { /* counts the pairs pressing in this solve */
+      PetscCall(SelfContactSolveUpdate(be->self, be->xt, &self_changes));
+      if (self_changes && it + 1 < be->contact_its) PetscCall(BESelfBlocks(ts, be));
+    }
+    if ((!be->contact && !be->self) || it + 1 >= be->contact_its) break;
+    changes = 0;
+    if (be->contact) {
+      PetscCall(PetscLogEventBegin(drape_log.contact, 0, 0, 0, 0));
+      PetscCall(BEUpdateActiveSet(be, &changes));
+      if (changes) PetscCall(BEApplyConstraints(be));
+      PetscCall(PetscLogEventEnd(drape_log.contact, 0, 0, 0, 0));
+    }
+    if (!changes && !self_changes) break;
   }
   PetscCall(BECheckEnergy(ts, be, ok));
   PetscFunctionReturn(0);
@@ -677,7 +728,7 @@ static PetscErrorCode BEAccept(TS ts, TS_DrapeBE *be)
 
   PetscFunctionBeginUser;
   be->impulse[0] = be->impulse[1] = be->impulse[2] = 0;
-  if (be->constrained) PetscCall(ClothComputeAcceleration(be->cloth, be->xt, be->vt, be->at));
+  if (be->constrained) PetscCall(BEAcceleration(be));
   PetscCall(VecGetArray(ts->vec_sol, &u));
   for (PetscInt k = 0; k < be->n / 3; k++) {
     PetscReal *v = be->vt + 3 * k;
@@ -814,7 +865,8 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
       }
     }
     PetscCall(PetscObjectTypeCompareAny((PetscObject) pc, &be->pc_amg, PCGAMG, PCML, PCHYPRE, PCHMG, ""));
-    PetscCall(ClothCreateMatrix(be->cloth, sbaij ? MATSBAIJ : MATAIJ, &be->J));
+    be->mattype = sbaij ? MATSBAIJ : MATAIJ;
+    PetscCall(ClothCreateMatrix(be->cloth, be->mattype, &be->J));
     /* the preconditioner lags with the single linearisation and an iterative KSP; a
      * direct solve (-ksp_type preonly) may not lag its factorisation, which is then
      * the solve itself, and takes no start (PETSc refuses one) */
@@ -897,6 +949,13 @@ static PetscErrorCode TSDrapeBESetContact_DrapeBE(TS ts, Contact contact)
   PetscFunctionReturn(0);
 }
 
+static PetscErrorCode TSDrapeBESetSelfContact_DrapeBE(TS ts, SelfContact self)
+{
+  PetscFunctionBeginUser;
+  ((TS_DrapeBE *) ts->data)->self = self;
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode TSDrapeBEGetContactImpulse_DrapeBE(TS ts, PetscReal impulse[3])
 {
   TS_DrapeBE *be = (TS_DrapeBE *) ts->data;
@@ -959,6 +1018,13 @@ PetscErrorCode TSDrapeBESetContact(TS ts, Contact contact)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode TSDrapeBESetSelfContact(TS ts, SelfContact self)
+{
+  PetscFunctionBeginUser;
+  PetscTryMethod(ts, "TSDrapeBESetSelfContact_C", (TS, SelfContact), (ts, self));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode TSDrapeBEGetContactImpulse(TS ts, PetscReal impulse[3])
 {
   PetscFunctionBeginUser;
@@ -977,7 +1043,7 @@ PetscErrorCode TSDrapeBEGetStatistics(TS ts, PetscInt *solves, PetscInt *rejecte
   PetscFunctionReturn(0);
 }
 
-static const char *const methods[] = {"TSDrapeBESetCloth_C", "TSDrapeBESetContact_C", "TSDrapeBESetStiffness_C", "TSDrapeBEGetContactImpulse_C", "TSDrapeBEGetStatistics_C", "TSDrapeBEStateChanged_C"};
+static const char *const methods[] = {"TSDrapeBESetCloth_C", "TSDrapeBESetContact_C", "TSDrapeBESetSelfContact_C", "TSDrapeBESetStiffness_C", "TSDrapeBEGetContactImpulse_C", "TSDrapeBEGetStatistics_C", "TSDrapeBEStateChanged_C"};
 
 static PetscErrorCode TSDestroy_DrapeBE(TS ts)
 {
@@ -1039,6 +1105,7 @@ static PetscErrorCode TSCreate_DrapeBE(TS ts)
   ts->max_snes_failures   = -1; /* a failed solve is retried at a smaller step */
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBESetCloth_C", TSDrapeBESetCloth_DrapeBE));
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBESetContact_C", TSDrapeBESetContact_DrapeBE));
+  PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBESetSelfContact_C", TSDrapeBESetSelfContact_DrapeBE));
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBESetStiffness_C", TSDrapeBESetStiffness_DrapeBE));
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBEGetContactImpulse_C", TSDrapeBEGetContactImpulse_DrapeBE));
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBEGetStatistics_C", TSDrapeBEGetStatistics_DrapeBE));

@@ -407,6 +407,11 @@ PetscErrorCode SimulationSetUp(Simulation s)
   PetscCall(TSSetErrorIfStepFails(s->ts, PETSC_FALSE)); /* drape says why, after TSSolve */
   PetscCall(TSDrapeBESetCloth(s->ts, s->cloth));
   if (s->contact) PetscCall(TSDrapeBESetContact(s->ts, s->contact));
+  if (s->self) {
+    PetscBool in_solve;
+    PetscCall(SelfContactSolveEnabled(s->self, &in_solve));
+    if (in_solve) PetscCall(TSDrapeBESetSelfContact(s->ts, s->self));
+  }
   if (s->have_restart) {
     PetscCall(TSSetTime(s->ts, s->restart_time));
     s->impulse_t0 = s->restart_time;
@@ -901,6 +906,7 @@ PetscErrorCode SimulationRun(Simulation s)
       PetscCall(ReportSetInt(r, "self_halo_max", st.halo));
       PetscCall(ReportSetInt(r, "self_gathered", st.gathered));
       PetscCall(ReportSetInt(r, "self_failsafe_steps", st.failsafe_steps));
+      PetscCall(ReportSetInt(r, "self_solve_pairs_max", st.solve_pairs_max));
     }
     if (s->summary) {
       PetscCall(PetscPrintf(s->comm, "Summary: %" PetscInt_FMT " steps to t = %g s in %.3f s wall, %.4e particle-steps/s", run, (double) t, (double) wall, wall > 0 ? ((double) run * info.nparticles / wall) : 0.0));

@@ -43,63 +43,23 @@
  * motion, so that a cloth moving steadily keeps its list for as many steps. */
 #define SELF_PREDICT_STEPS 2
 
-/* Particles the filter acts on, their copy of the state, their primitives and the
- * candidate pairs among them: a rank's own particles and its halo; or (only state
- * and 1/m) the particles of the contacts gathered from every rank. */
-typedef struct {
-  PetscInt   n, nown;                 /* particles; the first nown are the rank's own (gathered: all) */
-  PetscInt  *nat;                     /* natural index of each */
-  PetscReal *invm, *x0, *x1, *v;      /* 1/m (0 pinned), start, end, velocity: 3 each */
-  PetscReal *lo, *hi;                 /* each particle's box at the last broad phase */
-  SelfMesh   mesh;                    /* primitives (indices into this set) in natural order */
-  PetscInt  *vid, *tid, *eid;         /* their indices in the whole cloth's */
-  PetscInt   npt, nee, *pt, *ee;      /* candidate pairs with one of the first nown particles */
-  PetscBool  listed;                  /* a candidate list exists */
-} SelfSet;
-
-struct _p_SelfContact {
-  MPI_Comm         comm;
-  PetscMPIInt      rank, size;
-  Cloth            cloth;
-  PetscBool        enabled;
-  PetscReal        thickness, mu;
-  PetscInt         its;
-  PetscReal        margin; /* of the Verlet list, in thicknesses */
-  PetscBool        hash;   /* broad phase by the spatial hash (else CGAL) */
-  PetscBool        zones;  /* fail-safe by rigid impact zones (else stop the particles) */
-  SelfMesh         mesh;   /* the whole cloth's primitives, natural indices (topology only) */
-  PetscInt         N, nowned;
-  PetscInt        *tri_ptr, *tri_adj;     /* triangles of each particle (natural; CSR) */
-  PetscInt        *edge_ptr, *edge_adj;   /* edges of each particle */
-  PetscInt        *vert_of;               /* index in mesh.vert of each particle, -1 */
-  PetscMPIInt     *owner;                 /* rank of each particle (natural) */
-  PetscInt        *owner_idx;             /* its index there */
-  PetscInt        *local_of;              /* scratch: natural -> index in the local set, -1 */
-  PetscReal       *invm;                  /* 1/m, 0 pinned (natural) */
-  PetscInt         nh1, *h1;              /* the halo's fixed part: other ranks' particles of own particles' triangles */
-  SelfSet          local;                 /* the rank's own particles and its halo */
-  PetscSF          sf;                    /* own particles (roots) -> the local set's halo (leaves) */
-  MPI_Datatype     unit3;                 /* 3 reals */
-  PetscInt        *uf;                    /* union-find parents over the local set (-1: not in an active pair) */
-  PetscBool       *bnd;                   /* a group of active pairs reaches the halo (by root) */
-  SelfContactStats stats;
-};
-
 PetscErrorCode SelfContactCreate(MPI_Comm comm, Cloth cloth, SelfContact *self)
 {
   SelfContact sc;
 
   PetscFunctionBeginUser;
   PetscCall(PetscNew(&sc));
-  sc->comm   = comm;
-  sc->cloth  = cloth;
-  sc->mu     = 0.3;
-  sc->its    = 8;
-  sc->margin = 1;
-  sc->hash   = PETSC_TRUE;
-  sc->zones  = PETSC_TRUE;
-  sc->unit3  = MPI_DATATYPE_NULL;
-  *self      = sc;
+  sc->comm          = comm;
+  sc->cloth         = cloth;
+  sc->mu            = 0.3;
+  sc->its           = 8;
+  sc->margin        = 1;
+  sc->hash          = PETSC_TRUE;
+  sc->zones         = PETSC_TRUE;
+  sc->unit3         = MPI_DATATYPE_NULL;
+  sc->unit9         = MPI_DATATYPE_NULL;
+  sc->solve.enabled = PETSC_TRUE;
+  *self             = sc;
   PetscFunctionReturn(0);
 }
 PetscErrorCode SelfContactSetFromOptions(SelfContact sc)
@@ -123,10 +83,15 @@ PetscErrorCode SelfContactSetFromOptions(SelfContact sc)
       PetscOptionsEList("-contact_self_failsafe", "Fail-safe for pairs still colliding after the collision passes: rigid impact zones, or stop the particles at the start of the step", "SelfContactSetFromOptions", kinds, 2, kinds[kind], &kind, NULL));
     sc->zones = (PetscBool) (kind == 1);
   }
+  PetscCall(PetscOptionsBool("-contact_self_solve", "In backward Euler (drapebe): the close pairs enter the step's solve as stiff one-sided penalties (the filter after the step stays)", "SelfContactSetFromOptions", sc->solve.enabled,
+                             &sc->solve.enabled, NULL));
+  PetscCall(PetscOptionsReal("-contact_self_stiffness", "Stiffness of a pair's penalty in the solve (N/m; 0: 10 m/h^2, m the mean particle mass: a pair approaching by a thickness a step sinks by a tenth of it)", "SelfContactSetFromOptions",
+                             sc->solve.k_set, &sc->solve.k_set, NULL));
   PetscCall(PetscOptionsInt("-contact_self_its", "Passes of collision impulses before the fail-safe takes the pairs still colliding", "SelfContactSetFromOptions", sc->its, &sc->its, NULL));
   PetscOptionsEnd();
   PetscCall(DrapeCheckReal(sc->comm, "-contact_self_thickness", 1, &sc->thickness, 0, 1, "m (0: a quarter of the lattice spacing)"));
   PetscCall(DrapeCheckReal(sc->comm, "-contact_self_friction", 1, &sc->mu, 0, 10, ""));
+  PetscCall(DrapeCheckReal(sc->comm, "-contact_self_stiffness", 1, &sc->solve.k_set, 0, 1e12, "N/m (0: 10 m/h^2)"));
   PetscCall(DrapeCheckReal(sc->comm, "-contact_self_margin", 1, &sc->margin, 0, 100, "thicknesses"));
   PetscCall(DrapeCheckIntOption(sc->comm, "-contact_self_its"));
   PetscCall(DrapeCheckInt(sc->comm, "-contact_self_its", sc->its, 0, 1000));
@@ -247,12 +212,12 @@ static PetscErrorCode LocalPrimitives(SelfContact sc, const PetscInt *ptr, const
  * that moves it, the primitives among them. */
 static PetscErrorCode LocalSetBuild(SelfContact sc, PetscInt nhalo, const PetscInt *halo)
 {
-  SelfSet         *s = &sc->local;
-  const PetscInt   nown = sc->nowned, n = nown + nhalo;
-  const PetscInt  *natural;
-  PetscInt        *nat, *vert, nvert = 0;
-  PetscReal       *invm, *x0, *x1, *v, *lo, *hi;
-  PetscSFNode     *remote;
+  SelfSet        *s    = &sc->local;
+  const PetscInt  nown = sc->nowned, n = nown + nhalo;
+  const PetscInt *natural;
+  PetscInt       *nat, *vert, nvert = 0;
+  PetscReal      *invm, *x0, *x1, *v, *lo, *hi;
+  PetscSFNode    *remote;
 
   PetscFunctionBeginUser;
   PetscCall(ClothGetNatural(sc->cloth, &natural));
@@ -270,7 +235,7 @@ static PetscErrorCode LocalSetBuild(SelfContact sc, PetscInt nhalo, const PetscI
   for (PetscInt k = 0; k < nown; k++) nat[k] = natural[k];
   for (PetscInt k = 0; k < nhalo; k++) nat[nown + k] = halo[k];
   for (PetscInt k = 0; k < n; k++) {
-    invm[k]                = sc->invm[nat[k]];
+    invm[k]              = sc->invm[nat[k]];
     sc->local_of[nat[k]] = k;
   }
   if (sc->size > 1) {
@@ -304,10 +269,10 @@ static PetscErrorCode LocalSetBuild(SelfContact sc, PetscInt nhalo, const PetscI
 }
 
 /* The halo's copies of x0, x1 and v (any may be NULL) from their owners. */
-static PetscErrorCode HaloUpdate(SelfContact sc, PetscReal *x0, PetscReal *x1, PetscReal *v)
+PetscErrorCode SelfHaloUpdate(SelfContact sc, PetscReal *x0, PetscReal *x1, PetscReal *v)
 {
-  PetscReal *a[3] = {x0, x1, v};
-  const PetscInt o = 3 * sc->local.nown;
+  PetscReal     *a[3] = {x0, x1, v};
+  const PetscInt o    = 3 * sc->local.nown;
 
   PetscFunctionBeginUser;
   if (!sc->sf) PetscFunctionReturn(0);
@@ -354,11 +319,13 @@ PetscErrorCode SelfContactSetUp(SelfContact sc)
   PetscCall(ClothGetNatural(sc->cloth, &natural));
   PetscCall(ClothGetMasses(sc->cloth, &mass, &pinned));
   if (sc->thickness == 0) sc->thickness = 0.25 * PetscMin(info.spacing[0], info.spacing[1]);
+  sc->solve.mass      = info.mass / info.nparticles;
   sc->stats.thickness = sc->thickness;
   sc->N               = info.nparticles;
   sc->nowned          = info.nowned;
   /* particles and primitives (up to 3 N edges) travel as reals when contacts are gathered */
-  PetscCheck(3 * (PetscReal) sc->N < 1 / PETSC_MACHINE_EPSILON, sc->comm, PETSC_ERR_SUP, "-contact_self sends particle indices as reals: %" PetscInt_FMT " particles are more than this precision counts exactly (at most %g)", sc->N, (double) (1 / (3 * PETSC_MACHINE_EPSILON)));
+  PetscCheck(3 * (PetscReal) sc->N < 1 / PETSC_MACHINE_EPSILON, sc->comm, PETSC_ERR_SUP, "-contact_self sends particle indices as reals: %" PetscInt_FMT " particles are more than this precision counts exactly (at most %g)", sc->N,
+             (double) (1 / (3 * PETSC_MACHINE_EPSILON)));
   PetscCallMPI(MPI_Comm_rank(sc->comm, &sc->rank));
   PetscCallMPI(MPI_Comm_size(sc->comm, &sc->size));
   PetscCall(PetscMPIIntCast(sc->nowned, &nown));
@@ -368,6 +335,8 @@ PetscErrorCode SelfContactSetUp(SelfContact sc)
   for (PetscMPIInt r = 0; r < sc->size; r++) {
     if (r > 0) displs1[r] = displs1[r - 1] + counts1[r - 1];
   }
+  PetscCall(PetscMalloc1(sc->size + 1, &sc->gstart));
+  for (PetscMPIInt r = 0; r <= sc->size; r++) sc->gstart[r] = r == 0 ? 0 : sc->gstart[r - 1] + counts1[r - 1];
   /* who owns each particle, and where (set-up; the topology is on every rank) */
   PetscCall(PetscMalloc3(sc->N, &sc->owner, sc->N, &sc->owner_idx, sc->N, &sc->local_of));
   PetscCall(PetscMalloc3(sc->N, &gather_nat, sc->N, &recv, sc->nowned + 1, &mp));
@@ -406,6 +375,8 @@ PetscErrorCode SelfContactSetUp(SelfContact sc)
   }
   PetscCallMPI(MPI_Type_contiguous(3, MPIU_REAL, &sc->unit3));
   PetscCallMPI(MPI_Type_commit(&sc->unit3));
+  PetscCallMPI(MPI_Type_contiguous(9, MPIU_REAL, &sc->unit9));
+  PetscCallMPI(MPI_Type_commit(&sc->unit9));
   PetscCall(LocalSetBuild(sc, sc->nh1, sc->h1));
   PetscFunctionReturn(0);
 }
@@ -414,7 +385,8 @@ PetscErrorCode SelfContactView(SelfContact sc, PetscViewer viewer)
 {
   PetscFunctionBeginUser;
   if (!sc->enabled) PetscFunctionReturn(0);
-  PetscCall(PetscViewerASCIIPrintf(viewer, "Self-contact: thickness %g m, friction mu = %g, %" PetscInt_FMT " triangles, %" PetscInt_FMT " edges (each rank: its own particles and a halo of the cloth near them)\n", (double) sc->thickness, (double) sc->mu, sc->mesh.nt, sc->mesh.ne));
+  PetscCall(PetscViewerASCIIPrintf(viewer, "Self-contact: thickness %g m, friction mu = %g, %" PetscInt_FMT " triangles, %" PetscInt_FMT " edges (each rank: its own particles and a halo of the cloth near them)\n", (double) sc->thickness,
+                                   (double) sc->mu, sc->mesh.nt, sc->mesh.ne));
   PetscFunctionReturn(0);
 }
 
@@ -441,6 +413,9 @@ PetscErrorCode SelfContactDestroy(SelfContact *self)
   PetscCall(SetFreeList(&sc->local));
   PetscCall(PetscSFDestroy(&sc->sf));
   if (sc->unit3 != MPI_DATATYPE_NULL) PetscCallMPI(MPI_Type_free(&sc->unit3));
+  if (sc->unit9 != MPI_DATATYPE_NULL) PetscCallMPI(MPI_Type_free(&sc->unit9));
+  PetscCall(PetscFree(sc->gstart));
+  PetscCall(SelfSolveDestroy(sc));
   PetscCall(SetFreeMesh(&sc->mesh));
   PetscCall(PetscFree(*self));
   PetscFunctionReturn(0);
@@ -462,11 +437,6 @@ PetscErrorCode SelfContactBeginStep(SelfContact sc, const PetscScalar *x)
 
 /* ---- candidate pairs ---- */
 
-typedef struct {
-  PetscInt  p[4]; /* particles                                                  */
-  PetscReal w[4]; /* weights: the pair's gap along n is sum_i w_i x_i . n        */
-} Pair;
-
 /* Do the boxes of the pair's two primitives (particles p[0..na) and p[na..4)) over
  * the positions of X and Y overlap when grown by tol? */
 static PetscBool PairBoxesOverlap(const PetscInt p[4], PetscInt na, const PetscReal *X, const PetscReal *Y, PetscReal tol)
@@ -483,31 +453,6 @@ static PetscBool PairBoxesOverlap(const PetscInt p[4], PetscInt na, const PetscR
     if (alo > bhi + tol || blo > ahi + tol) return PETSC_FALSE;
   }
   return PETSC_TRUE;
-}
-
-/* The particles of candidate (kind, k): the point and the triangle's three, or the two edges'. */
-static void PairParticles(const SelfSet *s, PetscInt kind, PetscInt k, PetscInt p[4])
-{
-  if (kind == 0) {
-    const PetscInt v = s->mesh.vert[s->pt[2 * k]], *T = s->mesh.tri + 3 * s->pt[2 * k + 1];
-    p[0] = v, p[1] = T[0], p[2] = T[1], p[3] = T[2];
-  } else {
-    const PetscInt *e = s->mesh.edge + 2 * s->ee[2 * k], *f = s->mesh.edge + 2 * s->ee[2 * k + 1];
-    p[0] = e[0], p[1] = e[1], p[2] = f[0], p[3] = f[1];
-  }
-}
-
-/* Is one of the particles p[0..4) among the set's own? */
-static inline PetscBool PairIsOwn(const SelfSet *s, const PetscInt p[4]) { return (PetscBool) (p[0] < s->nown || p[1] < s->nown || p[2] < s->nown || p[3] < s->nown); }
-
-/* Does this rank count the pair (its particle of smallest natural index is its own)?
- * Every pair is counted once over the ranks. */
-static PetscBool PairCountedHere(const SelfSet *s, const PetscInt p[4])
-{
-  PetscInt first = 0;
-  for (PetscInt i = 1; i < 4; i++)
-    if (s->nat[p[i]] < s->nat[p[first]]) first = i;
-  return (PetscBool) (p[first] < s->nown);
 }
 
 /* Each particle's box: its start and end positions and SELF_PREDICT_STEPS more steps
@@ -550,7 +495,7 @@ static PetscErrorCode BroadPhaseRun(void *ctx)
 
 static PetscErrorCode SetBroadPhase(SelfContact sc, SelfSet *s)
 {
-  PetscInt n = 0;
+  PetscInt n   = 0;
   BroadCtx ctx = {sc, s};
 
   PetscFunctionBeginUser;
@@ -562,7 +507,7 @@ static PetscErrorCode SetBroadPhase(SelfContact sc, SelfSet *s)
   if (s->nown < s->n) {
     for (PetscInt kind = 0; kind < 2; kind++) {
       PetscInt *list = kind ? s->ee : s->pt, *np = kind ? &s->nee : &s->npt;
-      n              = 0;
+      n = 0;
       for (PetscInt k = 0; k < *np; k++) {
         PetscInt p[4];
         PairParticles(s, kind, k, p);
@@ -619,11 +564,11 @@ static void TriangleBox(const SelfContact sc, PetscInt t, PetscReal lo[3], Petsc
 
 static PetscErrorCode HaloRebuild(SelfContact sc)
 {
-  SelfSet        *s = &sc->local;
+  SelfSet *s = &sc->local;
   /* a little more than the broad phase's two radii, so that rounding never drops a pair */
   const PetscReal grow = 2.01 * (0.5 + sc->margin) * sc->thickness;
   PetscReal       mine[6], *boxes;
-  PetscInt64     *key = NULL;
+  PetscInt64     *key  = NULL;
   PetscInt        nkey = 0, mkey = 0, nhalo, *halo, nrecv = 0, *send, *recv;
   PetscMPIInt    *scount, *sdispl, *rcount, *rdispl;
 
@@ -684,7 +629,7 @@ static PetscErrorCode HaloRebuild(SelfContact sc)
   PetscCall(PetscSortRemoveDupsInt(&nhalo, halo));
   PetscCall(MPIU_Allreduce(&nhalo, &sc->stats.halo, 1, MPIU_INT, MPI_MAX, sc->comm));
   PetscCall(LocalSetBuild(sc, nhalo, halo));
-  PetscCall(HaloUpdate(sc, s->x0, s->x1, s->v));
+  PetscCall(SelfHaloUpdate(sc, s->x0, s->x1, s->v));
   PetscCall(PetscFree(recv));
   PetscCall(PetscFree(send));
   PetscCall(PetscFree(key));
@@ -695,7 +640,7 @@ static PetscErrorCode HaloRebuild(SelfContact sc)
 
 /* The local set's list, rebuilt (with the halo) when a particle of any rank moved
  * beyond the margin. Collective. */
-static PetscErrorCode LocalListUpdate(SelfContact sc)
+PetscErrorCode SelfListUpdate(SelfContact sc)
 {
   SelfSet    *s = &sc->local;
   PetscMPIInt ok[2], all[2];
@@ -703,8 +648,10 @@ static PetscErrorCode LocalListUpdate(SelfContact sc)
   PetscFunctionBeginUser;
   ok[0] = SetListValid(sc, s);
   ok[1] = PETSC_TRUE;
-  if (sc->size > 1) PetscCallMPI(MPI_Allreduce(ok, all, 1, MPI_INT, MPI_MIN, sc->comm));
-  else all[0] = ok[0];
+  if (sc->size > 1)
+    PetscCallMPI(MPI_Allreduce(ok, all, 1, MPI_INT, MPI_MIN, sc->comm));
+  else
+    all[0] = ok[0];
   if (all[0]) PetscFunctionReturn(0);
   ok[1] = SetBoxes(s);
   if (sc->size > 1) {
@@ -712,41 +659,14 @@ static PetscErrorCode LocalListUpdate(SelfContact sc)
     PetscCall(CheckFinite(sc, (PetscBool) all[1]));
     PetscCall(HaloRebuild(sc));
     (void) SetBoxes(s); /* the new halo's */
-  } else PetscCall(CheckFinite(sc, (PetscBool) ok[1]));
+  } else
+    PetscCall(CheckFinite(sc, (PetscBool) ok[1]));
   PetscCall(SetBroadPhase(sc, s));
   sc->stats.broad_phases++;
   PetscFunctionReturn(0);
 }
 
 /* ---- a pair's corrections ---- */
-
-static inline void WeightsPT(Pair *pr, const PetscReal w[3]) { pr->w[0] = 1, pr->w[1] = -w[0], pr->w[2] = -w[1], pr->w[3] = -w[2]; }
-static inline void WeightsEE(Pair *pr, PetscReal s, PetscReal u) { pr->w[0] = -(1 - s), pr->w[1] = -s, pr->w[2] = 1 - u, pr->w[3] = u; }
-
-/* The pair's closest points at positions X (its particles set by PairParticles):
- * the weights, the unit normal from the first primitive (triangle, first edge) to
- * the second (point, second edge) and the distance. */
-static PetscReal PairClosest(PetscInt kind, const PetscReal *X, Pair *pr, PetscReal n[3])
-{
-  const PetscInt *p = pr->p;
-  PetscReal       dist;
-
-  if (kind == 0) {
-    PetscReal w[3];
-    dist = PointTriangleClosest(X + 3 * p[0], X + 3 * p[1], X + 3 * p[2], X + 3 * p[3], w);
-    WeightsPT(pr, w);
-  } else {
-    PetscReal s, u;
-    dist = SegmentSegmentClosest(X + 3 * p[0], X + 3 * p[1], X + 3 * p[2], X + 3 * p[3], &s, &u);
-    WeightsEE(pr, s, u);
-  }
-  for (PetscInt d = 0; d < 3; d++) n[d] = 0;
-  for (PetscInt i = 0; i < 4; i++)
-    for (PetscInt d = 0; d < 3; d++) n[d] += pr->w[i] * X[3 * p[i] + d];
-  if (dist > 0)
-    for (PetscInt d = 0; d < 3; d++) n[d] /= dist;
-  return dist;
-}
 
 /* What one pair does to its four particles, from the state at the start of a pass:
  * their 1/m, displacement over the step and velocity, and the pair's corrections. */
@@ -971,8 +891,10 @@ static void PairPrimitives(const SelfSet *s, PetscInt kind, PetscInt k, PetscRea
 static void PackPair(const SelfSet *s, PetscInt kind, PetscInt k, const PetscInt p[4], PetscReal *pk)
 {
   pk[0] = (PetscReal) kind;
-  if (k >= 0) PairPrimitives(s, kind, k, pk + 1);
-  else pk[1] = pk[2] = 0;
+  if (k >= 0)
+    PairPrimitives(s, kind, k, pk + 1);
+  else
+    pk[1] = pk[2] = 0;
   for (PetscInt i = 0; i < 4; i++) {
     pk[3 + i] = (PetscReal) s->nat[p[i]];
     for (PetscInt d = 0; d < 3; d++) pk[7 + 9 * i + d] = s->x0[3 * p[i] + d], pk[10 + 9 * i + d] = s->x1[3 * p[i] + d], pk[13 + 9 * i + d] = s->v[3 * p[i] + d];
@@ -1015,10 +937,10 @@ static int PackCompare(const void *a, const void *b)
  * *nacted: how many acted. */
 static PetscErrorCode TakeGathered(SelfContact sc, PetscBool proximity, PetscReal h, PetscInt npack, const PetscReal *packs, PetscInt *nacted)
 {
-  SelfSet           *s    = &sc->local;
-  SelfSet            mini = {0};
-  PetscInt          *nat, m = 4 * npack;
-  const PetscReal  **order;
+  SelfSet          *s    = &sc->local;
+  SelfSet           mini = {0};
+  PetscInt         *nat, m = 4 * npack;
+  const PetscReal **order;
 
   PetscFunctionBeginUser;
   *nacted = 0;
@@ -1077,7 +999,8 @@ static PetscErrorCode Pass(SelfContact sc, PetscBool proximity, PetscReal h, Pet
         if (!PairBoxesOverlap(pr.p, kind == 0 ? 1 : 2, s->x0, s->x0, H)) continue;
         dist = PairClosest(kind, s->x0, &pr, n);
         if (dist >= H || dist <= 0) continue; /* dist 0: touching at the start, no direction: the collision pass sees it */
-      } else if (!Collides(sc, s, kind, &pr, n)) continue;
+      } else if (!Collides(sc, s, kind, &pr, n))
+        continue;
       act[na++] = kind ? s->npt + k : k;
       if (PairCountedHere(s, pr.p)) here[1]++;
       (void) ZoneMerge(sc->uf, pr.p);
@@ -1269,7 +1192,7 @@ static PetscErrorCode FailSafeZones(SelfContact sc, PetscReal h, PetscInt *count
     PetscReal *packs, *work;
     PetscBool *pinned, merged = PETSC_FALSE;
 
-    PetscCall(LocalListUpdate(sc));
+    PetscCall(SelfListUpdate(sc));
     for (PetscInt kind = 0; kind < 2; kind++)
       for (PetscInt k = 0; k < (kind ? s->nee : s->npt); k++) {
         Pair      pr;
@@ -1300,7 +1223,7 @@ static PetscErrorCode FailSafeZones(SelfContact sc, PetscReal h, PetscInt *count
       PetscCall(PetscMalloc5(mnew + 1, &z.invm, 3 * mnew + 1, &z.x0, 3 * mnew + 1, &z.x1, 3 * mnew + 1, &z.v, 3 * mnew + 1, &xs));
       for (PetscInt q = 0; q < mnew; q++) {
         PetscInt o = -1;
-        z.invm[q] = sc->invm[nn[q]];
+        z.invm[q]  = sc->invm[nn[q]];
         if (nold) PetscCall(PetscFindInt(nn[q], nold, onat, &o));
         if (o >= 0)
           for (PetscInt d = 0; d < 3; d++) z.x0[3 * q + d] = ox0[3 * o + d], xs[3 * q + d] = oxs[3 * o + d], z.x1[3 * q + d] = ox1[3 * o + d], z.v[3 * q + d] = ov[3 * o + d];
@@ -1375,7 +1298,7 @@ static PetscErrorCode FailSafeFreeze(SelfContact sc, PetscInt *count)
   PetscCall(PetscCalloc2(s->nown + 1, &stopped, s->nown + 1, &stop));
   do {
     PetscInt mine = 0;
-    PetscCall(LocalListUpdate(sc));
+    PetscCall(SelfListUpdate(sc));
     for (PetscInt kind = 0; kind < 2; kind++)
       for (PetscInt k = 0; k < (kind ? s->nee : s->npt); k++) {
         Pair      pr;
@@ -1395,7 +1318,7 @@ static PetscErrorCode FailSafeFreeze(SelfContact sc, PetscInt *count)
     }
     PetscCall(MPIU_Allreduce(&mine, &frozen, 1, MPIU_INT, MPI_SUM, sc->comm));
     *count += frozen;
-    if (frozen) PetscCall(HaloUpdate(sc, NULL, s->x1, s->v));
+    if (frozen) PetscCall(SelfHaloUpdate(sc, NULL, s->x1, s->v));
   } while (frozen);
   PetscCall(PetscFree2(stopped, stop));
   PetscFunctionReturn(0);
@@ -1409,14 +1332,14 @@ PetscErrorCode SelfContactFilter(SelfContact sc, PetscReal h, PetscScalar *x, Pe
   PetscFunctionBeginUser;
   PetscCall(PetscLogEventBegin(drape_log.self_contact, 0, 0, 0, 0));
   for (PetscInt k = 0; k < 3 * s->nown; k++) s->x1[k] = PetscRealPart(x[k]), s->v[k] = PetscRealPart(v[k]);
-  PetscCall(HaloUpdate(sc, s->x0, s->x1, s->v));
-  PetscCall(LocalListUpdate(sc));
+  PetscCall(SelfHaloUpdate(sc, s->x0, s->x1, s->v));
+  PetscCall(SelfListUpdate(sc));
   PetscCall(Pass(sc, PETSC_TRUE, h, &sc->stats.pairs, &close));
-  PetscCall(HaloUpdate(sc, NULL, s->x1, s->v));
+  PetscCall(SelfHaloUpdate(sc, NULL, s->x1, s->v));
   for (PetscInt it = 0; it < sc->its && active; it++) {
-    PetscCall(LocalListUpdate(sc));
+    PetscCall(SelfListUpdate(sc));
     PetscCall(Pass(sc, PETSC_FALSE, h, &active, &ncol));
-    if (ncol) PetscCall(HaloUpdate(sc, NULL, s->x1, s->v));
+    if (ncol) PetscCall(SelfHaloUpdate(sc, NULL, s->x1, s->v));
     sc->stats.collisions += ncol;
     ncol_total += ncol;
     if (!ncol) break; /* nothing changed: the same pairs still collide */

@@ -3,6 +3,8 @@
 #pragma once
 
 #include <selfcontact.h>
+#include "proximity.h"
+#include <petscsf.h>
 
 typedef struct {
   PetscInt  nv, nt, ne;
@@ -17,3 +19,134 @@ typedef struct {
 PETSC_EXTERN PetscErrorCode SelfBroadPhase(const SelfMesh *, const PetscReal *x0, const PetscReal *x1, PetscReal r, PetscInt *npt, PetscInt **pt, PetscInt *nee, PetscInt **ee);
 /* The same pairs, in the same order, by a uniform spatial hash (hashgrid.c). */
 PETSC_EXTERN PetscErrorCode SelfBroadPhaseHash(const SelfMesh *, const PetscReal *x0, const PetscReal *x1, PetscReal r, PetscInt *npt, PetscInt **pt, PetscInt *nee, PetscInt **ee);
+
+/* Particles the filter acts on, their copy of the state, their primitives and the
+ * candidate pairs among them: a rank's own particles and its halo; or (only state
+ * and 1/m) the particles of the contacts gathered from every rank. */
+typedef struct {
+  PetscInt   n, nown;            /* particles; the first nown are the rank's own (gathered: all) */
+  PetscInt  *nat;                /* natural index of each */
+  PetscReal *invm, *x0, *x1, *v; /* 1/m (0 pinned), start, end, velocity: 3 each */
+  PetscReal *lo, *hi;            /* each particle's box at the last broad phase */
+  SelfMesh   mesh;               /* primitives (indices into this set) in natural order */
+  PetscInt  *vid, *tid, *eid;    /* their indices in the whole cloth's */
+  PetscInt   npt, nee, *pt, *ee; /* candidate pairs with one of the first nown particles */
+  PetscBool  listed;             /* a candidate list exists */
+} SelfSet;
+
+typedef struct {
+  PetscInt  p[4]; /* particles                                                  */
+  PetscReal w[4]; /* weights: the pair's gap along n is sum_i w_i x_i . n        */
+} Pair;
+
+/* Self-contact inside the implicit step (implicit.c): the step's close pairs as
+ * one-sided penalties. */
+typedef struct {
+  PetscBool  enabled;            /* -contact_self_solve (taken only by a scheme that calls SelfContactSolveBegin) */
+  PetscReal  k, k_set;           /* penalty stiffness of the step; -contact_self_stiffness (0: SELF_SOLVE_STIFFNESS m / h^2), N/m */
+  PetscReal  mass;               /* mean particle mass, kg */
+  PetscInt   n, m;               /* the step's pairs, allocated */
+  Pair      *pair;               /* particles (local set) and weights at the step's start */
+  PetscReal *nrm, *rest, *share; /* unit normal (3 each), rest gap, share of the stiffness of each */
+  PetscBool *active;
+  PetscInt  *released; /* times released in this step */
+  PetscInt   ns;       /* local-set particles the arrays below hold */
+  PetscReal *xs;       /* trial positions over the local set */
+  PetscReal *S;        /* each local-set particle's free-direction projector (solid contact), 9 each */
+  PetscInt  *gid;      /* global block index of each local-set particle in the implicit matrix */
+  PetscInt   nb, mb;   /* matrix blocks, allocated */
+  PetscInt  *brow, *bcol;
+  PetscReal *bval;
+} SelfSolve;
+struct _p_SelfContact {
+  MPI_Comm         comm;
+  PetscMPIInt      rank, size;
+  Cloth            cloth;
+  PetscBool        enabled;
+  PetscReal        thickness, mu;
+  PetscInt         its;
+  PetscReal        margin; /* of the Verlet list, in thicknesses */
+  PetscBool        hash;   /* broad phase by the spatial hash (else CGAL) */
+  PetscBool        zones;  /* fail-safe by rigid impact zones (else stop the particles) */
+  SelfMesh         mesh;   /* the whole cloth's primitives, natural indices (topology only) */
+  PetscInt         N, nowned;
+  PetscInt        *tri_ptr, *tri_adj;   /* triangles of each particle (natural; CSR) */
+  PetscInt        *edge_ptr, *edge_adj; /* edges of each particle */
+  PetscInt        *vert_of;             /* index in mesh.vert of each particle, -1 */
+  PetscMPIInt     *owner;               /* rank of each particle (natural) */
+  PetscInt        *owner_idx;           /* its index there */
+  PetscInt        *local_of;            /* scratch: natural -> index in the local set, -1 */
+  PetscReal       *invm;                /* 1/m, 0 pinned (natural) */
+  PetscInt         nh1, *h1;            /* the halo's fixed part: other ranks' particles of own particles' triangles */
+  SelfSet          local;               /* the rank's own particles and its halo */
+  PetscSF          sf;                  /* own particles (roots) -> the local set's halo (leaves) */
+  MPI_Datatype     unit3;               /* 3 reals */
+  PetscInt        *uf;                  /* union-find parents over the local set (-1: not in an active pair) */
+  PetscBool       *bnd;                 /* a group of active pairs reaches the halo (by root) */
+  PetscInt        *gstart;              /* global block index of each rank's first particle (size + 1) */
+  MPI_Datatype     unit9;               /* 9 reals */
+  SelfSolve        solve;
+  SelfContactStats stats;
+};
+
+/* The particles of candidate (kind, k): the point and the triangle's three, or the two edges'. */
+static inline void PairParticles(const SelfSet *s, PetscInt kind, PetscInt k, PetscInt p[4])
+{
+  if (kind == 0) {
+    const PetscInt v = s->mesh.vert[s->pt[2 * k]], *T = s->mesh.tri + 3 * s->pt[2 * k + 1];
+    p[0] = v, p[1] = T[0], p[2] = T[1], p[3] = T[2];
+  } else {
+    const PetscInt *e = s->mesh.edge + 2 * s->ee[2 * k], *f = s->mesh.edge + 2 * s->ee[2 * k + 1];
+    p[0] = e[0], p[1] = e[1], p[2] = f[0], p[3] = f[1];
+  }
+}
+
+/* Is one of the particles p[0..4) among the set's own? */
+static inline PetscBool PairIsOwn(const SelfSet *s, const PetscInt p[4]) { return (PetscBool) (p[0] < s->nown || p[1] < s->nown || p[2] < s->nown || p[3] < s->nown); }
+
+/* Does this rank count the pair (its particle of smallest natural index is its own)?
+ * Every pair is counted once over the ranks. */
+static inline PetscBool PairCountedHere(const SelfSet *s, const PetscInt p[4])
+{
+  PetscInt first = 0;
+  for (PetscInt i = 1; i < 4; i++)
+    if (s->nat[p[i]] < s->nat[p[first]]) first = i;
+  return (PetscBool) (p[first] < s->nown);
+}
+
+static inline void WeightsPT(Pair *pr, const PetscReal w[3]) { pr->w[0] = 1, pr->w[1] = -w[0], pr->w[2] = -w[1], pr->w[3] = -w[2]; }
+static inline void WeightsEE(Pair *pr, PetscReal s, PetscReal u) { pr->w[0] = -(1 - s), pr->w[1] = -s, pr->w[2] = 1 - u, pr->w[3] = u; }
+
+/* The pair's closest points at positions X (its particles set by PairParticles):
+ * the weights, the unit normal from the first primitive (triangle, first edge) to
+ * the second (point, second edge) and the distance. */
+static inline PetscReal PairClosest(PetscInt kind, const PetscReal *X, Pair *pr, PetscReal n[3])
+{
+  const PetscInt *p = pr->p;
+  PetscReal       dist;
+
+  if (kind == 0) {
+    PetscReal w[3];
+    dist = PointTriangleClosest(X + 3 * p[0], X + 3 * p[1], X + 3 * p[2], X + 3 * p[3], w);
+    WeightsPT(pr, w);
+  } else {
+    PetscReal s, u;
+    dist = SegmentSegmentClosest(X + 3 * p[0], X + 3 * p[1], X + 3 * p[2], X + 3 * p[3], &s, &u);
+    WeightsEE(pr, s, u);
+  }
+  for (PetscInt d = 0; d < 3; d++) n[d] = 0;
+  for (PetscInt i = 0; i < 4; i++)
+    for (PetscInt d = 0; d < 3; d++) n[d] += pr->w[i] * X[3 * p[i] + d];
+  if (dist > 0)
+    for (PetscInt d = 0; d < 3; d++) n[d] /= dist;
+  return dist;
+}
+
+/* The halo's copies of x0, x1 and v (any may be NULL; arrays over the local set)
+ * from their owners. Collective. */
+PETSC_INTERN PetscErrorCode SelfHaloUpdate(SelfContact, PetscReal *, PetscReal *, PetscReal *);
+/* The local set's candidate list for its present x0 and x1, rebuilt (with the halo)
+ * when a particle of any rank moved beyond the margin. Collective. */
+PETSC_INTERN PetscErrorCode SelfListUpdate(SelfContact);
+/* Frees the implicit step's arrays (implicit.c). */
+PETSC_INTERN PetscErrorCode SelfSolveDestroy(SelfContact);
