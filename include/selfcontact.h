@@ -38,8 +38,7 @@ typedef struct {
   PetscInt  halo;            /* the largest halo of a rank at the last list, particles (0 on one rank) */
   PetscInt  gathered;        /* pairs of contact groups across ranks, gathered on every rank, since the start */
   PetscInt  failsafe_steps;  /* steps in which the fail-safe ran */
-  PetscInt  solve_pairs;     /* pairs pressing in the last implicit step's solve (-contact_self_solve) */
-  PetscInt  solve_pairs_max; /* the most of any step since the start */
+  PetscInt  solve_pairs_max; /* the most pairs pressing in one implicit solve since the start (-contact_self_solve) */
   PetscReal thickness;       /* m */
 } SelfContactStats;
 

@@ -37,9 +37,11 @@ PetscErrorCode SelfSolveDestroy(SelfContact sc)
   SelfSolve *q = &sc->solve;
 
   PetscFunctionBeginUser;
-  PetscCall(PetscFree6(q->pair, q->nrm, q->rest, q->share, q->active, q->released));
+  PetscCall(PetscFree(q->pair));
   PetscCall(PetscFree3(q->xs, q->S, q->gid));
-  PetscCall(PetscFree3(q->brow, q->bcol, q->bval));
+  PetscCall(PetscFree(q->brow));
+  PetscCall(PetscFree(q->bcol));
+  PetscCall(PetscFree(q->bval));
   q->n = q->m = q->ns = q->nb = q->mb = 0;
   PetscFunctionReturn(0);
 }
@@ -52,10 +54,10 @@ PetscErrorCode SelfContactSolveEnabled(SelfContact sc, PetscBool *enabled)
 }
 
 /* The pair's gap C(X) = sum_i w_i n.X_i. */
-static inline PetscReal SolveGap(const SelfSolve *q, PetscInt e, const PetscReal *X)
+static inline PetscReal SolveGap(const SolvePair *sp, const PetscReal *X)
 {
-  const Pair      *pr = q->pair + e;
-  const PetscReal *n  = q->nrm + 3 * e;
+  const Pair      *pr = &sp->pr;
+  const PetscReal *n  = sp->n;
   PetscReal        g  = 0;
   for (PetscInt i = 0; i < 4; i++) g += pr->w[i] * (n[0] * X[3 * pr->p[i]] + n[1] * X[3 * pr->p[i] + 1] + n[2] * X[3 * pr->p[i] + 2]);
   return g;
@@ -134,28 +136,18 @@ PetscErrorCode SelfContactSolveBegin(SelfContact sc, PetscReal h, const PetscSca
       if (PetscMin(dist, gp) >= SELF_SOLVE_REACH * H) continue;
       share = 1 / (PetscReal) FeatureTriangles(sc, &pr);
       if (q->n == q->m) {
-        const PetscInt m = 2 * q->m + 64;
-        Pair          *pair;
-        PetscReal     *nrm, *rest, *sh;
-        PetscBool     *active;
-        PetscInt      *released;
-        PetscCall(PetscMalloc6(m, &pair, 3 * m, &nrm, m, &rest, m, &sh, m, &active, m, &released));
-        PetscCall(PetscArraycpy(pair, q->pair, q->n));
-        PetscCall(PetscArraycpy(nrm, q->nrm, 3 * q->n));
-        PetscCall(PetscArraycpy(rest, q->rest, q->n));
-        PetscCall(PetscArraycpy(sh, q->share, q->n));
-        PetscCall(PetscArraycpy(active, q->active, q->n));
-        PetscCall(PetscArraycpy(released, q->released, q->n));
-        PetscCall(PetscFree6(q->pair, q->nrm, q->rest, q->share, q->active, q->released));
-        q->pair = pair, q->nrm = nrm, q->rest = rest, q->share = sh, q->active = active, q->released = released, q->m = m;
+        q->m = 2 * q->m + 64;
+        PetscCall(PetscRealloc(q->m * sizeof(*q->pair), &q->pair));
       }
-      q->pair[q->n] = pr;
-      for (PetscInt d = 0; d < 3; d++) q->nrm[3 * q->n + d] = n[d];
-      q->rest[q->n]     = PetscMin(H, dist);
-      q->share[q->n]    = share;
-      q->active[q->n]   = (PetscBool) (gp < q->rest[q->n]);
-      q->released[q->n] = 0;
-      q->n++;
+      {
+        SolvePair *sp = q->pair + q->n++;
+        sp->pr        = pr;
+        for (PetscInt d = 0; d < 3; d++) sp->n[d] = n[d];
+        sp->rest     = PetscMin(H, dist);
+        sp->share    = share;
+        sp->active   = (PetscBool) (gp < sp->rest);
+        sp->released = 0;
+      }
     }
   }
   PetscCall(PetscLogEventEnd(drape_log.self_contact, 0, 0, 0, 0));
@@ -195,11 +187,12 @@ PetscErrorCode SelfContactSolveAddAcceleration(SelfContact sc, const PetscScalar
   PetscFunctionBeginUser;
   PetscCall(SolvePositions(sc, x));
   for (PetscInt e = 0; e < q->n; e++) {
-    const Pair      *pr = q->pair + e;
-    const PetscReal *n  = q->nrm + 3 * e;
+    const SolvePair *sp = q->pair + e;
+    const Pair      *pr = &sp->pr;
+    const PetscReal *n  = sp->n;
     PetscReal        lam;
-    if (!q->active[e]) continue;
-    lam = q->k * q->share[e] * (q->rest[e] - SolveGap(q, e, q->xs));
+    if (!sp->active) continue;
+    lam = q->k * sp->share * (sp->rest - SolveGap(sp, q->xs));
     for (PetscInt i = 0; i < 4; i++) {
       const PetscInt p = pr->p[i];
       if (p >= s->nown) continue;
@@ -217,8 +210,9 @@ PetscErrorCode SelfContactSolveGetBlocks(SelfContact sc, PetscInt *nb, const Pet
   PetscFunctionBeginUser;
   q->nb = 0;
   for (PetscInt e = 0; e < q->n; e++) {
-    const Pair      *pr = q->pair + e;
-    const PetscReal *n  = q->nrm + 3 * e;
+    const SolvePair *sp = q->pair + e;
+    const Pair      *pr = &sp->pr;
+    const PetscReal *n  = sp->n;
     for (PetscInt i = 0; i < 4; i++) {
       const PetscInt a = pr->p[i];
       if (a >= s->nown || s->invm[a] == 0) continue;
@@ -228,15 +222,10 @@ PetscErrorCode SelfContactSolveGetBlocks(SelfContact sc, PetscInt *nb, const Pet
         PetscReal        u[3] = {0, 0, 0}, t[3] = {0, 0, 0}, *B;
         if (s->invm[b] == 0) continue;
         if (q->nb == q->mb) {
-          const PetscInt m = 2 * q->mb + 256;
-          PetscInt      *r, *c;
-          PetscReal     *v;
-          PetscCall(PetscMalloc3(m, &r, m, &c, 9 * m, &v));
-          PetscCall(PetscArraycpy(r, q->brow, q->nb));
-          PetscCall(PetscArraycpy(c, q->bcol, q->nb));
-          PetscCall(PetscArraycpy(v, q->bval, 9 * q->nb));
-          PetscCall(PetscFree3(q->brow, q->bcol, q->bval));
-          q->brow = r, q->bcol = c, q->bval = v, q->mb = m;
+          q->mb = 2 * q->mb + 256;
+          PetscCall(PetscRealloc(q->mb * sizeof(*q->brow), &q->brow));
+          PetscCall(PetscRealloc(q->mb * sizeof(*q->bcol), &q->bcol));
+          PetscCall(PetscRealloc(9 * q->mb * sizeof(*q->bval), &q->bval));
         }
         q->brow[q->nb] = a;
         q->bcol[q->nb] = q->gid[b];
@@ -245,7 +234,7 @@ PetscErrorCode SelfContactSolveGetBlocks(SelfContact sc, PetscInt *nb, const Pet
         for (PetscInt r = 0; r < 3; r++)
           for (PetscInt c = 0; c < 3; c++) u[r] += Sa[3 * r + c] * n[c], t[r] += Sb[3 * r + c] * n[c];
         for (PetscInt r = 0; r < 3; r++)
-          for (PetscInt c = 0; c < 3; c++) B[3 * r + c] = q->active[e] ? q->k * q->share[e] * pr->w[i] * pr->w[j] * u[r] * t[c] : 0;
+          for (PetscInt c = 0; c < 3; c++) B[3 * r + c] = sp->active ? q->k * sp->share * pr->w[i] * pr->w[j] * u[r] * t[c] : 0;
       }
     }
   }
@@ -266,21 +255,21 @@ PetscErrorCode SelfContactSolveUpdate(SelfContact sc, const PetscScalar *x, Pets
   PetscFunctionBeginUser;
   PetscCall(SolvePositions(sc, x));
   for (PetscInt e = 0; e < q->n; e++) {
-    const PetscReal C    = SolveGap(q, e, q->xs);
-    const PetscBool here = PairCountedHere(s, q->pair[e].p);
-    counts[1] += here && q->active[e];                       /* pressing in the solve just made */
-    if (q->active[e] && C > q->rest[e] && !q->released[e]) { /* pulled: let go */
-      q->active[e] = PETSC_FALSE;
-      q->released[e]++;
+    SolvePair      *sp   = q->pair + e;
+    const PetscReal C    = SolveGap(sp, q->xs);
+    const PetscBool here = PairCountedHere(s, sp->pr.p);
+    counts[1] += here && sp->active;                   /* pressing in the solve just made */
+    if (sp->active && C > sp->rest && !sp->released) { /* pulled: let go */
+      sp->active = PETSC_FALSE;
+      sp->released++;
       counts[0] += here;
-    } else if (!q->active[e] && C < q->rest[e] - tol) {
-      q->active[e] = PETSC_TRUE;
+    } else if (!sp->active && C < sp->rest - tol) {
+      sp->active = PETSC_TRUE;
       counts[0] += here;
     }
   }
   PetscCall(MPIU_Allreduce(counts, sums, 2, MPIU_INT, MPI_SUM, sc->comm));
   *changes                  = sums[0];
-  sc->stats.solve_pairs     = sums[1];
   sc->stats.solve_pairs_max = PetscMax(sc->stats.solve_pairs_max, sums[1]);
   PetscFunctionReturn(0);
 }

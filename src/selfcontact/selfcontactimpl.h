@@ -42,19 +42,25 @@ typedef struct {
 /* Self-contact inside the implicit step (implicit.c): the step's close pairs as
  * one-sided penalties. */
 typedef struct {
-  PetscBool  enabled;            /* -contact_self_solve (taken only by a scheme that calls SelfContactSolveBegin) */
-  PetscReal  k, k_set;           /* penalty stiffness of the step; -contact_self_stiffness (0: SELF_SOLVE_STIFFNESS m / h^2), N/m */
-  PetscReal  mass;               /* mean particle mass, kg */
-  PetscInt   n, m;               /* the step's pairs, allocated */
-  Pair      *pair;               /* particles (local set) and weights at the step's start */
-  PetscReal *nrm, *rest, *share; /* unit normal (3 each), rest gap, share of the stiffness of each */
-  PetscBool *active;
-  PetscInt  *released; /* times released in this step */
-  PetscInt   ns;       /* local-set particles the arrays below hold */
-  PetscReal *xs;       /* trial positions over the local set */
-  PetscReal *S;        /* each local-set particle's free-direction projector (solid contact), 9 each */
-  PetscInt  *gid;      /* global block index of each local-set particle in the implicit matrix */
-  PetscInt   nb, mb;   /* matrix blocks, allocated */
+  Pair      pr;    /* particles (local set) and weights at the step's start */
+  PetscReal n[3];  /* unit normal at the step's start */
+  PetscReal rest;  /* rest gap, m */
+  PetscReal share; /* of the stiffness */
+  PetscBool active;
+  PetscInt  released; /* times released in this step */
+} SolvePair;
+
+typedef struct {
+  PetscBool  enabled;  /* -contact_self_solve (taken only by a scheme that calls SelfContactSolveBegin) */
+  PetscReal  k, k_set; /* penalty stiffness of the step; -contact_self_stiffness (0: SELF_SOLVE_STIFFNESS m / h^2), N/m */
+  PetscReal  mass;     /* mean particle mass, kg */
+  PetscInt   n, m;     /* the step's pairs, allocated */
+  SolvePair *pair;
+  PetscInt   ns;     /* local-set particles the arrays below hold */
+  PetscReal *xs;     /* trial positions over the local set */
+  PetscReal *S;      /* each local-set particle's free-direction projector (solid contact), 9 each */
+  PetscInt  *gid;    /* global block index of each local-set particle in the implicit matrix */
+  PetscInt   nb, mb; /* matrix blocks, allocated */
   PetscInt  *brow, *bcol;
   PetscReal *bval;
 } SelfSolve;
