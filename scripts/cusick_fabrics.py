@@ -51,10 +51,11 @@ its 8.1, 11.6, 7.5e-6 N m, and navy-sparkle-sweat at 37 degrees, 9.76 against 11
 would overstate the reach of the softest strips and the "bound" could exceed a valid
 drape. Only B_min gives a lower bound.
 
-On the lattice. The bound is the continuum model's. drape's lattice bends a bias
-strip at 0.6-0.7 of Bb at the scene's 5 mm spacing (BENCHMARKS.md, "Bending on the
-bias"), so for a fabric whose softest direction is near the bias the discrete strips
-are softer than B_min; the margin DC - bound also covers that.
+On the lattice. The bound is the continuum model's. drape's lattice bends a clamped
+25 mm bias strip at 0.94-0.96 of Bb (a narrow strip's edges curl; BENCHMARKS.md,
+"Bending on the bias"), so for a fabric whose softest direction is near the bias the
+discrete strips are a few per cent softer than B_min; the margin DC - bound covers
+that.
 
 What the runs give. For each fabric and lattice (-da_grid_x = -da_grid_y = N on the
 same 30 cm specimen), runs/cusick.opts to rest (-drape_rest_tol; a run that reaches

@@ -160,9 +160,10 @@ def test_same_frames_with_contact_on_1_and_2_ranks(tmp, args, tol):
 def test_cusick_scene_reports_drape_coefficient(tmp):
     """A coarse Cusick run drapes, comes to rest by itself, and reports DC and folds
     (in its report and the HDF5 file; tests/test_report.py compares them with the
-    console)."""
+    console). 41^2 (7.5 mm spacing, 8 folds like 61^2): at 31^2 the 60 mm overhang is
+    six particles wide, too coarse to buckle (it stays a fold-free cone, DC 0.60)."""
     out = tmp / "cusick.h5"
-    res = run(f"-options_file runs/cusick.opts -da_grid_x 31 -da_grid_y 31 -ts_dt 2e-3 -output_file {out}")
+    res = run(f"-options_file runs/cusick.opts -da_grid_x 41 -da_grid_y 41 -ts_dt 2e-3 -output_file {out}")
     dc, folds = res.report["drape_coefficient"], res.report["drape_folds"]
     assert res.report["at_rest"] and "At rest at t =" in res.stdout
     assert 0.0 < dc < 1.0 and folds >= 3
