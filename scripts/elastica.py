@@ -244,6 +244,81 @@ def solve_tip(lam, n=None, tol=1e-13):
     return Elastica(lam, float(om[0]), float(y[-1]), float(x[-1]), float(theta[-1]), np.linspace(0.0, 1.0, n + 1), theta, x, y)
 
 
+def _shoot_frictional(lam, p, n):
+    """RK4 from the clamp with theta'(0) = p until theta' falls to 0 (the moment has
+    dropped to the friction's) or the tip: sigma* and (theta, x, y) there, and the path."""
+    h = 1.0 / n
+    cos, sin = math.cos, math.sin
+
+    def f(s, th, om):
+        return om, -lam * (1 - s) * cos(th), cos(th), sin(th)
+
+    th, om, x, y = 0.0, p, 0.0, 0.0
+    path = [(0.0, th, x, y)]
+    for k in range(n):
+        s = k * h
+        k1 = f(s, th, om)
+        k2 = f(s + h / 2, th + h / 2 * k1[0], om + h / 2 * k1[1])
+        k3 = f(s + h / 2, th + h / 2 * k2[0], om + h / 2 * k2[1])
+        k4 = f(s + h, th + h * k3[0], om + h * k3[1])
+        nth, nom, nx, ny = (v + h / 6 * (a + 2 * b + 2 * c + d) for v, a, b, c, d in zip((th, om, x, y), k1, k2, k3, k4))
+        if nom <= 0:  # theta' reaches 0 inside this step: stop there (linear in theta')
+            t = om / (om - nom)
+            th, x, y = th + t * (nth - th), x + t * (nx - x), y + t * (ny - y)
+            path.append((s + t * h, th, x, y))
+            return s + t * h, th, x, y, path
+        th, om, x, y = nth, nom, nx, ny
+        path.append((s + h, th, x, y))
+    return 1.0, th, x, y, path
+
+
+def solve_frictional(lam, eta, n=4000, tol=1e-12):
+    """Heavy cantilever with Grosberg's elastic-frictional bending law, loaded once from flat.
+
+    A fabric's bending moment on first loading is M = HB + B kappa once M exceeds the
+    friction moment HB between its yarns (KES-FB2 measures 2 HB, the width of the
+    moment-curvature loop, and B, its slope), and the fabric does not bend where M <=
+    HB (Grosberg 1966; Lahey and Heppler 2004). The weight's moment about the point at s
+    falls towards the tip, so the strip bends from the clamp to sigma* where it has
+    fallen to HB, and beyond sigma* it is a straight rigid tail at the angle theta*.
+    On [0, sigma*] B theta' = M - HB with M' the same as the elastica's, so
+
+        theta'' = -lambda (1 - sigma) cos theta,  theta(0) = 0,  theta'(sigma*) = 0,
+
+    and the tail's weight moment at sigma* is the friction's:
+    lambda (1 - sigma*)^2 cos theta* / 2 = eta, with eta = HB L / B. Shooting on p =
+    theta'(0) by bisection on [0, lambda/2]: a larger p bends longer, so sigma* grows
+    and the tail's moment falls. eta = 0 is the elastica (sigma* = 1); eta >= lambda/2
+    (the flat strip's clamp moment) leaves the strip flat. The drop and reach on the
+    first loading are what a Cusick specimen falling from flat reaches, not a shape
+    the fabric returns to (the law is hysteretic)."""
+    if not lam > 0 or not eta >= 0:
+        raise ValueError(f"lambda = w L^3 / B must be positive and eta = HB L / B non-negative, not {lam}, {eta}")
+
+    def residual(p):
+        sstar, th, _, _, _ = _shoot_frictional(lam, p, n)
+        return lam * (1 - sstar) ** 2 * math.cos(th) / 2 - eta
+
+    if residual(0.0) <= 0:  # the friction holds the whole strip flat
+        sig = np.linspace(0.0, 1.0, n + 1)
+        return Elastica(lam, 0.0, 0.0, 1.0, 0.0, sig, np.zeros_like(sig), sig, np.zeros_like(sig))
+    lo, hi = 0.0, lam / 2
+    while hi - lo > tol * max(1.0, lam):
+        mid = (lo + hi) / 2
+        if residual(mid) > 0:
+            lo = mid
+        else:
+            hi = mid
+    sstar, th, x, y, path = _shoot_frictional(lam, hi, n)
+    path = np.array(path)
+    tail = np.linspace(sstar, 1.0, max(2, int(round((1 - sstar) * n)) + 1))[1:]
+    sigma = np.concatenate([path[:, 0], tail])
+    theta = np.concatenate([path[:, 1], np.full(len(tail), th)])
+    xs = np.concatenate([path[:, 2], x + (tail - sstar) * math.cos(th)])
+    ys = np.concatenate([path[:, 3], y + (tail - sstar) * math.sin(th)])
+    return Elastica(lam, hi, float(ys[-1]), float(xs[-1]), th, sigma, theta, xs, ys)
+
+
 def lam_for(value, of="drop", lo=1e-3, hi=100.0, n=1000, tol=1e-10):
     """lambda at which the elastica's `of` ("drop" per L or "chord" angle in rad) equals `value`.
 

@@ -59,6 +59,28 @@ def test_elastica_against_astm_d1388_and_peirce():
     assert 0.01 < elastica.peirce_error(math.radians(41.5)) < 0.03
 
 
+def test_frictional_elastica_known_answers():
+    """Grosberg's elastic-frictional strip (elastica.solve_frictional): without friction
+    it is the elastica (to 1e-9); at small lambda it is the beam that bends only where
+    the weight's moment w (L - s)^2 / 2 exceeds HB, drop / L = (lambda/2) ((s_y - (1 -
+    a^4)/4)/3 - a^2 s_y^2/2 + a ((1 - a^3)/3 - a^2 s_y)) with a = (2 eta / lambda)^(1/2),
+    s_y = 1 - a (integrated by hand; measured 4e-7 off at lambda = 0.01); a friction
+    moment above the flat strip's clamp moment (eta >= lambda/2) holds it flat; and more
+    friction reaches further."""
+    for lam in (8.0, 42.8):
+        a, b = elastica.solve(lam), elastica.solve_frictional(lam, 0.0)
+        assert b.drop == pytest.approx(a.drop, rel=1e-9) and b.reach == pytest.approx(a.reach, rel=1e-9)
+    lam, eta = 0.01, 0.002
+    a = math.sqrt(2 * eta / lam)
+    sy = 1 - a
+    drop = lam / 2 * ((sy - (1 - a ** 4) / 4) / 3 - a * a * sy * sy / 2 + a * ((1 - a ** 3) / 3 - a * a * sy))
+    assert elastica.solve_frictional(lam, eta).drop == pytest.approx(drop, rel=1e-5)
+    flat = elastica.solve_frictional(8.0, 4.0)
+    assert flat.drop == 0 and flat.reach == 1
+    reach = [elastica.solve_frictional(42.8, eta, n=1000).reach for eta in (0.0, 1.0, 2.0, 3.0)]
+    assert all(r0 < r1 for r0, r1 in zip(reach, reach[1:])), reach
+
+
 @pytest.mark.parametrize("angle", [0, 90])
 @pytest.mark.parametrize("model", ["paper", "drape"])
 def test_cantilever_strip_rests_on_the_elastica(angle, model):
