@@ -110,6 +110,15 @@ class Elastica:
         return math.atan2(self.drop, self.reach)
 
 
+def _rk4(f, s, y, h):
+    """One classical Runge-Kutta step of y' = f(s, *y) from s."""
+    k1 = f(s, *y)
+    k2 = f(s + h / 2, *(v + h / 2 * k for v, k in zip(y, k1)))
+    k3 = f(s + h / 2, *(v + h / 2 * k for v, k in zip(y, k2)))
+    k4 = f(s + h, *(v + h * k for v, k in zip(y, k3)))
+    return tuple(v + h / 6 * (a + 2 * b + 2 * c + d) for v, a, b, c, d in zip(y, k1, k2, k3, k4))
+
+
 def _shoot(lam, p, n, keep=False):
     """RK4 from sigma = 0 with theta'(0) = p: theta'(1), d theta'(1)/dp and the end state
     (theta, theta', x, y), with the path on the grid if `keep`.
@@ -121,7 +130,7 @@ def _shoot(lam, p, n, keep=False):
     h = 1.0 / n
     cos, sin = math.cos, math.sin
 
-    def f(s, th, om, dth, dom):
+    def f(s, th, om, x, y, dth, dom):
         a = lam * (1 - s)
         c, si = cos(th), sin(th)
         return om, -a * c, c, si, dom, a * si * dth
@@ -129,12 +138,7 @@ def _shoot(lam, p, n, keep=False):
     th, om, x, y, dth, dom = 0.0, p, 0.0, 0.0, 0.0, 1.0
     path = [(th, om, x, y)] if keep else None
     for k in range(n):
-        s = k * h
-        k1 = f(s, th, om, dth, dom)
-        k2 = f(s + h / 2, th + h / 2 * k1[0], om + h / 2 * k1[1], dth + h / 2 * k1[4], dom + h / 2 * k1[5])
-        k3 = f(s + h / 2, th + h / 2 * k2[0], om + h / 2 * k2[1], dth + h / 2 * k2[4], dom + h / 2 * k2[5])
-        k4 = f(s + h, th + h * k3[0], om + h * k3[1], dth + h * k3[4], dom + h * k3[5])
-        th, om, x, y, dth, dom = (v + h / 6 * (a + 2 * b + 2 * c + d) for v, a, b, c, d in zip((th, om, x, y, dth, dom), k1, k2, k3, k4))
+        th, om, x, y, dth, dom = _rk4(f, k * h, (th, om, x, y, dth, dom), h)
         if om < 0 and k + 1 < n:
             return -1.0 - (1 - (k + 1) * h), 0.0, (th, om, x, y), path
         if keep:
@@ -175,18 +179,13 @@ def _shoot_tip(lam, phi_tip, n, keep=False):
     h = 1.0 / n
     sin, cos = math.sin, math.cos
 
-    def f(t, ph, om):
+    def f(t, ph, om, X, Y):
         return om, lam * t * sin(ph), sin(ph), cos(ph)
 
     ph, om, X, Y = phi_tip, 0.0, 0.0, 0.0
     path = [(ph, om, X, Y)] if keep else None
     for k in range(n):
-        t = k * h
-        k1 = f(t, ph, om)
-        k2 = f(t + h / 2, ph + h / 2 * k1[0], om + h / 2 * k1[1])
-        k3 = f(t + h / 2, ph + h / 2 * k2[0], om + h / 2 * k2[1])
-        k4 = f(t + h, ph + h * k3[0], om + h * k3[1])
-        ph, om, X, Y = (v + h / 6 * (a + 2 * b + 2 * c + d) for v, a, b, c, d in zip((ph, om, X, Y), k1, k2, k3, k4))
+        ph, om, X, Y = _rk4(f, k * h, (ph, om, X, Y), h)
         if ph > math.pi:  # far past the clamp's angle: the residual's sign is known
             return ph - math.pi / 2, path
         if keep:
@@ -250,18 +249,14 @@ def _shoot_frictional(lam, p, n):
     h = 1.0 / n
     cos, sin = math.cos, math.sin
 
-    def f(s, th, om):
+    def f(s, th, om, x, y):
         return om, -lam * (1 - s) * cos(th), cos(th), sin(th)
 
     th, om, x, y = 0.0, p, 0.0, 0.0
     path = [(0.0, th, x, y)]
     for k in range(n):
         s = k * h
-        k1 = f(s, th, om)
-        k2 = f(s + h / 2, th + h / 2 * k1[0], om + h / 2 * k1[1])
-        k3 = f(s + h / 2, th + h / 2 * k2[0], om + h / 2 * k2[1])
-        k4 = f(s + h, th + h * k3[0], om + h * k3[1])
-        nth, nom, nx, ny = (v + h / 6 * (a + 2 * b + 2 * c + d) for v, a, b, c, d in zip((th, om, x, y), k1, k2, k3, k4))
+        nth, nom, nx, ny = _rk4(f, s, (th, om, x, y), h)
         if nom <= 0:  # theta' reaches 0 inside this step: stop there (linear in theta')
             t = om / (om - nom)
             th, x, y = th + t * (nth - th), x + t * (nx - x), y + t * (ny - y)
