@@ -83,6 +83,7 @@ PETSC_EXTERN PetscErrorCode SelfContactSolveAddAcceleration(SelfContact, const P
 /* The active pairs' Hessian blocks (constraint-filtered; zero for the inactive):
  * rows (owned particle index), columns (global block index), 9 values each. */
 PETSC_EXTERN PetscErrorCode SelfContactSolveGetBlocks(SelfContact, PetscInt *n, const PetscInt **rows, const PetscInt **cols, const PetscReal **vals);
-/* After a solve that ends at owned positions x: the active set's changes (the same
- * on every rank). Collective. */
-PETSC_EXTERN PetscErrorCode SelfContactSolveUpdate(SelfContact, const PetscScalar *x, PetscInt *changes);
+/* After a solve that ends at owned positions x: counts the pairs pressing in it and,
+ * if another solve follows (apply), changes the active set; *changes: how many
+ * pairs change (the same on every rank). Collective. */
+PETSC_EXTERN PetscErrorCode SelfContactSolveUpdate(SelfContact, const PetscScalar *x, PetscBool apply, PetscInt *changes);

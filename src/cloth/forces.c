@@ -475,7 +475,7 @@ PetscErrorCode ClothSetExtraBlocks(Cloth c, PetscInt n, const PetscInt rows[], c
   PetscCall(PetscArraycpy(c->ex_val, vals, 9 * n));
   if (c->rb_start)
     PetscCall(ExtraMap(c, fits));
-  else
+  else if (fits)
     *fits = PETSC_FALSE;
   PetscFunctionReturn(0);
 }

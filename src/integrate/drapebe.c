@@ -687,7 +687,7 @@ static PetscErrorCode BEStep(TS ts, TS_DrapeBE *be, PetscBool *ok)
    * (the matrix itself is new every solve, so the answer is not affected) */
   for (PetscInt it = 0;; it++) {
     PetscInt  changes, self_changes = 0;
-    PetscBool rebuild = PETSC_TRUE;
+    PetscBool rebuild = PETSC_TRUE, last;
     if (be->lag > 1) {
       rebuild = (PetscBool) (be->pc_stale || (it == 0 && ts->steps % be->lag == 0));
       PetscCall(SNESSetLagPreconditioner(snes, rebuild ? 1 : -1));
@@ -700,19 +700,18 @@ static PetscErrorCode BEStep(TS ts, TS_DrapeBE *be, PetscBool *ok)
     PetscCall(BESolve(ts, be, ok));
     if (!*ok) PetscFunctionReturn(0);
     PetscCall(TrialState(be, be->DV));
-    if (be->self) { /* counts the pairs pressing in this solve */
-      PetscCall(SelfContactSolveUpdate(be->self, be->xt, &self_changes));
-      if (self_changes && it + 1 < be->contact_its) PetscCall(BESelfBlocks(ts, be));
-    }
-    if ((!be->contact && !be->self) || it + 1 >= be->contact_its) break;
+    last    = (PetscBool) ((!be->contact && !be->self) || it + 1 >= be->contact_its);
     changes = 0;
-    if (be->contact) {
+    if (be->contact && !last) { /* the solid's active set, from the forces of the solve just made */
       PetscCall(PetscLogEventBegin(drape_log.contact, 0, 0, 0, 0));
       PetscCall(BEUpdateActiveSet(be, &changes));
       if (changes) PetscCall(BEApplyConstraints(be));
       PetscCall(PetscLogEventEnd(drape_log.contact, 0, 0, 0, 0));
     }
-    if (!changes && !self_changes) break;
+    /* the pairs pressing in this solve are counted; their set changes only if another solve follows */
+    if (be->self) PetscCall(SelfContactSolveUpdate(be->self, be->xt, (PetscBool) !last, &self_changes));
+    if (last || (!changes && !self_changes)) break;
+    if (be->self) PetscCall(BESelfBlocks(ts, be)); /* new pairs, or the solid's constraints filter them anew */
   }
   PetscCall(BECheckEnergy(ts, be, ok));
   PetscFunctionReturn(0);

@@ -245,7 +245,7 @@ PetscErrorCode SelfContactSolveGetBlocks(SelfContact sc, PetscInt *nb, const Pet
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode SelfContactSolveUpdate(SelfContact sc, const PetscScalar *x, PetscInt *changes)
+PetscErrorCode SelfContactSolveUpdate(SelfContact sc, const PetscScalar *x, PetscBool apply, PetscInt *changes)
 {
   const SelfSet  *s         = &sc->local;
   SelfSolve      *q         = &sc->solve;
@@ -258,7 +258,8 @@ PetscErrorCode SelfContactSolveUpdate(SelfContact sc, const PetscScalar *x, Pets
     SolvePair      *sp   = q->pair + e;
     const PetscReal C    = SolveGap(sp, q->xs);
     const PetscBool here = PairCountedHere(s, sp->pr.p);
-    counts[1] += here && sp->active;                   /* pressing in the solve just made */
+    counts[1] += here && sp->active; /* pressing in the solve just made */
+    if (!apply) continue;
     if (sp->active && C > sp->rest && !sp->released) { /* pulled: let go */
       sp->active = PETSC_FALSE;
       sp->released++;
