@@ -243,9 +243,10 @@ def solve_tip(lam, n=None, tol=1e-13):
     return Elastica(lam, float(om[0]), float(y[-1]), float(x[-1]), float(theta[-1]), np.linspace(0.0, 1.0, n + 1), theta, x, y)
 
 
-def _shoot_frictional(lam, p, n):
+def _shoot_frictional(lam, p, n, keep=False):
     """RK4 from the clamp with theta'(0) = p until theta' falls to 0 (the moment has
-    dropped to the friction's) or the tip: sigma* and (theta, x, y) there, and the path."""
+    dropped to the friction's) or the tip: sigma* and (theta, x, y) there, and the path
+    [(sigma, theta, x, y)] if `keep`."""
     h = 1.0 / n
     cos, sin = math.cos, math.sin
 
@@ -253,17 +254,19 @@ def _shoot_frictional(lam, p, n):
         return om, -lam * (1 - s) * cos(th), cos(th), sin(th)
 
     th, om, x, y = 0.0, p, 0.0, 0.0
-    path = [(0.0, th, x, y)]
+    path = [(0.0, th, x, y)] if keep else None
     for k in range(n):
         s = k * h
         nth, nom, nx, ny = _rk4(f, s, (th, om, x, y), h)
         if nom <= 0:  # theta' reaches 0 inside this step: stop there (linear in theta')
             t = om / (om - nom)
             th, x, y = th + t * (nth - th), x + t * (nx - x), y + t * (ny - y)
-            path.append((s + t * h, th, x, y))
+            if keep:
+                path.append((s + t * h, th, x, y))
             return s + t * h, th, x, y, path
         th, om, x, y = nth, nom, nx, ny
-        path.append((s + h, th, x, y))
+        if keep:
+            path.append((s + h, th, x, y))
     return 1.0, th, x, y, path
 
 
@@ -304,7 +307,7 @@ def solve_frictional(lam, eta, n=4000, tol=1e-12):
             lo = mid
         else:
             hi = mid
-    sstar, th, x, y, path = _shoot_frictional(lam, hi, n)
+    sstar, th, x, y, path = _shoot_frictional(lam, hi, n, keep=True)
     path = np.array(path)
     tail = np.linspace(sstar, 1.0, max(2, int(round((1 - sstar) * n)) + 1))[1:]
     sigma = np.concatenate([path[:, 0], tail])

@@ -146,7 +146,7 @@ PetscErrorCode SelfContactSolveBegin(SelfContact sc, PetscReal h, const PetscSca
         sp->rest     = PetscMin(H, dist);
         sp->share    = share;
         sp->active   = (PetscBool) (gp < sp->rest);
-        sp->released = 0;
+        sp->released = PETSC_FALSE;
       }
     }
   }
@@ -261,8 +261,8 @@ PetscErrorCode SelfContactSolveUpdate(SelfContact sc, const PetscScalar *x, Pets
     counts[1] += here && sp->active; /* pressing in the solve just made */
     if (!apply) continue;
     if (sp->active && C > sp->rest && !sp->released) { /* pulled: let go */
-      sp->active = PETSC_FALSE;
-      sp->released++;
+      sp->active   = PETSC_FALSE;
+      sp->released = PETSC_TRUE;
       counts[0] += here;
     } else if (!sp->active && C < sp->rest - tol) {
       sp->active = PETSC_TRUE;

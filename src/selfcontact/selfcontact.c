@@ -647,7 +647,6 @@ PetscErrorCode SelfListUpdate(SelfContact sc)
 
   PetscFunctionBeginUser;
   ok[0] = SetListValid(sc, s);
-  ok[1] = PETSC_TRUE;
   if (sc->size > 1)
     PetscCallMPI(MPI_Allreduce(ok, all, 1, MPI_INT, MPI_MIN, sc->comm));
   else
@@ -1335,7 +1334,7 @@ PetscErrorCode SelfContactFilter(SelfContact sc, PetscReal h, PetscScalar *x, Pe
   PetscCall(SelfHaloUpdate(sc, s->x0, s->x1, s->v));
   PetscCall(SelfListUpdate(sc));
   PetscCall(Pass(sc, PETSC_TRUE, h, &sc->stats.pairs, &close));
-  PetscCall(SelfHaloUpdate(sc, NULL, s->x1, s->v));
+  if (close) PetscCall(SelfHaloUpdate(sc, NULL, s->x1, s->v)); /* close: pairs that acted, on any rank */
   for (PetscInt it = 0; it < sc->its && active; it++) {
     PetscCall(SelfListUpdate(sc));
     PetscCall(Pass(sc, PETSC_FALSE, h, &active, &ncol));

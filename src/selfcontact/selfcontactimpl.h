@@ -47,7 +47,7 @@ typedef struct {
   PetscReal rest;  /* rest gap, m */
   PetscReal share; /* of the stiffness */
   PetscBool active;
-  PetscInt  released; /* times released in this step */
+  PetscBool released; /* let go once in this step */
 } SolvePair;
 
 typedef struct {
