@@ -39,6 +39,7 @@ typedef struct {
   PetscReal   size[2], spacing[2];        /* cloth size and lattice spacing, m    */
   PetscReal   stretch[2], shear, bend[3]; /* continuum rigidities (see README); bend: warp, weft, bias */
   const char *model;                      /* drape or paper                       */
+  PetscBool   bend_table;                 /* rigidity varies with curvature (-cloth_bend_table) */
 } ClothInfo;
 
 /* Create (not collective: nothing is communicated yet), read the -cloth_* and

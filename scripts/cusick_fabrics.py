@@ -199,12 +199,16 @@ def drape_path(build=None):
 
 def cusick_args(fabric, grid, model="drape", max_time=None, h5=None, offset=0.0):
     """drape's arguments for the Cusick scene with `fabric` on a grid x grid lattice and
-    `model`, to rest or -ts_max_time `max_time` (default the scene's), writing only the
-    first and last frames to `h5` if given; `offset` (m) moves the specimen off the
-    pedestal's centre along the warp (a centring error)."""
+    `model` ("drape", "paper", or "table": drape's with -cloth_bend_table, the bending
+    rigidity varying with curvature as the fabric's table), to rest or -ts_max_time
+    `max_time` (default the scene's), writing only the first and last frames to `h5` if
+    given; `offset` (m) moves the specimen off the pedestal's centre along the warp (a
+    centring error)."""
     t_max = max_time if max_time is not None else float(scene_option("ts_max_time"))
-    args = ["-options_file", str(SCENE), "-cloth_fabric", fabric, "-cloth_model", model, "-da_grid_x", str(grid), "-da_grid_y", str(grid),
-            "-ts_max_time", repr(t_max), "-output_interval", repr(t_max)]
+    args = ["-options_file", str(SCENE), "-cloth_fabric", fabric, "-cloth_model", "drape" if model == "table" else model,
+            "-da_grid_x", str(grid), "-da_grid_y", str(grid), "-ts_max_time", repr(t_max), "-output_interval", repr(t_max)]
+    if model == "table":
+        args += ["-cloth_bend_table"]
     if offset:
         x, y, z = (float(v) for v in scene_option("cloth_center").split(","))
         args += ["-cloth_center", f"{x + offset!r},{y!r},{z!r}"]
@@ -281,6 +285,8 @@ def main():
     p.add_argument("--grids", default="61,81", help="lattices N (N x N on the same 30 cm specimen); the first two are compared")
     p.add_argument("--paper", action="store_true", help="also run -cloth_model paper (at --paper-grids)")
     p.add_argument("--paper-grids", default=None, help="lattices for the paper's model (default: the first of --grids)")
+    p.add_argument("--table", action="store_true", help="also run drape's model with -cloth_bend_table (model 'table', at --table-grids)")
+    p.add_argument("--table-grids", default=None, help="lattices for -cloth_bend_table (default: the first of --grids)")
     p.add_argument("--max-time", type=float, default=None, help="-ts_max_time (default: the scene's)")
     p.add_argument("--offset", type=float, default=0.0, help="move the specimen this far (m) off the pedestal's centre, along the warp")
     p.add_argument("--out", default=None, help="output directory (default out/cusick_fabrics, out/cusick_fabrics_quick with --quick)")
@@ -297,6 +303,7 @@ def main():
         p.error(f"unknown fabric(s) {', '.join(unknown)}: choose from {', '.join(FABRICS)}")
     grids = [int(n) for n in a.grids.split(",") if n]
     paper_grids = [int(n) for n in (a.paper_grids or str(grids[0])).split(",") if n] if a.paper else []
+    table_grids = [int(n) for n in (a.table_grids or str(grids[0])).split(",") if n] if a.table else []
     out = Path(a.out or ROOT / "out" / ("cusick_fabrics_quick" if a.quick else "cusick_fabrics"))
     (out / "h5").mkdir(parents=True, exist_ok=True)
     drape = drape_path(a.build)
@@ -304,11 +311,12 @@ def main():
         sys.exit(f"cusick_fabrics: error: drape is not built ({drape} is missing): run 'make all' first")
     r_p = float(scene_option("cusick_pedestal_radius"))
     print(f"cusick_fabrics: {SCENE.relative_to(ROOT)}, pedestal radius {r_p} m, lattices {grids}"
-          + (f", paper's model at {paper_grids}" if paper_grids else "") + (f", -ts_max_time {a.max_time}" if a.max_time else "")
+          + (f", paper's model at {paper_grids}" if paper_grids else "") + (f", -cloth_bend_table at {table_grids}" if table_grids else "")
+          + (f", -ts_max_time {a.max_time}" if a.max_time else "")
           + (f", specimen {1e3 * a.offset:g} mm off centre" if a.offset else ""), flush=True)
     rows = []
     for fabric in fabrics:
-        for model, gs in (("drape", grids), ("paper", paper_grids)):
+        for model, gs in (("drape", grids), ("paper", paper_grids), ("table", table_grids)):
             for n in gs:
                 h5 = out / "h5" / f"{fabric}_{model}_{n}.h5"
                 row = run_one(drape, fabric, n, model, a.max_time, h5, a.offset)
@@ -324,7 +332,7 @@ def main():
                 if h5.exists():
                     render(h5, png, a.dpi)
     write_csv(out / "cusick_fabrics.csv", rows, CSV_COLUMNS)
-    all_grids = grids + [n for n in paper_grids if n not in grids]
+    all_grids = grids + [n for n in dict.fromkeys(paper_grids + table_grids) if n not in grids]
     table, verdict = summary_rows(rows, all_grids)
     text = md_table(md_columns(all_grids), table) + "\n"
     if verdict["floor"]:

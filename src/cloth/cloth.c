@@ -306,6 +306,16 @@ PetscErrorCode ClothSetFromOptions(Cloth c)
   PetscCall(OptionsWarpWeft(PetscOptionsObject, "-cloth_stretch", "Tensile rigidity warp[,weft] (N/m); 0 removes the stretch energy", c->stretch));
   PetscCall(PetscOptionsReal("-cloth_shear", "In-plane shear rigidity (N/m: energy per area S gamma^2/2 for a shear angle gamma); 0 removes the shear energy", "ClothSetFromOptions", c->shear, &c->shear, NULL));
   PetscCall(OptionsBend(PetscOptionsObject, c->bend, &bias_given));
+  PetscCall(PetscOptionsBool("-cloth_bend_table", "Bending rigidity that varies with curvature as the fabric's measured table (-cloth_fabric; samples at 0, 10, 20, 30, 40 1/m, linear between, held beyond), relative to -cloth_bend",
+                             "ClothSetFromOptions", c->bend_table, &c->bend_table, NULL));
+  {
+    PetscInt samples = c->bend_nb;
+    PetscCall(PetscOptionsInt("-cloth_bend_table_samples", "How many of the table's samples -cloth_bend_table uses (2 to all; the rigidity is held at the last one used beyond it): a sensitivity study of the table's last samples",
+                              "ClothSetFromOptions", samples, &samples, &set));
+    PetscCheck(!set || (c->bend_table && c->bend_nb > 0 && samples >= 2 && samples <= c->bend_nb), c->comm, PETSC_ERR_USER_INPUT,
+               "-cloth_bend_table_samples goes with -cloth_bend_table and -cloth_fabric, and must lie from 2 to the %" PetscInt_FMT " samples of the fabric's bending table; got %" PetscInt_FMT, c->bend_nb, samples);
+    if (set) c->bend_nb = samples;
+  }
   {
     PetscInt imodel = (PetscInt) c->model;
     PetscCall(PetscOptionsEList("-cloth_model", "Bending model: drape (thread triples and diagonal triples: warp, weft and bias rigidity) or paper (the paper's thread triples only: no bias rigidity)", "ClothSetFromOptions", model_names, 2,
@@ -363,6 +373,7 @@ PetscErrorCode ClothSetFromOptions(Cloth c)
   PetscCheck(c->model == CLOTH_MODEL_DRAPE || !bias_given, c->comm, PETSC_ERR_USER_INPUT, "-cloth_model paper has no bias rigidity: give -cloth_bend warp[,weft], or use -cloth_model drape for a third value");
   PetscCall(DrapeCheckReal(c->comm, "-cloth_bend", 3, c->bend, 0, 1, "N m"));
   PetscCall(ClothBendCoefficients(c));
+  PetscCheck(!c->bend_table || c->bend_nb > 0, c->comm, PETSC_ERR_USER_INPUT, "-cloth_bend_table needs a measured bending table: give -cloth_fabric NAME (the ten fabrics of -help); without it the bending rigidity is -cloth_bend at every curvature");
   PetscCall(DrapeCheckReal(c->comm, "-gravity", 3, c->gravity, -1e3, 1e3, "m/s^2 (each component)"));
   PetscCall(DrapeCheckReal(c->comm, "-cloth_center", 3, c->origin, -1e4, 1e4, "m"));
   PetscCall(DrapeCheckIntOption(c->comm, "-cloth_pin_list"));
@@ -482,27 +493,53 @@ static PetscReal TripleWeight(Cloth c, PetscInt i, PetscInt j, PetscInt di, Pets
 static PetscErrorCode ElementsAllocate(ClothElements *el, PetscInt n, PetscInt nper)
 {
   PetscFunctionBeginUser;
-  el->n      = 0;
-  el->nclass = 0;
+  el->n       = 0;
+  el->nclass  = 0;
+  el->has_law = PETSC_FALSE;
   PetscCall(PetscMalloc3(nper * n + 1, &el->p, n + 1, &el->cls, n + 1, &el->own));
   PetscFunctionReturn(0);
 }
 
-/* Element e gets the class of (coef, rest), a new one if no class has these values. */
-static PetscErrorCode ElementsSetCoefficient(ClothElements *el, PetscInt e, PetscReal coef, PetscReal rest)
+static PetscBool LawEqual(const KernelBendLaw *a, const KernelBendLaw *b)
 {
-  PetscInt k = 0;
+  if (a->n != b->n) return PETSC_FALSE;
+  if (!a->n) return PETSC_TRUE;
+  if (a->L != b->L || a->dk != b->dk) return PETSC_FALSE;
+  for (PetscInt i = 0; i < a->n; i++)
+    if (a->b[i] != b->b[i]) return PETSC_FALSE;
+  return PETSC_TRUE;
+}
+
+/* Element e gets the class of (coef, rest, law), a new one if no class has these
+ * values; law NULL: none (linear). */
+static PetscErrorCode ElementsSetCoefficient(ClothElements *el, PetscInt e, PetscReal coef, PetscReal rest, const KernelBendLaw *law)
+{
+  const KernelBendLaw none = {0};
+  PetscInt            k    = 0;
 
   PetscFunctionBeginUser;
-  while (k < el->nclass && !(el->coef_tab[k] == coef && el->rest_tab[k] == rest)) k++;
+  if (!law) law = &none;
+  while (k < el->nclass && !(el->coef_tab[k] == coef && el->rest_tab[k] == rest && LawEqual(&el->law_tab[k], law))) k++;
   if (k == el->nclass) {
     PetscCheck(k < CLOTH_ELEMENT_CLASSES, PETSC_COMM_SELF, PETSC_ERR_SUP, "More than %d distinct element coefficients in one list", CLOTH_ELEMENT_CLASSES);
     el->coef_tab[k] = coef;
     el->rest_tab[k] = rest;
+    el->law_tab[k]  = *law;
     el->nclass++;
   }
+  if (law->n) el->has_law = PETSC_TRUE;
   el->cls[e] = (unsigned char) k;
   PetscFunctionReturn(0);
+}
+
+/* The law of the bending triples of table row r (0 warp, 1 weft, 2 bias), segments
+ * of rest length L; n = 0 (linear) without -cloth_bend_table. */
+static void ClothTripleLaw(Cloth c, PetscInt r, PetscReal L, KernelBendLaw *law)
+{
+  law->n  = c->bend_table ? c->bend_nb : 0;
+  law->L  = L;
+  law->dk = c->bend_dk;
+  for (PetscInt i = 0; i < KERNEL_BEND_LAW_MAX; i++) law->b[i] = i < law->n ? c->bend_b[r][i] : 0;
 }
 
 static PetscErrorCode ElementsDestroy(ClothElements *el)
@@ -521,6 +558,7 @@ static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const P
   const PetscReal dx = c->spacing[0], dy = c->spacing[1];
   const PetscInt  Mx = c->Mx, My = c->My, nl = c->nlocal;
   ClothElements  *st = &c->stretch_el, *sh = &c->shear_el, *be = &c->bend_el;
+  KernelBendLaw   law[3]; /* warp, weft and diagonal triples */
 
 #define NAT(i, j)   ((j) *Mx + (i))
 #define LOCAL(i, j) local[NAT(i, j)]
@@ -530,6 +568,9 @@ static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const P
   PetscCall(ElementsAllocate(st, 2 * nl, 2));
   PetscCall(ElementsAllocate(sh, 4 * nl, 3));
   PetscCall(ElementsAllocate(be, (c->bend_coef[2] > 0 ? 4 : 2) * nl, 3));
+  ClothTripleLaw(c, 0, dx, &law[0]);
+  ClothTripleLaw(c, 1, dy, &law[1]);
+  ClothTripleLaw(c, 2, PetscSqrtReal(dx * dx + dy * dy), &law[2]);
   for (PetscInt j = 0; j < My; j++) {
     for (PetscInt i = 0; i < Mx; i++) {
       /* stretch along the warp (i) and the weft (j) */
@@ -537,14 +578,14 @@ static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const P
         PetscInt e       = st->n++;
         st->p[2 * e]     = LOCAL(i, j);
         st->p[2 * e + 1] = LOCAL(i + 1, j);
-        PetscCall(ElementsSetCoefficient(st, e, c->stretch[0] * dy * EdgeCellWeight(c, PETSC_TRUE, i, j) / dx, dx));
+        PetscCall(ElementsSetCoefficient(st, e, c->stretch[0] * dy * EdgeCellWeight(c, PETSC_TRUE, i, j) / dx, dx, NULL));
         st->own[e] = (unsigned char) OWNED(i, j);
       }
       if (c->stretch[1] > 0 && j + 1 < My && (OWNED(i, j) || OWNED(i, j + 1)) && ACT(i, j) && ACT(i, j + 1)) {
         PetscInt e       = st->n++;
         st->p[2 * e]     = LOCAL(i, j);
         st->p[2 * e + 1] = LOCAL(i, j + 1);
-        PetscCall(ElementsSetCoefficient(st, e, c->stretch[1] * dx * EdgeCellWeight(c, PETSC_FALSE, i, j) / dy, dy));
+        PetscCall(ElementsSetCoefficient(st, e, c->stretch[1] * dx * EdgeCellWeight(c, PETSC_FALSE, i, j) / dy, dy, NULL));
         st->own[e] = (unsigned char) OWNED(i, j);
       }
       /* shear: the four corners of cell (i, j) in a row as (a, b, vertex c), vertices
@@ -555,7 +596,7 @@ static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const P
         for (PetscInt k = 0; k < 4; k++) {
           PetscInt e = sh->n++;
           for (PetscInt q = 0; q < 3; q++) sh->p[3 * e + q] = corner[k][q];
-          PetscCall(ElementsSetCoefficient(sh, e, c->shear / 8, 0));
+          PetscCall(ElementsSetCoefficient(sh, e, c->shear / 8, 0, NULL));
           sh->own[e] = (unsigned char) OWNED(i, j);
         }
       }
@@ -565,7 +606,7 @@ static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const P
         be->p[3 * e]     = LOCAL(i - 1, j);
         be->p[3 * e + 1] = LOCAL(i + 1, j);
         be->p[3 * e + 2] = LOCAL(i, j);
-        PetscCall(ElementsSetCoefficient(be, e, c->bend_coef[0] * dy * TripleWeight(c, i, j, 1, 0) / dx, 0));
+        PetscCall(ElementsSetCoefficient(be, e, c->bend_coef[0] * dy * TripleWeight(c, i, j, 1, 0) / dx, 0, &law[0]));
         be->own[e] = (unsigned char) OWNED(i, j);
       }
       if (c->bend_coef[1] > 0 && j >= 1 && j + 1 < My && (OWNED(i, j - 1) || OWNED(i, j) || OWNED(i, j + 1)) && ACT(i, j - 1) && ACT(i, j) && ACT(i, j + 1)) {
@@ -573,7 +614,7 @@ static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const P
         be->p[3 * e]     = LOCAL(i, j - 1);
         be->p[3 * e + 1] = LOCAL(i, j + 1);
         be->p[3 * e + 2] = LOCAL(i, j);
-        PetscCall(ElementsSetCoefficient(be, e, c->bend_coef[1] * dx * TripleWeight(c, i, j, 0, 1) / dy, 0));
+        PetscCall(ElementsSetCoefficient(be, e, c->bend_coef[1] * dx * TripleWeight(c, i, j, 0, 1) / dy, 0, &law[1]));
         be->own[e] = (unsigned char) OWNED(i, j);
       }
       /* bias: the two diagonal triples centred on an interior (i, j) (ClothBendCoefficients) */
@@ -583,7 +624,7 @@ static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const P
         be->p[3 * e]     = LOCAL(i - 1, j - s);
         be->p[3 * e + 1] = LOCAL(i + 1, j + s);
         be->p[3 * e + 2] = LOCAL(i, j);
-        PetscCall(ElementsSetCoefficient(be, e, c->bend_coef[2] * (dx * dx + dy * dy) / (2 * dx * dy) * TripleWeight(c, i, j, 1, s), 0));
+        PetscCall(ElementsSetCoefficient(be, e, c->bend_coef[2] * (dx * dx + dy * dy) / (2 * dx * dy) * TripleWeight(c, i, j, 1, s), 0, &law[2]));
         be->own[e] = (unsigned char) OWNED(i, j);
       }
     }
@@ -875,6 +916,7 @@ PetscErrorCode ClothGetInfo(Cloth c, ClothInfo *info)
   info->ncut       = c->ncut;
   info->partition  = PartitionTypes[c->partition];
   info->model      = model_names[c->model];
+  info->bend_table = c->bend_table;
   info->nstretch   = c->nstretch;
   info->nshear     = c->nshear;
   info->nbend      = c->nbend;
@@ -994,6 +1036,15 @@ PetscErrorCode ClothView(Cloth c, PetscViewer viewer)
                                    (double) c->bend[0], (double) c->bend[1], (double) c->bend[2], (double) c->density, (double) c->damping));
   PetscCall(PetscViewerASCIIPrintf(viewer, "  model: %s (%s)\n", model_names[c->model],
                                    c->model == CLOTH_MODEL_PAPER ? "the paper's thread triples: no twist rigidity, a 45 degree strip bends at (warp + weft)/4 or less" : "thread triples and diagonal triples: warp, weft and bias bending rigidity"));
+  if (c->bend_table) {
+    static const char *rows[3] = {"warp", "weft", "bias"};
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  bending varies with curvature (-cloth_bend_table), relative rigidity at 0, %.4g, ..., %.4g 1/m, held beyond:", (double) c->bend_dk, (double) ((c->bend_nb - 1) * c->bend_dk)));
+    for (PetscInt r = 0; r < (c->model == CLOTH_MODEL_PAPER ? 2 : 3); r++) {
+      PetscCall(PetscViewerASCIIPrintf(viewer, " %s", rows[r]));
+      for (PetscInt i = 0; i < c->bend_nb; i++) PetscCall(PetscViewerASCIIPrintf(viewer, "%s%.3g", i ? "," : " ", (double) c->bend_b[r][i]));
+    }
+    PetscCall(PetscViewerASCIIPrintf(viewer, "\n"));
+  }
   PetscCall(PetscViewerASCIIPrintf(viewer, "  gravity (%g, %g, %g) m/s^2, Hessian %s\n", (double) c->gravity[0], (double) c->gravity[1], (double) c->gravity[2], c->exact_hessian ? "exact" : "SPD-projected"));
   PetscFunctionReturn(0);
 }

@@ -3,6 +3,7 @@
 
 #include <cloth.h>
 #include <partition.h>
+#include "kernels.h"
 
 /* Elements as local particle indices (owned + ghost), each with its coefficient.
  * `own` marks elements whose energy this rank counts (exactly one rank each);
@@ -22,10 +23,15 @@ typedef struct {
   PetscInt  nclass;
   PetscReal coef_tab[CLOTH_ELEMENT_CLASSES]; /* k, or kappa                    */
   PetscReal rest_tab[CLOTH_ELEMENT_CLASSES]; /* rest length (stretch), else 0 */
+  /* bending triples whose rigidity depends on curvature (-cloth_bend_table): each
+   * class's law (n = 0: linear); has_law: some class has one */
+  PetscBool     has_law;
+  KernelBendLaw law_tab[CLOTH_ELEMENT_CLASSES];
 } ClothElements;
 
-static inline PetscReal ElemCoef(const ClothElements *el, PetscInt e) { return el->coef_tab[el->cls[e]]; }
-static inline PetscReal ElemRest(const ClothElements *el, PetscInt e) { return el->rest_tab[el->cls[e]]; }
+static inline PetscReal            ElemCoef(const ClothElements *el, PetscInt e) { return el->coef_tab[el->cls[e]]; }
+static inline PetscReal            ElemRest(const ClothElements *el, PetscInt e) { return el->rest_tab[el->cls[e]]; }
+static inline const KernelBendLaw *ElemLaw(const ClothElements *el, PetscInt e) { return el->has_law ? &el->law_tab[el->cls[e]] : NULL; }
 
 typedef enum {
   CLOTH_HORIZONTAL,
@@ -55,10 +61,14 @@ struct _p_Cloth {
   MPI_Comm comm;
   /* options */
   PetscReal        size[2], density, damping, gravity[3], origin[3];
-  PetscReal        stretch[2], shear, bend[3]; /* bend: warp, weft, and the bias (a 45 deg strip) */
-  ClothModel       model;                      /* drape (with the bias term) or paper            */
-  PetscReal        bend_coef[3];               /* per-area rigidities of the warp and weft triples and the diagonal pair (ClothBendCoefficients) */
-  char             fabric[256];                /* named fabric the material came from, or "" */
+  PetscReal        stretch[2], shear, bend[3];     /* bend: warp, weft, and the bias (a 45 deg strip) */
+  ClothModel       model;                          /* drape (with the bias term) or paper            */
+  PetscReal        bend_coef[3];                   /* per-area rigidities of the warp and weft triples and the diagonal pair (ClothBendCoefficients) */
+  char             fabric[256];                    /* named fabric the material came from, or "" */
+  PetscInt         bend_nb;                        /* samples of the fabric's bending table (0: none)            */
+  PetscReal        bend_dk;                        /* their curvature step (1/m)                                 */
+  PetscReal        bend_b[3][KERNEL_BEND_LAW_MAX]; /* warp, weft, bias: rigidity relative to the first sample */
+  PetscBool        bend_table;                     /* -cloth_bend_table: the triples' rigidity follows the table */
   ClothOrientation orientation;
   PetscReal        tilt; /* degrees about the warp direction, from the orientation's plane */
   ClothPinType     pin;

@@ -53,7 +53,10 @@ static inline void AccumulateBendForces(const ClothElements *el, const PetscReal
   for (PetscInt e0 = 0; e0 < el->n; e0 += ANGLE_CHUNK) {
     const PetscInt  n = PetscMin(ANGLE_CHUNK, el->n - e0);
     const PetscInt *p = el->p + 3 * e0;
-    for (PetscInt k = 0; k < n; k++) KernelAngleCoefficients(PETSC_TRUE, xl + 3 * p[3 * k], xl + 3 * p[3 * k + 1], xl + 3 * p[3 * k + 2], ElemCoef(el, e0 + k), w + 3 * k);
+    if (el->has_law)
+      for (PetscInt k = 0; k < n; k++) KernelBendLawCoefficients(xl + 3 * p[3 * k], xl + 3 * p[3 * k + 1], xl + 3 * p[3 * k + 2], ElemCoef(el, e0 + k), ElemLaw(el, e0 + k), w + 3 * k);
+    else
+      for (PetscInt k = 0; k < n; k++) KernelAngleCoefficients(PETSC_TRUE, xl + 3 * p[3 * k], xl + 3 * p[3 * k + 1], xl + 3 * p[3 * k + 2], ElemCoef(el, e0 + k), w + 3 * k);
     for (PetscInt k = 0; k < n; k++) {
       KernelAngleGradientFromCoefficients(w + 3 * k, xl + 3 * p[3 * k], xl + 3 * p[3 * k + 1], xl + 3 * p[3 * k + 2], g);
       Scatter(fl, 3, p + 3 * k, g);
@@ -168,9 +171,9 @@ PetscErrorCode ClothComputeEnergies(Cloth c, const PetscScalar *x, const PetscSc
     strain = PetscMax(strain, PetscSqrtReal(PetscSqr(b[0] - a[0]) + PetscSqr(b[1] - a[1]) + PetscSqr(b[2] - a[2])) / L - 1);
   }
   for (PetscInt e = 0; e < sh->n; e++)
-    if (sh->own[e]) local[3] += KernelAngle(KERNEL_SHEAR, xl + 3 * sh->p[3 * e], xl + 3 * sh->p[3 * e + 1], xl + 3 * sh->p[3 * e + 2], ElemCoef(sh, e), NULL, NULL, PETSC_FALSE);
+    if (sh->own[e]) local[3] += KernelAngle(KERNEL_SHEAR, xl + 3 * sh->p[3 * e], xl + 3 * sh->p[3 * e + 1], xl + 3 * sh->p[3 * e + 2], ElemCoef(sh, e), NULL, NULL, NULL, PETSC_FALSE);
   for (PetscInt e = 0; e < be->n; e++)
-    if (be->own[e]) local[4] += KernelAngle(KERNEL_BEND, xl + 3 * be->p[3 * e], xl + 3 * be->p[3 * e + 1], xl + 3 * be->p[3 * e + 2], ElemCoef(be, e), NULL, NULL, PETSC_FALSE);
+    if (be->own[e]) local[4] += KernelAngle(KERNEL_BEND, xl + 3 * be->p[3 * e], xl + 3 * be->p[3 * e + 1], xl + 3 * be->p[3 * e + 2], ElemCoef(be, e), ElemLaw(be, e), NULL, NULL, PETSC_FALSE);
   PetscCall(ClothEndScatter(c, &xl));
   PetscCall(MPIU_Allreduce(local, sum, 5, MPIU_REAL, MPI_SUM, c->comm));
   PetscCall(MPIU_Allreduce(&strain, &en->strain_max, 1, MPIU_REAL, MPIU_MAX, c->comm));
@@ -280,12 +283,12 @@ PetscErrorCode ClothGetConstraintScale(Cloth c, PetscReal a, PetscReal b, PetscI
 }
 
 /* Element Hessian (particles p[0..n-1]); H is (3n x 3n) row-major. */
-static inline void ElementHessian(PetscBool project, PetscInt kind, const PetscReal *xl, const PetscInt *p, PetscReal coef, PetscReal rest, PetscReal *H)
+static inline void ElementHessian(PetscBool project, PetscInt kind, const PetscReal *xl, const PetscInt *p, PetscReal coef, PetscReal rest, const KernelBendLaw *law, PetscReal *H)
 {
   if (kind == 0)
     KernelStretch(xl + 3 * p[0], xl + 3 * p[1], coef, rest, NULL, H, project);
   else
-    KernelAngle(kind == 1 ? KERNEL_SHEAR : KERNEL_BEND, xl + 3 * p[0], xl + 3 * p[1], xl + 3 * p[2], coef, NULL, H, project);
+    KernelAngle(kind == 1 ? KERNEL_SHEAR : KERNEL_BEND, xl + 3 * p[0], xl + 3 * p[1], xl + 3 * p[2], coef, law, NULL, H, project);
 }
 
 /* The implicit matrix's block of element e of list `kind`: the (projected unless
@@ -296,7 +299,7 @@ static inline void MatrixElementHessian(Cloth c, PetscInt kind, const ClothEleme
   const PetscInt  n = kind ? 3 : 2, m = 3 * n;
   const PetscInt *p = el->p + n * e;
 
-  ElementHessian((PetscBool) !c->exact_hessian, kind, xl, p, ElemCoef(el, e), ElemRest(el, e), H);
+  ElementHessian((PetscBool) !c->exact_hessian, kind, xl, p, ElemCoef(el, e), ElemRest(el, e), ElemLaw(el, e), H);
   for (PetscInt a = 0; a < n; a++)
     if (p[a] < c->nowned)
       for (PetscInt i = 0; i < 3; i++)
@@ -336,7 +339,7 @@ PetscErrorCode ClothApplyHessian(Cloth c, const PetscScalar *x, const PetscScala
     const PetscInt       n = kind ? 3 : 2, m = 3 * n;
     for (PetscInt e = 0; e < el->n; e++) {
       const PetscInt *p = el->p + n * e;
-      ElementHessian(PETSC_FALSE, kind, xl, p, ElemCoef(el, e), ElemRest(el, e), H);
+      ElementHessian(PETSC_FALSE, kind, xl, p, ElemCoef(el, e), ElemRest(el, e), ElemLaw(el, e), H);
       for (PetscInt i = 0; i < m; i++) {
         PetscReal s = 0;
         for (PetscInt j = 0; j < m; j++) s += H[m * i + j] * zl[3 * p[j / 3] + j % 3];

@@ -12,6 +12,8 @@
  *   bending triple: E = kappa (1 + cos(theta)) = 2 kappa cos^2(theta/2)
  * with cos = e1.e2/(|e1||e2|). Both angle energies are functions E(u, w, s) of
  * u = |e1|^2, w = |e2|^2, s = e1.e2, which gives one chain rule for both.
+ * A bending triple may carry a law (KernelBendLaw): its rigidity then depends on
+ * the triple's curvature, E = kappa G(1 + cos) with G(q) = q for the linear law.
  *
  * With project = PETSC_TRUE the Hessian is replaced by a positive semi-definite
  * one (design.md): the stretch factor (1 - L/l) is clamped at 0 and the angle
@@ -314,6 +316,67 @@ static inline void KernelAngleGradient(PetscBool bend, const PetscReal *xa, cons
   KernelAngleGradientFromCoefficients(w, xa, xb, xc, g);
 }
 
+/* A bending triple's rigidity as a function of its curvature (-cloth_bend_table):
+ * the moment is M(k) = B b(k) k, a secant rigidity B b(k) as in ARCSim's
+ * bending_stiffness (dde.cpp), with b piecewise linear through b[i] at k = i dk,
+ * i < n, b[0] = 1, and held at b[n-1] beyond the last sample. The triple's
+ * curvature is k = |e1/|e1| + e2/|e2|| / L = 2 sin(beta/2) / L (beta the turning
+ * angle, L the rest length of its two segments): the curvature of the circle through
+ * its particles to O(beta^2). With q = 1 + cos = (L k)^2 / 2 the energy is
+ *   E = kappa G(q),  G(q) = L^2 int_0^k b(t) t dt,  G'(q) = b(k),
+ *   G''(q) = b'(k) / (L^2 k),
+ * so M = dE/dk / (kappa L^2) = b(k) k: the same forces as ARCSim's, from an energy
+ * (exact gradient and Hessian; a table whose moment falls with k makes E
+ * non-convex there, and the projected Hessian drops that part). b = 1 gives
+ * G(q) = q, the linear triple. */
+#define KERNEL_BEND_LAW_MAX 8
+typedef struct {
+  PetscInt  n;                      /* samples (0: the linear triple)            */
+  PetscReal L, dk;                  /* rest length of the segments (m), 1/m       */
+  PetscReal b[KERNEL_BEND_LAW_MAX]; /* relative rigidity at k = i dk, b[0] = 1   */
+} KernelBendLaw;
+
+/* G(q), G'(q), G''(q) of the law (see KernelBendLaw). */
+static inline void KernelBendLawEval(const KernelBendLaw *law, PetscReal q, PetscReal *G, PetscReal *G1, PetscReal *G2)
+{
+  const PetscReal k   = PetscSqrtReal(2 * PetscMax(q, 0)) / law->L;
+  PetscReal       Phi = 0, b = law->b[law->n - 1], db = 0;
+  PetscInt        i;
+
+  /* Phi = int_0^k b(t) t dt over whole segments, then the last part */
+  for (i = 0; i + 1 < law->n && (i + 1) * law->dk <= k; i++) {
+    const PetscReal k0 = i * law->dk, k1 = k0 + law->dk, s = (law->b[i + 1] - law->b[i]) / law->dk, a = law->b[i] - s * k0;
+    Phi += a * (k1 * k1 - k0 * k0) / 2 + s * (k1 * k1 * k1 - k0 * k0 * k0) / 3;
+  }
+  if (i + 1 < law->n) { /* k inside segment i */
+    const PetscReal k0 = i * law->dk, s = (law->b[i + 1] - law->b[i]) / law->dk, a = law->b[i] - s * k0;
+    Phi += a * (k * k - k0 * k0) / 2 + s * (k * k * k - k0 * k0 * k0) / 3;
+    b  = a + s * k;
+    db = s;
+  } else
+    Phi += b * (k * k - PetscSqr((law->n - 1) * law->dk)) / 2; /* beyond the table */
+  *G  = law->L * law->L * Phi;
+  *G1 = b;
+  *G2 = k > 0 ? db / (law->L * law->L * k) : 0;
+}
+
+/* A bending triple's gradient coefficients (KernelAngleCoefficients) under a law:
+ * the linear triple's, with kappa G'(q) for kappa. */
+static inline void KernelBendLawCoefficients(const PetscReal *restrict xa, const PetscReal *restrict xb, const PetscReal *restrict xc, PetscReal kappa, const KernelBendLaw *law, PetscReal w[3])
+{
+  const PetscReal e1[3] = {xa[0] - xc[0], xa[1] - xc[1], xa[2] - xc[2]}, e2[3] = {xb[0] - xc[0], xb[1] - xc[1], xb[2] - xc[2]};
+  const PetscReal u = e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2], v = e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2];
+  const PetscReal s   = e1[0] * e2[0] + e1[1] * e2[1] + e1[2] * e2[2];
+  const PetscReal inv = 1 / (u * v), iP = PetscSqrtReal(u * v) * inv, c = s * iP;
+  PetscReal       G, G1, G2, k;
+
+  KernelBendLawEval(law, 1 + c, &G, &G1, &G2);
+  k    = kappa * G1;
+  w[0] = -k * c * v * inv;
+  w[2] = -k * c * u * inv;
+  w[1] = k * iP;
+}
+
 /* First and second partials of an angle energy E(u, w, s). */
 typedef struct {
   PetscReal E, Eu, Ew, Es, Euu, Eww, Ess, Euw, Eus, Ews;
@@ -373,24 +436,29 @@ static inline void KernelShearPartials(PetscReal kappa, PetscReal u, PetscReal w
   d->Ews = kappa * (Pw * g1 * C.cs + P * (g2 * C.cw * C.cs + g1 * C.cws));
 }
 
-/* Bending triple: E = kappa (1 + c). */
-static inline void KernelBendPartials(PetscReal kappa, PetscReal u, PetscReal w, PetscReal s, PetscInt order, KernelAnglePartials *d)
+/* Bending triple: E = kappa G(1 + c), G(q) = q without a law (law = NULL). */
+static inline void KernelBendPartials(PetscReal kappa, const KernelBendLaw *law, PetscReal u, PetscReal w, PetscReal s, PetscInt order, KernelAnglePartials *d)
 {
   KernelCos C = {0};
+  PetscReal G, G1 = 1, G2 = 0;
 
   KernelCosine(u, w, s, order, &C);
-  d->E = kappa * (1 + C.c);
+  if (law && law->n > 0)
+    KernelBendLawEval(law, 1 + C.c, &G, &G1, &G2);
+  else
+    G = 1 + C.c;
+  d->E = kappa * G;
   if (order < 1) return;
-  d->Eu = kappa * C.cu;
-  d->Ew = kappa * C.cw;
-  d->Es = kappa * C.cs;
+  d->Eu = kappa * G1 * C.cu;
+  d->Ew = kappa * G1 * C.cw;
+  d->Es = kappa * G1 * C.cs;
   if (order < 2) return;
-  d->Euu = kappa * C.cuu;
-  d->Eww = kappa * C.cww;
-  d->Euw = kappa * C.cuw;
-  d->Ess = 0;
-  d->Eus = kappa * C.cus;
-  d->Ews = kappa * C.cws;
+  d->Euu = kappa * (G1 * C.cuu + G2 * C.cu * C.cu);
+  d->Eww = kappa * (G1 * C.cww + G2 * C.cw * C.cw);
+  d->Euw = kappa * (G1 * C.cuw + G2 * C.cu * C.cw);
+  d->Ess = kappa * G2 * C.cs * C.cs;
+  d->Eus = kappa * (G1 * C.cus + G2 * C.cu * C.cs);
+  d->Ews = kappa * (G1 * C.cws + G2 * C.cw * C.cs);
 }
 
 typedef enum {
@@ -398,8 +466,9 @@ typedef enum {
   KERNEL_BEND
 } KernelAngleKind;
 
-/* Angle element on particles (a, b, c), c the vertex; x = [x_a, x_b, x_c]. */
-static inline PetscReal KernelAngle(KernelAngleKind kind, const PetscReal *xa, const PetscReal *xb, const PetscReal *xc, PetscReal kappa, PetscReal *g, PetscReal *H, PetscBool project)
+/* Angle element on particles (a, b, c), c the vertex; x = [x_a, x_b, x_c]; law:
+ * a bending triple's law, or NULL (linear; shear takes none). */
+static inline PetscReal KernelAngle(KernelAngleKind kind, const PetscReal *xa, const PetscReal *xb, const PetscReal *xc, PetscReal kappa, const KernelBendLaw *law, PetscReal *g, PetscReal *H, PetscBool project)
 {
   PetscReal           e1[3] = {xa[0] - xc[0], xa[1] - xc[1], xa[2] - xc[2]}, e2[3] = {xb[0] - xc[0], xb[1] - xc[1], xb[2] - xc[2]};
   PetscReal           u = e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2], w = e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2];
@@ -410,7 +479,7 @@ static inline PetscReal KernelAngle(KernelAngleKind kind, const PetscReal *xa, c
   if (kind == KERNEL_SHEAR)
     KernelShearPartials(kappa, u, w, s, order, &d);
   else
-    KernelBendPartials(kappa, u, w, s, order, &d);
+    KernelBendPartials(kappa, law, u, w, s, order, &d);
   if (g) {
     for (PetscInt i = 0; i < 3; i++) {
       g[i]     = 2 * d.Eu * e1[i] + d.Es * e2[i];

@@ -781,6 +781,7 @@ static PetscErrorCode SimulationReportStart(Simulation s)
   PetscCall(ReportSetReal(r, "bend_weft", info.bend[1]));
   PetscCall(ReportSetReal(r, "bend_bias", info.bend[2]));
   PetscCall(ReportSetString(r, "model", info.model));
+  PetscCall(ReportSetBool(r, "bend_table", info.bend_table));
   if (s->stability_its > 0) {
     PetscCall(ReportSetReal(r, "omega_max", s->limits.omega));
     PetscCall(ReportSetReal(r, "symplectic_limit", s->limits.symplectic));

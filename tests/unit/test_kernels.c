@@ -21,15 +21,16 @@ typedef enum {
 static const char *const ElemKindNames[] = {"stretch", "shear", "bend"};
 
 typedef struct {
-  ElemKind  kind;
-  PetscInt  n;      /* number of coordinates: 6 (edge) or 9 (angle) */
-  PetscReal x[9];   /* [x_a, x_b] or [x_a, x_b, x_c] (c the vertex) */
-  PetscReal k, L;   /* stretch */
-  PetscReal kappa;  /* shear, bend */
-  PetscReal ell;    /* length scale: shortest edge */
-  PetscReal escale; /* energy scale, for round-off estimates */
-  PetscBool compressed;
-  char      label[96];
+  ElemKind      kind;
+  PetscInt      n;      /* number of coordinates: 6 (edge) or 9 (angle) */
+  PetscReal     x[9];   /* [x_a, x_b] or [x_a, x_b, x_c] (c the vertex) */
+  PetscReal     k, L;   /* stretch */
+  PetscReal     kappa;  /* shear, bend */
+  KernelBendLaw law;    /* bend: law of curvature (n = 0: linear) */
+  PetscReal     ell;    /* length scale: shortest edge */
+  PetscReal     escale; /* energy scale, for round-off estimates */
+  PetscBool     compressed;
+  char          label[96];
 } Elem;
 
 /* ---------------------------------------------------------------- helpers */
@@ -40,7 +41,7 @@ static PetscErrorCode ElemEval(const Elem *el, const PetscReal *x, PetscReal *E,
   if (el->kind == ELEM_STRETCH)
     *E = KernelStretch(x, x + 3, el->k, el->L, g, H, project);
   else
-    *E = KernelAngle(el->kind == ELEM_SHEAR ? KERNEL_SHEAR : KERNEL_BEND, x, x + 3, x + 6, el->kappa, g, H, project);
+    *E = KernelAngle(el->kind == ELEM_SHEAR ? KERNEL_SHEAR : KERNEL_BEND, x, x + 3, x + 6, el->kappa, el->law.n ? &el->law : NULL, g, H, project);
   PetscFunctionReturn(0);
 }
 
@@ -296,6 +297,17 @@ static PetscErrorCode MakeConfigs(PetscRandom rnd, ElemKind kind, Elem el[], Pet
     for (PetscInt i = 0; i < 3; i++) PetscCall(RandomAngle(rnd, kind, PETSC_PI - 0.15, PETSC_PI - 0.03, &el[(*n)++]));
     for (PetscInt i = 0; i < 2; i++) PetscCall(RandomAngle(rnd, kind, 1.6, 2.6, &el[(*n)++]));
     for (PetscInt i = 0; i < 3; i++) PetscCall(RandomAngle(rnd, kind, 0.4, 1.4, &el[(*n)++]));
+    /* with a law of curvature (KernelBendLaw, L = 1): rising to 2.2 at k = 1.3,
+     * held beyond; the turning angles put k = 2 sin(beta/2) well inside the first
+     * segment (0.03-0.15, 0.5-1.0) or beyond the table (1.9-2.6), away from the
+     * kinks, where the Taylor tests see the smooth law */
+    for (PetscInt i = 0; i < 4; i++) {
+      const PetscReal lo[] = {0.03, 0.5, 1.9, 1.9}, hi[] = {0.15, 1.0, 2.6, 2.6};
+      Elem           *e = &el[(*n)++];
+      PetscCall(RandomAngle(rnd, kind, PETSC_PI - hi[i], PETSC_PI - lo[i], e));
+      e->law = (KernelBendLaw){.n = 2, .L = 1, .dk = 1.3, .b = {1, 2.2}};
+      PetscCall(PetscStrlcat(e->label, ", law b = 1 .. 2.2 at k = 1.3", sizeof e->label));
+    }
     break;
   }
   PetscFunctionReturn(0);
@@ -675,7 +687,11 @@ static PetscErrorCode GroupGradientKernels(const Elem *sets[], const PetscInt ns
       PetscCall(ElemEval(el, el->x, &E, g, NULL, PETSC_FALSE));
       if (el->kind == ELEM_STRETCH)
         KernelStretchGradient(el->x, el->x + 3, el->k, el->L, gf);
-      else
+      else if (el->law.n) {
+        PetscReal w[3];
+        KernelBendLawCoefficients(el->x, el->x + 3, el->x + 6, el->kappa, &el->law, w);
+        KernelAngleGradientFromCoefficients(w, el->x, el->x + 3, el->x + 6, gf);
+      } else
         KernelAngleGradient(el->kind == ELEM_BEND ? PETSC_TRUE : PETSC_FALSE, el->x, el->x + 3, el->x + 6, el->kappa, gf);
       PetscCall(MaxRelDiff(el->n, gf, g, &rel));
       PetscCheck(rel <= 1e-12, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED: gradient-only %s kernel differs from the general kernel [%s]: max|g_fast - g| / max|g| = %g", ElemKindNames[el->kind], el->label, (double) rel);
@@ -918,6 +934,44 @@ static PetscErrorCode GroupKnownBend(PetscRandom rnd)
   PetscFunctionReturn(0);
 }
 
+/* A triple under a law of curvature: b(t) = 1 + sigma t up to k1 = dk, b(k1) beyond.
+ * With k = 2 sin(beta/2) / L: E = kappa L^2 (k^2/2 + sigma k^3/3) inside, and
+ * kappa L^2 (k1^2/2 + sigma k1^3/3 + b(k1) (k^2 - k1^2)/2) beyond; a straight
+ * triple has E = 0 and g = 0. */
+static PetscErrorCode GroupKnownBendLaw(PetscRandom rnd)
+{
+  const PetscReal betas[] = {1e-3, 0.05, 0.3, 0.7, 1.2, 2.0, 3.0};
+  PetscReal       xc[3], a[3], nrm[3], l1 = 1, l2 = 1, kappa = 1, E, g[9], ng, worst = 0;
+  Elem            el;
+
+  PetscFunctionBeginUser;
+  for (PetscInt t = 0; t < 5; t++) {
+    const PetscReal L = 0.01 + 0.02 * t, k1 = 0.6 / L, sigma = (t % 2 ? -0.6 : 1.5) / k1; /* b(k1) = 0.4 or 2.5; the kink at beta ~ 0.6 */
+    PetscCall(RandomPlacement(rnd, xc, a, nrm, &l1, &l2, &kappa));
+    for (size_t j = 0; j < sizeof(betas) / sizeof(betas[0]); j++) {
+      const PetscReal k = 2 * PetscSinReal(betas[j] / 2) / L, b1 = 1 + sigma * k1;
+      PetscReal       Eref;
+      PetscCall(SetAngle(&el, ELEM_BEND, xc, a, nrm, l1, l2, PETSC_PI - betas[j], kappa));
+      el.law = (KernelBendLaw){.n = 2, .L = L, .dk = k1, .b = {1, b1}};
+      PetscCall(ElemEval(&el, el.x, &E, NULL, NULL, PETSC_FALSE));
+      Eref = k <= k1 ? kappa * L * L * (k * k / 2 + sigma * k * k * k / 3) : kappa * L * L * (k1 * k1 / 2 + sigma * k1 * k1 * k1 / 3 + b1 * (k * k - k1 * k1) / 2);
+      /* 1 + cos carries round-off of 1e-16 (as for the linear triple): an absolute tolerance */
+      PetscCheck(PetscAbsReal(E - Eref) <= 1e-12 * kappa * (1 + PetscAbsReal(b1)), PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED known value: bending triple under a law [%s, L %g, sigma %g]: E = %.17g, expected %.17g", el.label, (double) L,
+                 (double) sigma, (double) E, (double) Eref);
+      worst = PetscMax(worst, PetscAbsReal(E - Eref) / (kappa * (1 + PetscAbsReal(b1))));
+    }
+    PetscCall(SetAngle(&el, ELEM_BEND, xc, a, nrm, l1, l2, PETSC_PI, kappa));
+    for (PetscInt i = 0; i < 3; i++) el.x[3 + i] = xc[i] - l2 * a[i];
+    el.law = (KernelBendLaw){.n = 2, .L = L, .dk = k1, .b = {1, 1 + sigma * k1}};
+    PetscCall(ElemEval(&el, el.x, &E, g, NULL, PETSC_FALSE));
+    PetscCall(Norm(9, g, &ng));
+    PetscCheck(PetscAbsReal(E) <= 1e-14 * kappa && ng <= 1e-10 * kappa / el.ell, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED known value: straight bending triple under a law [%s] has E = %g, |g| = %g, expected 0", el.label, (double) E, (double) ng);
+  }
+  PetscCall(PetscPrintf(PETSC_COMM_WORLD, "PASS bend law known values (5 placements, rising and falling tables, 7 angles inside and beyond): max |E - E_ref| / (kappa (1 + |b(k1)|)) %.2e (tol 1e-12); straight triple E = 0, g = 0\n", (double) worst));
+  npassed++;
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode Run(void)
 {
   PetscRandom rnd;
@@ -949,6 +1003,7 @@ static PetscErrorCode Run(void)
   PetscCall(GroupKnownStretch(rnd));
   PetscCall(GroupKnownShear(rnd));
   PetscCall(GroupKnownBend(rnd));
+  PetscCall(GroupKnownBendLaw(rnd));
 
   PetscCall(PetscRandomDestroy(&rnd));
   PetscCall(PetscPrintf(PETSC_COMM_WORLD, "%" PetscInt_FMT " passed, 0 failed\n", npassed));
