@@ -57,6 +57,11 @@ PETSC_EXTERN PetscErrorCode SelfContactBeginStep(SelfContact, const PetscScalar 
 /* End of the step of length h: filter the owned particles' end positions x and
  * velocities v in place; changed: whether any pair acted (the same on every rank). */
 PETSC_EXTERN PetscErrorCode SelfContactFilter(SelfContact, PetscReal h, PetscScalar *x, PetscScalar *v, PetscBool *changed);
+/* The owned particles the solid holds (sticky contact) for the next SelfContactFilter
+ * (NULL: none): the filter does not move them, as it does not move pinned ones. The
+ * sticky constraint fixes a particle's velocity, not its place: a held particle the
+ * filter moved would stay where it was moved, step after step. Not collective. */
+PETSC_EXTERN PetscErrorCode SelfContactSetHeld(SelfContact, const PetscBool held[]);
 PETSC_EXTERN PetscErrorCode SelfContactGetStats(SelfContact, SelfContactStats *);
 
 /* Self-contact inside an implicit step (TSDRAPEBE; src/selfcontact/implicit.c).

@@ -69,9 +69,10 @@ PETSC_EXTERN PetscErrorCode ContactGetMode(Contact, ContactMode *, PetscReal *fr
  * in contact. Particles outside the solid's box are not queried. h: for schemes
  * whose position update used the new velocity (symplectic and backward Euler),
  * the step, so that the position follows the corrected velocity (a particle held
- * by static friction does not creep); 0 otherwise. Collective (the deepest
+ * by static friction does not creep); 0 otherwise. held (n, or NULL): the
+ * particles sticky contact holds (in contact, velocity zero). Collective (the deepest
  * penetration and the count are reduced), as is ContactCheckInitial. */
-PETSC_EXTERN PetscErrorCode ContactProject(Contact, PetscInt n, PetscScalar *x, PetscScalar *v, const PetscReal *mass, const PetscBool *pinned, PetscReal h, PetscReal *depth, PetscInt *ncontact, PetscReal impulse[3]);
+PETSC_EXTERN PetscErrorCode ContactProject(Contact, PetscInt n, PetscScalar *x, PetscScalar *v, const PetscReal *mass, const PetscBool *pinned, PetscReal h, PetscReal *depth, PetscInt *ncontact, PetscReal impulse[3], PetscBool *held);
 /* Refuse an initial state with particles inside the solid (one sentence). */
 PETSC_EXTERN PetscErrorCode ContactCheckInitial(Contact, PetscInt n, const PetscScalar *x);
 /* Distance of owned particle k (of n) at x to the solid, as SolidQuery, through a

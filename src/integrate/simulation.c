@@ -47,6 +47,7 @@ struct _p_Simulation {
   PetscReal       rest_tol, rest_time, rest_since; /* stop at rest */
   PetscReal       cusick_radius, cusick_center[2]; /* Cusick analysis      */
   PetscScalar    *x0;                              /* flat initial state   */
+  PetscBool      *held;                            /* owned particles sticky contact holds after the step (for the self-contact filter) */
   PetscBool       progress, summary, help;
   char            restart[PETSC_MAX_PATH_LEN]; /* -restart file         */
   PetscBool       have_restart;
@@ -186,7 +187,8 @@ static PetscErrorCode PostStep(TS ts)
     PetscReal j[3];
     PetscCall(TSDrapeBEGetContactImpulse(ts, j));
     for (PetscInt d = 0; d < 3; d++) s->impulse[d] += j[d];
-    PetscCall(ContactProject(s->contact, s->n / 3, u, u + s->n, mass, pinned, h, &depth, &s->ncontact, s->impulse));
+    if (s->self && !s->held) PetscCall(PetscMalloc1(s->n / 3 + 1, &s->held));
+    PetscCall(ContactProject(s->contact, s->n / 3, u, u + s->n, mass, pinned, h, &depth, &s->ncontact, s->impulse, s->self ? s->held : NULL));
     s->depth = PetscMax(s->depth, depth);
   }
   if (s->self) { /* last: the step ends without the cloth crossing itself */
@@ -194,6 +196,7 @@ static PetscErrorCode PostStep(TS ts)
     PetscCall(TSGetPrevTime(ts, &t0));
     PetscCall(TSGetTime(ts, &t));
     PetscBool changed;
+    PetscCall(SelfContactSetHeld(s->self, s->contact ? s->held : NULL));
     PetscCall(SelfContactFilter(s->self, t - t0, u, u + s->n, &changed));
     if (changed) PetscCall(TSDrapeBEStateChanged(ts));
   }
@@ -475,6 +478,7 @@ PetscErrorCode SimulationDestroy(Simulation *sim)
   PetscCall(ReportDestroy(&s->report));
   PetscCall(ContactDestroy(&s->contact));
   PetscCall(SelfContactDestroy(&s->self));
+  PetscCall(PetscFree(s->held));
   PetscCall(SolidDestroy(&s->solid));
   PetscCall(PetscFree(s->x0));
   PetscCall(ClothDestroy(&s->cloth));

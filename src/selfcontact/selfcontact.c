@@ -283,6 +283,34 @@ PetscErrorCode SelfHaloUpdate(SelfContact sc, PetscReal *x0, PetscReal *x1, Pets
   PetscFunctionReturn(0);
 }
 
+/* The local set's 1/m for the filter: 0 for the particles the solid holds (own from
+ * sc->held, the halo's from their owners), or back to the cloth's (restore). */
+static PetscErrorCode SetHeldMasses(SelfContact sc, PetscBool restore)
+{
+  SelfSet *s = &sc->local;
+
+  PetscFunctionBeginUser;
+  for (PetscInt k = 0; k < s->n; k++) s->invm[k] = sc->invm[s->nat[k]];
+  if (restore || !sc->use_held) PetscFunctionReturn(0);
+  for (PetscInt k = 0; k < s->nown; k++)
+    if (sc->held[k]) s->invm[k] = 0;
+  if (sc->sf) {
+    PetscCall(PetscSFBcastBegin(sc->sf, MPIU_REAL, s->invm, s->invm + s->nown, MPI_REPLACE));
+    PetscCall(PetscSFBcastEnd(sc->sf, MPIU_REAL, s->invm, s->invm + s->nown, MPI_REPLACE));
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SelfContactSetHeld(SelfContact sc, const PetscBool held[])
+{
+  PetscFunctionBeginUser;
+  sc->use_held = (PetscBool) (held != NULL);
+  if (!held) PetscFunctionReturn(0);
+  if (!sc->held) PetscCall(PetscMalloc1(sc->nowned + 1, &sc->held));
+  PetscCall(PetscArraycpy(sc->held, held, sc->nowned));
+  PetscFunctionReturn(0);
+}
+
 /* Incidence of the whole cloth's primitives (nper particles each): CSR by particle. */
 static PetscErrorCode Incidence(PetscInt N, PetscInt nprim, const PetscInt *prim, PetscInt nper, PetscInt **ptr, PetscInt **adj)
 {
@@ -398,6 +426,7 @@ PetscErrorCode SelfContactDestroy(SelfContact *self)
   if (!sc) PetscFunctionReturn(0);
   PetscCall(PetscFree3(sc->owner, sc->owner_idx, sc->local_of));
   PetscCall(PetscFree(sc->invm));
+  PetscCall(PetscFree(sc->held));
   PetscCall(PetscFree(sc->tri_ptr));
   PetscCall(PetscFree(sc->tri_adj));
   PetscCall(PetscFree(sc->edge_ptr));
@@ -657,7 +686,8 @@ PetscErrorCode SelfListUpdate(SelfContact sc)
     PetscCallMPI(MPI_Allreduce(&ok[1], &all[1], 1, MPI_INT, MPI_MIN, sc->comm));
     PetscCall(CheckFinite(sc, (PetscBool) all[1]));
     PetscCall(HaloRebuild(sc));
-    (void) SetBoxes(s); /* the new halo's */
+    (void) SetBoxes(s);                                          /* the new halo's */
+    if (sc->use_held) PetscCall(SetHeldMasses(sc, PETSC_FALSE)); /* the new halo's 1/m, in a filter */
   } else
     PetscCall(CheckFinite(sc, (PetscBool) ok[1]));
   PetscCall(SetBroadPhase(sc, s));
@@ -871,7 +901,7 @@ static PetscBool ZoneMerge(PetscInt *parent, const PetscInt p[4])
  * same order, as one rank would: the result is the same on any number of ranks and
  * any partition. The gathered part is the contacts across the partition's cuts. */
 
-#define SELF_PACK 43 /* reals per gathered pair: kind, its two primitives, 4 particles, their x0, x1, v */
+#define SELF_PACK 47 /* reals per gathered pair: kind, its two primitives, 4 particles, their x0, x1, v, 1/m */
 
 /* The pair's primitives' indices in the whole cloth. */
 static void PairPrimitives(const SelfSet *s, PetscInt kind, PetscInt k, PetscReal g[2])
@@ -897,6 +927,7 @@ static void PackPair(const SelfSet *s, PetscInt kind, PetscInt k, const PetscInt
   for (PetscInt i = 0; i < 4; i++) {
     pk[3 + i] = (PetscReal) s->nat[p[i]];
     for (PetscInt d = 0; d < 3; d++) pk[7 + 9 * i + d] = s->x0[3 * p[i] + d], pk[10 + 9 * i + d] = s->x1[3 * p[i] + d], pk[13 + 9 * i + d] = s->v[3 * p[i] + d];
+    pk[43 + i] = s->invm[p[i]]; /* 0 also for a particle the solid holds */
   }
 }
 
@@ -955,7 +986,7 @@ static PetscErrorCode TakeGathered(SelfContact sc, PetscBool proximity, PetscRea
     for (PetscInt i = 0; i < 4; i++) {
       PetscInt q;
       PetscCall(PetscFindInt((PetscInt) pk[3 + i], m, nat, &q));
-      mini.invm[q] = sc->invm[nat[q]];
+      mini.invm[q] = pk[43 + i];
       for (PetscInt d = 0; d < 3; d++) mini.x0[3 * q + d] = pk[7 + 9 * i + d], mini.x1[3 * q + d] = pk[10 + 9 * i + d], mini.v[3 * q + d] = pk[13 + 9 * i + d];
     }
   }
@@ -1222,8 +1253,8 @@ static PetscErrorCode FailSafeZones(SelfContact sc, PetscReal h, PetscInt *count
       PetscCall(PetscMalloc5(mnew + 1, &z.invm, 3 * mnew + 1, &z.x0, 3 * mnew + 1, &z.x1, 3 * mnew + 1, &z.v, 3 * mnew + 1, &xs));
       for (PetscInt q = 0; q < mnew; q++) {
         PetscInt o = -1;
-        z.invm[q]  = sc->invm[nn[q]];
         if (nold) PetscCall(PetscFindInt(nn[q], nold, onat, &o));
+        if (o >= 0) z.invm[q] = oim[o];
         if (o >= 0)
           for (PetscInt d = 0; d < 3; d++) z.x0[3 * q + d] = ox0[3 * o + d], xs[3 * q + d] = oxs[3 * o + d], z.x1[3 * q + d] = ox1[3 * o + d], z.v[3 * q + d] = ov[3 * o + d];
       }
@@ -1234,6 +1265,7 @@ static PetscErrorCode FailSafeZones(SelfContact sc, PetscReal h, PetscInt *count
           PetscCall(PetscFindInt((PetscInt) pk[3 + i], mnew, nn, &q));
           if (nold) PetscCall(PetscFindInt(nn[q], nold, onat, &o));
           if (o >= 0) continue; /* in a zone already: its state is the zone's */
+          z.invm[q] = pk[43 + i];
           for (PetscInt d = 0; d < 3; d++) z.x0[3 * q + d] = pk[7 + 9 * i + d], xs[3 * q + d] = z.x1[3 * q + d] = pk[10 + 9 * i + d], z.v[3 * q + d] = pk[13 + 9 * i + d];
         }
       }
@@ -1332,6 +1364,7 @@ PetscErrorCode SelfContactFilter(SelfContact sc, PetscReal h, PetscScalar *x, Pe
   PetscCall(PetscLogEventBegin(drape_log.self_contact, 0, 0, 0, 0));
   for (PetscInt k = 0; k < 3 * s->nown; k++) s->x1[k] = PetscRealPart(x[k]), s->v[k] = PetscRealPart(v[k]);
   PetscCall(SelfHaloUpdate(sc, s->x0, s->x1, s->v));
+  if (sc->use_held) PetscCall(SetHeldMasses(sc, PETSC_FALSE));
   PetscCall(SelfListUpdate(sc));
   PetscCall(Pass(sc, PETSC_TRUE, h, &sc->stats.pairs, &close));
   if (close) PetscCall(SelfHaloUpdate(sc, NULL, s->x1, s->v)); /* close: pairs that acted, on any rank */
@@ -1348,7 +1381,9 @@ PetscErrorCode SelfContactFilter(SelfContact sc, PetscReal h, PetscScalar *x, Pe
     sc->stats.failsafe += failsafe;
     sc->stats.failsafe_steps++;
   }
-  *changed = (PetscBool) (sc->stats.pairs || ncol_total || failsafe);
+  if (sc->use_held) PetscCall(SetHeldMasses(sc, PETSC_TRUE));
+  sc->use_held = PETSC_FALSE; /* given again for each filter */
+  *changed     = (PetscBool) (sc->stats.pairs || ncol_total || failsafe);
   for (PetscInt k = 0; k < 3 * s->nown; k++) x[k] = s->x1[k], v[k] = s->v[k];
   PetscCall(PetscLogEventEnd(drape_log.self_contact, 0, 0, 0, 0));
   PetscFunctionReturn(0);

@@ -83,6 +83,8 @@ struct _p_SelfContact {
   PetscInt        *owner_idx;           /* its index there */
   PetscInt        *local_of;            /* scratch: natural -> index in the local set, -1 */
   PetscReal       *invm;                /* 1/m, 0 pinned (natural) */
+  PetscBool       *held;                /* owned particles the solid holds in this filter (SelfContactSetHeld) */
+  PetscBool        use_held;            /* held given for the filter under way */
   PetscInt         nh1, *h1;            /* the halo's fixed part: other ranks' particles of own particles' triangles */
   SelfSet          local;               /* the rank's own particles and its halo */
   PetscSF          sf;                  /* own particles (roots) -> the local set's halo (leaves) */

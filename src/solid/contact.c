@@ -139,7 +139,7 @@ static void ContactVelocity(ContactMode mode, PetscReal mu, const PetscReal n[3]
 /* Project the owned particles that reached the solid back onto its contact
  * surface and constrain their velocity; impulse[3] (local, not summed over ranks)
  * gains the impulse the solid gave them, sum of m (v_after - v_before). */
-PetscErrorCode ContactProject(Contact c, PetscInt n, PetscScalar *x, PetscScalar *v, const PetscReal *mass, const PetscBool *pinned, PetscReal h, PetscReal *depth, PetscInt *ncontact, PetscReal impulse[3])
+PetscErrorCode ContactProject(Contact c, PetscInt n, PetscScalar *x, PetscScalar *v, const PetscReal *mass, const PetscBool *pinned, PetscReal h, PetscReal *depth, PetscInt *ncontact, PetscReal impulse[3], PetscBool *held)
 {
   PetscReal lo[3] = {PETSC_MAX_REAL, PETSC_MAX_REAL, PETSC_MAX_REAL}, hi[3] = {-PETSC_MAX_REAL, -PETSC_MAX_REAL, -PETSC_MAX_REAL};
   PetscReal deepest = 0, grow = c->thickness;
@@ -147,6 +147,8 @@ PetscErrorCode ContactProject(Contact c, PetscInt n, PetscScalar *x, PetscScalar
 
   PetscFunctionBeginUser;
   PetscCall(PetscLogEventBegin(drape_log.contact, 0, 0, 0, 0));
+  if (held)
+    for (PetscInt k = 0; k < n; k++) held[k] = PETSC_FALSE;
   for (PetscInt k = 0; k < n; k++)
     for (PetscInt d = 0; d < 3; d++) {
       lo[d] = PetscMin(lo[d], x[3 * k + d]);
@@ -158,8 +160,11 @@ PetscErrorCode ContactProject(Contact c, PetscInt n, PetscScalar *x, PetscScalar
       if (pinned && pinned[k]) continue;
       if (!SolidBoxNear(c->solid, p, p, grow)) continue;
       PetscCall(CacheQuery(c, &c->owned, k, n, p, &dist, nrm));
+      if (held && c->mode == CONTACT_STICKY && dist <= 2 * c->thickness && v[3 * k] == 0 && v[3 * k + 1] == 0 && v[3 * k + 2] == 0)
+        held[k] = PETSC_TRUE; /* drapebe's fixed constraints: v = 0, on the surface's plane (a faceted surface can be a hair further) */
       if (dist > c->thickness * (1 + 1e-6) + PETSC_SMALL) continue;
       count++;
+      if (held && c->mode == CONTACT_STICKY) held[k] = PETSC_TRUE; /* in the layer: v = 0 below */
       if (dist >= c->thickness) continue;
       PetscReal vold[3] = {v[3 * k], v[3 * k + 1], v[3 * k + 2]}, dx[3];
       deepest           = PetscMax(deepest, c->thickness - dist);
