@@ -53,10 +53,7 @@ static inline void AccumulateBendForces(const ClothElements *el, const PetscReal
   for (PetscInt e0 = 0; e0 < el->n; e0 += ANGLE_CHUNK) {
     const PetscInt  n = PetscMin(ANGLE_CHUNK, el->n - e0);
     const PetscInt *p = el->p + 3 * e0;
-    if (el->has_law)
-      for (PetscInt k = 0; k < n; k++) KernelBendLawCoefficients(xl + 3 * p[3 * k], xl + 3 * p[3 * k + 1], xl + 3 * p[3 * k + 2], ElemCoef(el, e0 + k), ElemLaw(el, e0 + k), w + 3 * k);
-    else
-      for (PetscInt k = 0; k < n; k++) KernelAngleCoefficients(PETSC_TRUE, xl + 3 * p[3 * k], xl + 3 * p[3 * k + 1], xl + 3 * p[3 * k + 2], ElemCoef(el, e0 + k), w + 3 * k);
+    for (PetscInt k = 0; k < n; k++) KernelAngleCoefficients(PETSC_TRUE, xl + 3 * p[3 * k], xl + 3 * p[3 * k + 1], xl + 3 * p[3 * k + 2], ElemCoef(el, e0 + k), ElemLaw(el, e0 + k), w + 3 * k);
     for (PetscInt k = 0; k < n; k++) {
       KernelAngleGradientFromCoefficients(w + 3 * k, xl + 3 * p[3 * k], xl + 3 * p[3 * k + 1], xl + 3 * p[3 * k + 2], g);
       Scatter(fl, 3, p + 3 * k, g);

@@ -226,11 +226,57 @@ static inline void KernelShearCorner(PetscReal u, PetscReal w, PetscReal s, Pets
   *beta = kappa * g1;
 }
 
+/* A bending triple's rigidity as a function of its curvature (-cloth_bend_table):
+ * the moment is M(k) = B b(k) k, a secant rigidity B b(k) as in ARCSim's
+ * bending_stiffness (dde.cpp), with b piecewise linear through b[i] at k = i dk,
+ * i < n, b[0] = 1, and held at b[n-1] beyond the last sample. The triple's
+ * curvature is k = |e1/|e1| + e2/|e2|| / L = 2 sin(beta/2) / L (beta the turning
+ * angle, L the rest length of its two segments): the curvature of the circle through
+ * its particles to O(beta^2). With q = 1 + cos = (L k)^2 / 2 the energy is
+ *   E = kappa G(q),  G(q) = L^2 int_0^k b(t) t dt,  G'(q) = b(k),
+ *   G''(q) = b'(k) / (L^2 k),
+ * so M = dE/dk / (kappa L^2) = b(k) k: the same forces as ARCSim's, from an energy
+ * (exact gradient and Hessian; a table whose moment falls with k makes E
+ * non-convex there, and the projected Hessian drops that part). b = 1 gives
+ * G(q) = q, the linear triple. */
+#define KERNEL_BEND_LAW_MAX 8
+typedef struct {
+  PetscInt  n;                      /* samples (0: the linear triple)            */
+  PetscReal L, dk;                  /* rest length of the segments (m), 1/m       */
+  PetscReal b[KERNEL_BEND_LAW_MAX]; /* relative rigidity at k = i dk, b[0] = 1   */
+} KernelBendLaw;
+
+/* G(q), G'(q), G''(q) of the law (see KernelBendLaw). */
+static inline void KernelBendLawEval(const KernelBendLaw *law, PetscReal q, PetscReal *G, PetscReal *G1, PetscReal *G2)
+{
+  const PetscReal k   = PetscSqrtReal(2 * PetscMax(q, 0)) / law->L;
+  PetscReal       Phi = 0, b = law->b[law->n - 1], db = 0;
+  PetscInt        i;
+
+  /* Phi = int_0^k b(t) t dt over whole segments, then the last part */
+  for (i = 0; i + 1 < law->n && (i + 1) * law->dk <= k; i++) {
+    const PetscReal k0 = i * law->dk, k1 = k0 + law->dk, s = (law->b[i + 1] - law->b[i]) / law->dk, a = law->b[i] - s * k0;
+    Phi += a * (k1 * k1 - k0 * k0) / 2 + s * (k1 * k1 * k1 - k0 * k0 * k0) / 3;
+  }
+  if (i + 1 < law->n) { /* k inside segment i */
+    const PetscReal k0 = i * law->dk, s = (law->b[i + 1] - law->b[i]) / law->dk, a = law->b[i] - s * k0;
+    Phi += a * (k * k - k0 * k0) / 2 + s * (k * k * k - k0 * k0 * k0) / 3;
+    b  = a + s * k;
+    db = s;
+  } else
+    Phi += b * (k * k - PetscSqr((law->n - 1) * law->dk)) / 2; /* beyond the table */
+  *G  = law->L * law->L * Phi;
+  *G1 = b;
+  *G2 = k > 0 ? db / (law->L * law->L * k) : 0;
+}
+
 /* The angle gradient in two halves, so that a loop can first compute the
  * coefficients w = [2E_u, E_s, 2E_w] of many elements (independent of each other:
  * their square roots, divisions and asin overlap) and then their gradients
- * g_a = 2E_u e1 + E_s e2, g_b = 2E_w e2 + E_s e1, g_c = -(g_a + g_b). */
-static inline void KernelAngleCoefficients(PetscBool bend, const PetscReal *restrict xa, const PetscReal *restrict xb, const PetscReal *restrict xc, PetscReal kappa, PetscReal w[3])
+ * g_a = 2E_u e1 + E_s e2, g_b = 2E_w e2 + E_s e1, g_c = -(g_a + g_b). law: a
+ * bending triple's law (its kappa G'(1 + cos) for kappa), or NULL (linear; shear
+ * takes none). */
+static inline void KernelAngleCoefficients(PetscBool bend, const PetscReal *restrict xa, const PetscReal *restrict xb, const PetscReal *restrict xc, PetscReal kappa, const KernelBendLaw *law, PetscReal w[3])
 {
   const PetscReal e1[3] = {xa[0] - xc[0], xa[1] - xc[1], xa[2] - xc[2]}, e2[3] = {xb[0] - xc[0], xb[1] - xc[1], xb[2] - xc[2]};
   const PetscReal u = e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2], v = e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2];
@@ -238,6 +284,11 @@ static inline void KernelAngleCoefficients(PetscBool bend, const PetscReal *rest
 
   if (bend) {
     const PetscReal inv = 1 / (u * v), iP = PetscSqrtReal(u * v) * inv, c = s * iP;
+    if (law && law->n > 0) { /* kappa G'(1 + c) for kappa */
+      PetscReal G, G1, G2;
+      KernelBendLawEval(law, 1 + c, &G, &G1, &G2);
+      kappa *= G1;
+    }
     w[0] = -kappa * c * v * inv;
     w[2] = -kappa * c * u * inv;
     w[1] = kappa * iP;
@@ -308,73 +359,12 @@ static inline void KernelShearCellGradient(const PetscReal w[8], const PetscReal
 }
 
 /* Shear (bend = PETSC_FALSE) or bending gradient g = [g_a, g_b, g_c]. */
-static inline void KernelAngleGradient(PetscBool bend, const PetscReal *xa, const PetscReal *xb, const PetscReal *xc, PetscReal kappa, PetscReal g[9])
+static inline void KernelAngleGradient(PetscBool bend, const PetscReal *xa, const PetscReal *xb, const PetscReal *xc, PetscReal kappa, const KernelBendLaw *law, PetscReal g[9])
 {
   PetscReal w[3];
 
-  KernelAngleCoefficients(bend, xa, xb, xc, kappa, w);
+  KernelAngleCoefficients(bend, xa, xb, xc, kappa, law, w);
   KernelAngleGradientFromCoefficients(w, xa, xb, xc, g);
-}
-
-/* A bending triple's rigidity as a function of its curvature (-cloth_bend_table):
- * the moment is M(k) = B b(k) k, a secant rigidity B b(k) as in ARCSim's
- * bending_stiffness (dde.cpp), with b piecewise linear through b[i] at k = i dk,
- * i < n, b[0] = 1, and held at b[n-1] beyond the last sample. The triple's
- * curvature is k = |e1/|e1| + e2/|e2|| / L = 2 sin(beta/2) / L (beta the turning
- * angle, L the rest length of its two segments): the curvature of the circle through
- * its particles to O(beta^2). With q = 1 + cos = (L k)^2 / 2 the energy is
- *   E = kappa G(q),  G(q) = L^2 int_0^k b(t) t dt,  G'(q) = b(k),
- *   G''(q) = b'(k) / (L^2 k),
- * so M = dE/dk / (kappa L^2) = b(k) k: the same forces as ARCSim's, from an energy
- * (exact gradient and Hessian; a table whose moment falls with k makes E
- * non-convex there, and the projected Hessian drops that part). b = 1 gives
- * G(q) = q, the linear triple. */
-#define KERNEL_BEND_LAW_MAX 8
-typedef struct {
-  PetscInt  n;                      /* samples (0: the linear triple)            */
-  PetscReal L, dk;                  /* rest length of the segments (m), 1/m       */
-  PetscReal b[KERNEL_BEND_LAW_MAX]; /* relative rigidity at k = i dk, b[0] = 1   */
-} KernelBendLaw;
-
-/* G(q), G'(q), G''(q) of the law (see KernelBendLaw). */
-static inline void KernelBendLawEval(const KernelBendLaw *law, PetscReal q, PetscReal *G, PetscReal *G1, PetscReal *G2)
-{
-  const PetscReal k   = PetscSqrtReal(2 * PetscMax(q, 0)) / law->L;
-  PetscReal       Phi = 0, b = law->b[law->n - 1], db = 0;
-  PetscInt        i;
-
-  /* Phi = int_0^k b(t) t dt over whole segments, then the last part */
-  for (i = 0; i + 1 < law->n && (i + 1) * law->dk <= k; i++) {
-    const PetscReal k0 = i * law->dk, k1 = k0 + law->dk, s = (law->b[i + 1] - law->b[i]) / law->dk, a = law->b[i] - s * k0;
-    Phi += a * (k1 * k1 - k0 * k0) / 2 + s * (k1 * k1 * k1 - k0 * k0 * k0) / 3;
-  }
-  if (i + 1 < law->n) { /* k inside segment i */
-    const PetscReal k0 = i * law->dk, s = (law->b[i + 1] - law->b[i]) / law->dk, a = law->b[i] - s * k0;
-    Phi += a * (k * k - k0 * k0) / 2 + s * (k * k * k - k0 * k0 * k0) / 3;
-    b  = a + s * k;
-    db = s;
-  } else
-    Phi += b * (k * k - PetscSqr((law->n - 1) * law->dk)) / 2; /* beyond the table */
-  *G  = law->L * law->L * Phi;
-  *G1 = b;
-  *G2 = k > 0 ? db / (law->L * law->L * k) : 0;
-}
-
-/* A bending triple's gradient coefficients (KernelAngleCoefficients) under a law:
- * the linear triple's, with kappa G'(q) for kappa. */
-static inline void KernelBendLawCoefficients(const PetscReal *restrict xa, const PetscReal *restrict xb, const PetscReal *restrict xc, PetscReal kappa, const KernelBendLaw *law, PetscReal w[3])
-{
-  const PetscReal e1[3] = {xa[0] - xc[0], xa[1] - xc[1], xa[2] - xc[2]}, e2[3] = {xb[0] - xc[0], xb[1] - xc[1], xb[2] - xc[2]};
-  const PetscReal u = e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2], v = e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2];
-  const PetscReal s   = e1[0] * e2[0] + e1[1] * e2[1] + e1[2] * e2[2];
-  const PetscReal inv = 1 / (u * v), iP = PetscSqrtReal(u * v) * inv, c = s * iP;
-  PetscReal       G, G1, G2, k;
-
-  KernelBendLawEval(law, 1 + c, &G, &G1, &G2);
-  k    = kappa * G1;
-  w[0] = -k * c * v * inv;
-  w[2] = -k * c * u * inv;
-  w[1] = k * iP;
 }
 
 /* First and second partials of an angle energy E(u, w, s). */

@@ -187,8 +187,7 @@ static PetscErrorCode PostStep(TS ts)
     PetscReal j[3];
     PetscCall(TSDrapeBEGetContactImpulse(ts, j));
     for (PetscInt d = 0; d < 3; d++) s->impulse[d] += j[d];
-    if (s->self && !s->held) PetscCall(PetscMalloc1(s->n / 3 + 1, &s->held));
-    PetscCall(ContactProject(s->contact, s->n / 3, u, u + s->n, mass, pinned, h, &depth, &s->ncontact, s->impulse, s->self ? s->held : NULL));
+    PetscCall(ContactProject(s->contact, s->n / 3, u, u + s->n, mass, pinned, h, &depth, &s->ncontact, s->impulse, s->held));
     s->depth = PetscMax(s->depth, depth);
   }
   if (s->self) { /* last: the step ends without the cloth crossing itself */
@@ -196,7 +195,7 @@ static PetscErrorCode PostStep(TS ts)
     PetscCall(TSGetPrevTime(ts, &t0));
     PetscCall(TSGetTime(ts, &t));
     PetscBool changed;
-    PetscCall(SelfContactSetHeld(s->self, s->contact ? s->held : NULL));
+    PetscCall(SelfContactSetHeld(s->self, s->held));
     PetscCall(SelfContactFilter(s->self, t - t0, u, u + s->n, &changed));
     if (changed) PetscCall(TSDrapeBEStateChanged(ts));
   }
@@ -342,6 +341,11 @@ PetscErrorCode SimulationSetUp(Simulation s)
       PetscCall(SelfContactDestroy(&s->self)); /* no -contact_self, no self-contact code */
   }
   s->n = 3 * info.nowned;
+  if (s->self && s->contact) { /* what sticky contact holds, for the filter */
+    ContactMode mode;
+    PetscCall(ContactGetMode(s->contact, &mode, NULL, NULL));
+    if (mode == CONTACT_STICKY) PetscCall(PetscMalloc1(info.nowned + 1, &s->held));
+  }
   PetscCall(VecCreateMPI(s->comm, 2 * s->n, PETSC_DETERMINE, &s->U));
   PetscCall(PetscObjectSetName((PetscObject) s->U, "state"));
   PetscCall(VecGetOwnershipRange(s->U, &rstart, NULL));

@@ -687,12 +687,8 @@ static PetscErrorCode GroupGradientKernels(const Elem *sets[], const PetscInt ns
       PetscCall(ElemEval(el, el->x, &E, g, NULL, PETSC_FALSE));
       if (el->kind == ELEM_STRETCH)
         KernelStretchGradient(el->x, el->x + 3, el->k, el->L, gf);
-      else if (el->law.n) {
-        PetscReal w[3];
-        KernelBendLawCoefficients(el->x, el->x + 3, el->x + 6, el->kappa, &el->law, w);
-        KernelAngleGradientFromCoefficients(w, el->x, el->x + 3, el->x + 6, gf);
-      } else
-        KernelAngleGradient(el->kind == ELEM_BEND ? PETSC_TRUE : PETSC_FALSE, el->x, el->x + 3, el->x + 6, el->kappa, gf);
+      else
+        KernelAngleGradient(el->kind == ELEM_BEND ? PETSC_TRUE : PETSC_FALSE, el->x, el->x + 3, el->x + 6, el->kappa, el->law.n ? &el->law : NULL, gf);
       PetscCall(MaxRelDiff(el->n, gf, g, &rel));
       PetscCheck(rel <= 1e-12, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED: gradient-only %s kernel differs from the general kernel [%s]: max|g_fast - g| / max|g| = %g", ElemKindNames[el->kind], el->label, (double) rel);
       worst = PetscMax(worst, rel);
@@ -736,7 +732,7 @@ static PetscErrorCode GroupShearCell(PetscRandom rnd)
       /* corners (a, b, vertex) as cloth.c builds them, particle numbers 0..3 */
       const PetscInt corner[4][3] = {{1, 2, 0}, {0, 3, 1}, {3, 0, 2}, {2, 1, 3}};
       for (PetscInt k = 0; k < 4; k++) {
-        KernelAngleGradient(PETSC_FALSE, x + 3 * corner[k][0], x + 3 * corner[k][1], x + 3 * corner[k][2], kappa, gc);
+        KernelAngleGradient(PETSC_FALSE, x + 3 * corner[k][0], x + 3 * corner[k][1], x + 3 * corner[k][2], kappa, NULL, gc);
         for (PetscInt q = 0; q < 3; q++)
           for (PetscInt d = 0; d < 3; d++) gs[3 * corner[k][q] + d] += gc[3 * q + d];
       }
