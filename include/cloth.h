@@ -40,6 +40,8 @@ typedef struct {
   PetscReal   stretch[2], shear, bend[3]; /* continuum rigidities (see README); bend: warp, weft, bias */
   const char *model;                      /* drape or paper                       */
   PetscBool   bend_table;                 /* rigidity varies with curvature (-cloth_bend_table) */
+  PetscReal   hysteresis[2];              /* bending hysteresis 2HB warp, weft (N m/m; 0: none)  */
+  PetscReal   hyst_stiffness;             /* its stick stiffness over the bending rigidity       */
 } ClothInfo;
 
 /* Create (not collective: nothing is communicated yet), read the -cloth_* and
@@ -87,7 +89,15 @@ PETSC_EXTERN PetscErrorCode ClothSetInitialState(Cloth, PetscScalar *x, PetscSca
 PETSC_EXTERN PetscErrorCode ClothComputeAcceleration(Cloth, const PetscScalar *x, const PetscScalar *v, PetscScalar *a);
 /* Internal force only (no gravity, no damping, pins not zeroed). */
 PETSC_EXTERN PetscErrorCode ClothComputeInternalForce(Cloth, const PetscScalar *x, PetscScalar *f);
-/* Energies of the state (x, v), summed over all ranks. */
+/* After a step that ended at x (owned-particle order): the bending friction's
+ * return mapping (-cloth_bend_hysteresis; nothing without it). *slid: triples whose
+ * slider moved (global count; may be NULL). Collective. */
+PETSC_EXTERN PetscErrorCode ClothUpdatePlasticState(Cloth, const PetscScalar *x, PetscInt *slid);
+/* Triples whose bending friction holds a plastic curvature (kp != 0; global count).
+ * Collective. */
+PETSC_EXTERN PetscErrorCode ClothGetPlasticCount(Cloth, PetscInt *n);
+/* Energies of the state (x, v), summed over all ranks; the bending friction's
+ * (the energy its springs store) is in bend. */
 PETSC_EXTERN PetscErrorCode ClothComputeEnergies(Cloth, const PetscScalar *x, const PetscScalar *v, ClothEnergies *);
 /* y = H(x) z with H the exact Hessian of the internal energy; pinned rows and
  * columns removed. Matrix-free: used for the stability estimate. */

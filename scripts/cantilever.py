@@ -145,9 +145,16 @@ class Strip:
         return opts
 
 
-def run_case(angle, n, lam=8.0, fabric=("-cloth_fabric", "denim"), k=4, width=0.025, drape=None, keep=None):
+def run_case(angle, n, lam=8.0, fabric=("-cloth_fabric", "denim"), k=4, width=0.025, drape=None, keep=None, eta=0.0, stick=None, damping=1.0):
     """Clamp a strip at `angle` with n free rows, lambda = w L^3 / B, run it to rest, compare
-    its tip with the elastica's. Returns a dict of the numbers (lengths in m)."""
+    its tip with the elastica's. Returns a dict of the numbers (lengths in m).
+
+    eta > 0: with bending friction (-cloth_bend_hysteresis, 0 or 90 deg), HB = eta B / L
+    in the strip's direction and the stick stiffness `stick` x B (drape's default if
+    None); the reference is then the strip's first loading under that law
+    (elastica.solve_law with elastica.grosberg_law), which a strip released from flat
+    follows only if it does not swing back: give damping (times the first mode's
+    frequency) well above 2, an overdamped fall."""
     drape = drape or drape_path()
     rho, bw, bf, bb = material(drape, list(fabric))
     B = {0: bw, 90: bf, 45: bb}[angle]  # at 45 deg: the bias rigidity
@@ -155,10 +162,19 @@ def run_case(angle, n, lam=8.0, fabric=("-cloth_fabric", "denim"), k=4, width=0.
     L = (lam * B / w) ** (1 / 3)
     strip = Strip(angle, n, k, L / (n + 0.5), width)
     omega = 3.516 * math.sqrt(B / (rho * L ** 4))  # first bending mode of the clamped strip
+    friction = []
+    if eta > 0:
+        if angle not in (0, 90):
+            raise ValueError("bending friction acts along the threads: a strip at 0 or 90 degrees")
+        hb = [0.0, 0.0]
+        hb[0 if angle == 0 else 1] = eta * B / L
+        friction = ["-cloth_bend_hysteresis", f"{2 * hb[0]:.9g},{2 * hb[1]:.9g}"]
+        if stick is not None:
+            friction += ["-cloth_bend_hysteresis_stiffness", f"{stick:g}"]
     with tempfile.TemporaryDirectory(prefix="cantilever_") as tmp:
         out = Path(keep) if keep else Path(tmp) / "strip.h5"
-        opts = [*fabric, *strip.options(tmp), "-cloth_damping", f"{omega:.6g}", "-ts_type", "drapebe", "-ts_dt", f"{0.1 / omega:.6g}",
-                "-ts_max_time", f"{400 / omega:.6g}", "-drape_rest_tol", "1e-10", "-output_interval", f"{400 / omega:.6g}",
+        opts = [*fabric, *friction, *strip.options(tmp), "-cloth_damping", f"{damping * omega:.6g}", "-ts_type", "drapebe", "-ts_dt", f"{0.1 / omega:.6g}",
+                "-ts_max_time", f"{400 * max(1.0, damping) / omega:.6g}", "-drape_rest_tol", "1e-10", "-output_interval", f"{400 * max(1.0, damping) / omega:.6g}",
                 "-output_file", str(out)]
         t0 = time.perf_counter()
         r = drape_run.run(drape, opts, timeout=600)
@@ -176,7 +192,12 @@ def run_case(angle, n, lam=8.0, fabric=("-cloth_fabric", "denim"), k=4, width=0.
     z0 = x0[strip.pinned, 2].mean()
     drop = float(z0 - x[strip.tip, 2].mean())
     reach = float((x[strip.tip, :2] @ axis).mean() - clamp_s)
-    e = elastica.solve(lam)
+    if eta > 0:
+        if stick is None:  # drape's default, from its report
+            stick = summary["hysteresis_stiffness"]
+        e = elastica.solve_law(lam, elastica.grosberg_law(eta, stick))
+    else:
+        e = elastica.solve(lam)
     lam_eff = elastica.lam_for(drop / L, "drop")
     return {"angle": angle, "rows": n, "h": strip.h, "lattice": f"{strip.shape[1]}x{strip.shape[0]}", "particles": int(strip.active.sum()),
             "width": strip.width, "L": L, "lam": lam, "B": B, "drop": drop, "reach": reach, "drop_elastica": e.drop * L, "reach_elastica": e.reach * L,

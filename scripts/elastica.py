@@ -317,6 +317,63 @@ def solve_frictional(lam, eta, n=4000, tol=1e-12):
     return Elastica(lam, hi, float(ys[-1]), float(xs[-1]), th, sigma, theta, xs, ys)
 
 
+def grosberg_law(eta, ratio=math.inf):
+    """Curvature L theta' of the strip's first loading at the moment m = M L / B under
+    Grosberg's elastic-frictional law regularised as drape's -cloth_bend_hysteresis:
+    beside the elastic bending B, a spring of stiffness K = ratio B in series with a
+    slider that carries at most HB (eta = HB L / B). Until the spring carries HB the
+    section bends with B + K, m / (1 + ratio); beyond, the slider slides and the
+    elastic part alone takes the rest, m - eta. ratio = inf is Grosberg's rigid-plastic
+    friction (no bending where m <= eta: solve_frictional)."""
+    if not eta >= 0 or not ratio > 0:
+        raise ValueError(f"eta = HB L / B must be non-negative and the stick ratio K / B positive, not {eta}, {ratio}")
+    m_yield = eta * (1 + 1 / ratio)
+
+    def curvature(m):
+        return m / (1 + ratio) if m <= m_yield else m - eta
+    return curvature
+
+
+def solve_law(lam, curvature, n=4000, tol=1e-12):
+    """Heavy cantilever whose section bends with L theta' = curvature(m) under the
+    moment m = M L / B (a first-loading law, monotone, curvature(0) = 0).
+
+    The moment at s balances the weight beyond it, so m' = -lambda (1 - sigma) cos theta
+    (differentiating B theta' = w int_s^L (x(t) - x(s)) dt as in the module docstring),
+    with theta(0) = 0 at the clamp and m(1) = 0 at the free end. Shooting on m(0) by
+    bisection on [0, lambda/2] (the flat strip's clamp moment bounds it: cos theta <= 1),
+    RK4 for (theta, m, x, y). curvature = identity is the elastica (solve());
+    grosberg_law(eta) is solve_frictional()'s law. A kink in the law (the slider's
+    yield) makes RK4 second order there: n = 4000 gives the tip to about 1e-7."""
+    if not lam > 0:
+        raise ValueError(f"lambda = w L^3 / B must be positive, not {lam}")
+    h = 1.0 / n
+    cos, sin = math.cos, math.sin
+
+    def f(s, th, m, x, y):
+        return curvature(m), -lam * (1 - s) * cos(th), cos(th), sin(th)
+
+    def shoot(m0, keep=False):
+        st = (0.0, m0, 0.0, 0.0)
+        path = [st] if keep else None
+        for k in range(n):
+            st = _rk4(f, k * h, st, h)
+            if keep:
+                path.append(st)
+        return st, path
+
+    lo, hi = 0.0, lam / 2
+    while hi - lo > tol * max(1.0, lam):
+        mid = (lo + hi) / 2
+        if shoot(mid)[0][1] < 0:
+            lo = mid
+        else:
+            hi = mid
+    (th, _, x, y), path = shoot(hi, keep=True)
+    path = np.array(path)
+    return Elastica(lam, hi, y, x, th, np.linspace(0.0, 1.0, n + 1), path[:, 0], path[:, 2], path[:, 3])
+
+
 def lam_for(value, of="drop", lo=1e-3, hi=100.0, n=1000, tol=1e-10):
     """lambda at which the elastica's `of` ("drop" per L or "chord" angle in rad) equals `value`.
 

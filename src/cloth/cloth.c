@@ -32,7 +32,9 @@ PetscErrorCode ClothCreate(MPI_Comm comm, Cloth *cloth)
   c->pin         = CLOTH_PIN_NONE;
   c->Mx          = 32;
   c->My          = 32;
-  *cloth         = c;
+
+  c->hyst_stiffness = CLOTH_HYSTERESIS_STIFFNESS;
+  *cloth            = c;
   PetscFunctionReturn(0);
 }
 
@@ -316,6 +318,11 @@ PetscErrorCode ClothSetFromOptions(Cloth c)
                "-cloth_bend_table_samples goes with -cloth_bend_table and -cloth_fabric, and must lie from 2 to the %" PetscInt_FMT " samples of the fabric's bending table; got %" PetscInt_FMT, c->bend_nb, samples);
     if (set) c->bend_nb = samples;
   }
+  PetscCall(OptionsWarpWeft(
+    PetscOptionsObject, "-cloth_bend_hysteresis",
+    "Bending hysteresis 2HB warp[,weft] (N m/m = N; KES-F's 2HB, 1 gf cm/cm = 9.80665e-3 N): the friction between the yarns of a bent fabric, a moment HB per unit width against the change of curvature (Grosberg's law); 0: none", c->hysteresis));
+  PetscCall(PetscOptionsReal("-cloth_bend_hysteresis_stiffness", "Stick stiffness of the bending friction, a multiple of the direction's bending rigidity: the regularisation of Grosberg's rigid-plastic friction (larger: closer to it, stiffer steps)",
+                             "ClothSetFromOptions", c->hyst_stiffness, &c->hyst_stiffness, NULL));
   {
     PetscInt imodel = (PetscInt) c->model;
     PetscCall(PetscOptionsEList("-cloth_model", "Bending model: drape (thread triples and diagonal triples: warp, weft and bias rigidity) or paper (the paper's thread triples only: no bias rigidity)", "ClothSetFromOptions", model_names, 2,
@@ -373,6 +380,14 @@ PetscErrorCode ClothSetFromOptions(Cloth c)
   PetscCheck(c->model == CLOTH_MODEL_DRAPE || !bias_given, c->comm, PETSC_ERR_USER_INPUT, "-cloth_model paper has no bias rigidity: give -cloth_bend warp[,weft], or use -cloth_model drape for a third value");
   PetscCall(DrapeCheckReal(c->comm, "-cloth_bend", 3, c->bend, 0, 1, "N m"));
   PetscCall(ClothBendCoefficients(c));
+  PetscCall(DrapeCheckReal(c->comm, "-cloth_bend_hysteresis", 2, c->hysteresis, 0, 1, "N m/m"));
+  PetscCall(DrapeCheckReal(c->comm, "-cloth_bend_hysteresis_stiffness", 1, &c->hyst_stiffness, 1e-2, 1e6, "(times the bending rigidity)"));
+  for (PetscInt d = 0; d < 2; d++) {
+    PetscCheck(c->hysteresis[d] == 0 || c->bend[d] > 0, c->comm, PETSC_ERR_USER_INPUT, "-cloth_bend_hysteresis needs a %s bending rigidity (-cloth_bend) above 0: its friction's stick stiffness is a multiple of it", d ? "weft" : "warp");
+    c->friction[d].area = 1;
+    c->friction[d].hb   = 0.5 * c->hysteresis[d];
+    c->friction[d].K    = c->hyst_stiffness * c->bend[d];
+  }
   PetscCheck(!c->bend_table || c->bend_nb > 0, c->comm, PETSC_ERR_USER_INPUT, "-cloth_bend_table needs a measured bending table: give -cloth_fabric NAME (the ten fabrics of -help); without it the bending rigidity is -cloth_bend at every curvature");
   PetscCall(DrapeCheckReal(c->comm, "-gravity", 3, c->gravity, -1e3, 1e3, "m/s^2 (each component)"));
   PetscCall(DrapeCheckReal(c->comm, "-cloth_center", 3, c->origin, -1e4, 1e4, "m"));
@@ -555,10 +570,11 @@ static PetscErrorCode ElementsDestroy(ClothElements *el)
  * local[n] is the local index of natural particle n, or -1. */
 static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const PetscInt *owner, PetscMPIInt rank)
 {
-  const PetscReal dx = c->spacing[0], dy = c->spacing[1];
-  const PetscInt  Mx = c->Mx, My = c->My, nl = c->nlocal;
-  ClothElements  *st = &c->stretch_el, *sh = &c->shear_el, *be = &c->bend_el;
-  KernelBendLaw   law[3]; /* warp, weft and diagonal triples */
+  const PetscReal    dx = c->spacing[0], dy = c->spacing[1];
+  const PetscInt     Mx = c->Mx, My = c->My, nl = c->nlocal;
+  ClothElements     *st = &c->stretch_el, *sh = &c->shear_el, *be = &c->bend_el;
+  ClothFrictionList *fr = &c->friction_el;
+  KernelBendLaw      law[3]; /* warp, weft and diagonal triples */
 
 #define NAT(i, j)   ((j) *Mx + (i))
 #define LOCAL(i, j) local[NAT(i, j)]
@@ -568,6 +584,8 @@ static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const P
   PetscCall(ElementsAllocate(st, 2 * nl, 2));
   PetscCall(ElementsAllocate(sh, 4 * nl, 3));
   PetscCall(ElementsAllocate(be, (c->bend_coef[2] > 0 ? 4 : 2) * nl, 3));
+  fr->n = 0;
+  if (c->hysteresis[0] > 0 || c->hysteresis[1] > 0) PetscCall(PetscMalloc5(5 * 2 * nl, &fr->p, 2 * nl, &fr->own, 2 * nl, &fr->dir, 2 * nl, &fr->area, 2 * nl, &fr->kp));
   ClothTripleLaw(c, 0, dx, &law[0]);
   ClothTripleLaw(c, 1, dy, &law[1]);
   ClothTripleLaw(c, 2, PetscSqrtReal(dx * dx + dy * dy), &law[2]);
@@ -616,6 +634,28 @@ static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const P
         be->p[3 * e + 2] = LOCAL(i, j);
         PetscCall(ElementsSetCoefficient(be, e, c->bend_coef[1] * dx * TripleWeight(c, i, j, 0, 1) / dy, 0, &law[1]));
         be->own[e] = (unsigned char) OWNED(i, j);
+      }
+      /* bending friction: the warp and weft triples centred on (i, j) with the
+       * neighbours of (i, j) across them (KernelFriction) */
+      for (PetscInt d = 0; d < 2; d++) {
+        const PetscInt di = d ? 0 : 1, dj = d ? 1 : 0; /* along the triple; across it: (dj, di) */
+        PetscInt       q[5][2] = {{i - di, j - dj}, {i + di, j + dj}, {i, j}, {i - dj, j - di}, {i + dj, j + di}};
+        PetscBool      mine    = PETSC_FALSE;
+        if (c->hysteresis[d] <= 0 || !TripleIn(c, i, j, di, dj)) continue;
+        for (PetscInt a = 3; a < 5; a++)
+          if (q[a][0] < 0 || q[a][1] < 0 || q[a][0] >= Mx || q[a][1] >= My || !ACT(q[a][0], q[a][1])) q[a][0] = i, q[a][1] = j; /* the edge: c itself */
+        if (q[3][0] == q[4][0] && q[3][1] == q[4][1]) continue;                                                                 /* a lone line: no axis */
+        for (PetscInt a = 0; a < 5; a++) mine = (PetscBool) (mine || OWNED(q[a][0], q[a][1]));
+        if (!mine) continue;
+        PetscInt e = fr->n++;
+        for (PetscInt a = 0; a < 5; a++) {
+          fr->p[5 * e + a] = LOCAL(q[a][0], q[a][1]);
+          PetscCheck(fr->p[5 * e + a] >= 0, PETSC_COMM_SELF, PETSC_ERR_PLIB, "Particle (%" PetscInt_FMT ", %" PetscInt_FMT ") of a friction element is not local", q[a][0], q[a][1]);
+        }
+        fr->own[e]  = (unsigned char) OWNED(i, j);
+        fr->dir[e]  = (unsigned char) d;
+        fr->area[e] = dx * dy * TripleWeight(c, i, j, di, dj);
+        fr->kp[e]   = 0; /* the flat sheet */
       }
       /* bias: the two diagonal triples centred on an interior (i, j) (ClothBendCoefficients) */
       for (PetscInt s = -1; c->bend_coef[2] > 0 && s <= 1 && i >= 1 && i + 1 < Mx && j >= 1 && j + 1 < My; s += 2) {
@@ -782,8 +822,10 @@ PetscErrorCode ClothSetUp(Cloth c)
   PetscCall(DMDASetFieldName(c->da, 1, "y"));
   PetscCall(DMDASetFieldName(c->da, 2, "z"));
   PetscCall(DMDAGetInfo(c->da, NULL, &c->Mx, &c->My, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL));
-  c->spacing[0] = c->size[0] / (c->Mx - 1);
-  c->spacing[1] = c->size[1] / (c->My - 1);
+  c->spacing[0]    = c->size[0] / (c->Mx - 1);
+  c->spacing[1]    = c->size[1] / (c->My - 1);
+  c->friction[0].L = c->spacing[0];
+  c->friction[1].L = c->spacing[1];
 
   if (c->shape != CLOTH_SQUARE) {
     unsigned char *mask;
@@ -891,6 +933,7 @@ PetscErrorCode ClothDestroy(Cloth *cloth)
     PetscCall(PetscFree6(c->rb_start, c->rb_ncols, c->rb_colstart, c->rb_cols, c->rb_map, c->rb_diag));
     PetscCall(PetscFree(c->rb_val));
     PetscCall(PetscFree4(c->ex_row, c->ex_col, c->ex_map, c->ex_val));
+    if (c->friction_el.p) PetscCall(PetscFree5(c->friction_el.p, c->friction_el.own, c->friction_el.dir, c->friction_el.area, c->friction_el.kp));
   }
   PetscCall(VecDestroy(&c->Xg));
   PetscCall(VecDestroy(&c->Xl));
@@ -906,25 +949,28 @@ PetscErrorCode ClothDestroy(Cloth *cloth)
 PetscErrorCode ClothGetInfo(Cloth c, ClothInfo *info)
 {
   PetscFunctionBeginUser;
-  info->Mx         = c->Mx;
-  info->My         = c->My;
-  info->nparticles = c->Mx * c->My;
-  info->npinned    = c->npinned;
-  info->nactive    = (PetscInt) c->active_total;
-  info->owned_min  = c->owned_min;
-  info->owned_max  = c->owned_max;
-  info->ncut       = c->ncut;
-  info->partition  = PartitionTypes[c->partition];
-  info->model      = model_names[c->model];
-  info->bend_table = c->bend_table;
-  info->nstretch   = c->nstretch;
-  info->nshear     = c->nshear;
-  info->nbend      = c->nbend;
-  info->nowned     = c->nowned;
-  info->mass       = c->total_mass;
-  info->density    = c->density;
-  info->damping    = c->damping;
-  info->shear      = c->shear;
+  info->Mx             = c->Mx;
+  info->My             = c->My;
+  info->nparticles     = c->Mx * c->My;
+  info->npinned        = c->npinned;
+  info->nactive        = (PetscInt) c->active_total;
+  info->owned_min      = c->owned_min;
+  info->owned_max      = c->owned_max;
+  info->ncut           = c->ncut;
+  info->partition      = PartitionTypes[c->partition];
+  info->model          = model_names[c->model];
+  info->bend_table     = c->bend_table;
+  info->hysteresis[0]  = c->hysteresis[0];
+  info->hysteresis[1]  = c->hysteresis[1];
+  info->hyst_stiffness = c->hyst_stiffness;
+  info->nstretch       = c->nstretch;
+  info->nshear         = c->nshear;
+  info->nbend          = c->nbend;
+  info->nowned         = c->nowned;
+  info->mass           = c->total_mass;
+  info->density        = c->density;
+  info->damping        = c->damping;
+  info->shear          = c->shear;
   for (PetscInt d = 0; d < 3; d++) info->gravity[d] = c->gravity[d];
   info->bend[2] = c->bend[2];
   for (PetscInt d = 0; d < 2; d++) {
@@ -1036,6 +1082,9 @@ PetscErrorCode ClothView(Cloth c, PetscViewer viewer)
                                    (double) c->bend[0], (double) c->bend[1], (double) c->bend[2], (double) c->density, (double) c->damping));
   PetscCall(PetscViewerASCIIPrintf(viewer, "  model: %s (%s)\n", model_names[c->model],
                                    c->model == CLOTH_MODEL_PAPER ? "the paper's thread triples: no twist rigidity, a 45 degree strip bends at (warp + weft)/4 or less" : "thread triples and diagonal triples: warp, weft and bias bending rigidity"));
+  if (c->hysteresis[0] > 0 || c->hysteresis[1] > 0)
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  bending hysteresis (-cloth_bend_hysteresis): 2HB %g,%g N m/m (warp, weft; friction moment HB = 2HB/2 per unit width), stick stiffness %g x B: stick range %.3g,%.3g 1/m\n", (double) c->hysteresis[0],
+                                     (double) c->hysteresis[1], (double) c->hyst_stiffness, (double) (c->friction[0].K > 0 ? c->friction[0].hb / c->friction[0].K : 0), (double) (c->friction[1].K > 0 ? c->friction[1].hb / c->friction[1].K : 0)));
   if (c->bend_table) {
     static const char *rows[3] = {"warp", "weft", "bias"};
     PetscCall(PetscViewerASCIIPrintf(viewer, "  bending varies with curvature (-cloth_bend_table), relative rigidity at 0, %.4g, ..., %.4g 1/m, held beyond:", (double) c->bend_dk, (double) ((c->bend_nb - 1) * c->bend_dk)));

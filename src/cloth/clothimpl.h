@@ -33,6 +33,23 @@ static inline PetscReal            ElemCoef(const ClothElements *el, PetscInt e)
 static inline PetscReal            ElemRest(const ClothElements *el, PetscInt e) { return el->rest_tab[el->cls[e]]; }
 static inline const KernelBendLaw *ElemLaw(const ClothElements *el, PetscInt e) { return el->has_law ? &el->law_tab[el->cls[e]] : NULL; }
 
+/* Bending friction (-cloth_bend_hysteresis; KernelFriction): one element per warp
+ * and weft triple, its five particles a, b, vertex c (as in the bending list) and
+ * the crossing thread's neighbours of c, a0 and a1 (c itself for one of them at the
+ * cloth's edge), with the triple's direction (0 warp, 1 weft), area and plastic
+ * curvature kp: the state of the slider, the same on every rank that holds the
+ * element (each updates it from the same positions after every step). */
+typedef struct {
+  PetscInt       n;
+  PetscInt      *p; /* 5 per element */
+  unsigned char *own, *dir;
+  PetscReal     *area, *kp;
+} ClothFrictionList;
+
+/* Default stick stiffness of the bending friction over the bending rigidity
+ * (-cloth_bend_hysteresis_stiffness; BENCHMARKS.md "Bending hysteresis"). */
+#define CLOTH_HYSTERESIS_STIFFNESS 10.0
+
 typedef enum {
   CLOTH_HORIZONTAL,
   CLOTH_VERTICAL
@@ -69,6 +86,9 @@ struct _p_Cloth {
   PetscReal        bend_dk;                        /* their curvature step (1/m)                                 */
   PetscReal        bend_b[3][KERNEL_BEND_LAW_MAX]; /* warp, weft, bias: rigidity relative to the first sample */
   PetscBool        bend_table;                     /* -cloth_bend_table: the triples' rigidity follows the table */
+  PetscReal        hysteresis[2];                  /* -cloth_bend_hysteresis: KES 2HB of the warp and weft, N m/m (0: none) */
+  PetscReal        hyst_stiffness;                 /* the friction's stick stiffness K over the direction's B              */
+  KernelFriction   friction[2];                    /* warp and weft triples' law (area 1)                                  */
   ClothOrientation orientation;
   PetscReal        tilt; /* degrees about the warp direction, from the orientation's plane */
   ClothPinType     pin;
@@ -105,6 +125,8 @@ struct _p_Cloth {
   ClothElements stretch_el, shear_el, bend_el;
   PetscInt      nstretch, nshear, nbend, npinned; /* global counts            */
   PetscReal     total_mass;
+
+  ClothFrictionList friction_el; /* bending friction; n = 0 without -cloth_bend_hysteresis */
   /* contact constraints of the implicit solve (ClothSetConstraints), local particles */
   ClothConstraint *ctype;
   PetscReal       *cnormal;     /* 3 each */
@@ -126,6 +148,12 @@ struct _p_Cloth {
 };
 
 /* forces.c */
+static inline KernelFriction FrictionOf(Cloth c, const ClothFrictionList *fl, PetscInt e)
+{
+  KernelFriction f = c->friction[fl->dir[e]];
+  f.area           = fl->area[e];
+  return f;
+}
 PETSC_INTERN PetscErrorCode ClothScatterPositions(Cloth, const PetscScalar *, const PetscScalar **);
 PETSC_INTERN PetscErrorCode ClothEndScatter(Cloth, const PetscScalar **);
 

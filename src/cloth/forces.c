@@ -86,6 +86,20 @@ static inline void AccumulateShearForces(const ClothElements *el, const PetscRea
   }
 }
 
+/* The bending friction at the plastic curvatures of the last step (KernelFriction). */
+static inline void AccumulateFrictionForces(Cloth c, const PetscReal *restrict xl, PetscReal *restrict fl)
+{
+  const ClothFrictionList *fr = &c->friction_el;
+  PetscReal                g[15];
+
+  for (PetscInt e = 0; e < fr->n; e++) {
+    const PetscInt      *p = fr->p + 5 * e;
+    const KernelFriction f = FrictionOf(c, fr, e);
+    KernelFrictionEnergy(&f, fr->kp[e], xl + 3 * p[0], xl + 3 * p[1], xl + 3 * p[2], xl + 3 * p[3], xl + 3 * p[4], g, NULL);
+    Scatter(fl, 5, p, g);
+  }
+}
+
 /* fl (ghosted, zeroed by the caller) -= gradient of the internal energy at xl. */
 static void AccumulateInternalForce(Cloth c, const PetscReal *restrict xl, PetscReal *restrict fl)
 {
@@ -98,6 +112,7 @@ static void AccumulateInternalForce(Cloth c, const PetscReal *restrict xl, Petsc
   }
   AccumulateShearForces(&c->shear_el, xl, fl);
   AccumulateBendForces(&c->bend_el, xl, fl);
+  AccumulateFrictionForces(c, xl, fl);
 }
 
 PetscErrorCode ClothComputeInternalForce(Cloth c, const PetscScalar *x, PetscScalar *f)
@@ -171,6 +186,12 @@ PetscErrorCode ClothComputeEnergies(Cloth c, const PetscScalar *x, const PetscSc
     if (sh->own[e]) local[3] += KernelAngle(KERNEL_SHEAR, xl + 3 * sh->p[3 * e], xl + 3 * sh->p[3 * e + 1], xl + 3 * sh->p[3 * e + 2], ElemCoef(sh, e), NULL, NULL, NULL, PETSC_FALSE);
   for (PetscInt e = 0; e < be->n; e++)
     if (be->own[e]) local[4] += KernelAngle(KERNEL_BEND, xl + 3 * be->p[3 * e], xl + 3 * be->p[3 * e + 1], xl + 3 * be->p[3 * e + 2], ElemCoef(be, e), ElemLaw(be, e), NULL, NULL, PETSC_FALSE);
+  for (PetscInt e = 0; e < c->friction_el.n; e++) {
+    const ClothFrictionList *fr = &c->friction_el;
+    const PetscInt          *p  = fr->p + 5 * e;
+    const KernelFriction     f  = FrictionOf(c, fr, e);
+    if (fr->own[e]) local[4] += KernelFrictionEnergy(&f, fr->kp[e], xl + 3 * p[0], xl + 3 * p[1], xl + 3 * p[2], xl + 3 * p[3], xl + 3 * p[4], NULL, NULL);
+  }
   PetscCall(ClothEndScatter(c, &xl));
   PetscCall(MPIU_Allreduce(local, sum, 5, MPIU_REAL, MPI_SUM, c->comm));
   PetscCall(MPIU_Allreduce(&strain, &en->strain_max, 1, MPIU_REAL, MPIU_MAX, c->comm));
@@ -279,24 +300,44 @@ PetscErrorCode ClothGetConstraintScale(Cloth c, PetscReal a, PetscReal b, PetscI
   PetscFunctionReturn(0);
 }
 
-/* Element Hessian (particles p[0..n-1]); H is (3n x 3n) row-major. */
-static inline void ElementHessian(PetscBool project, PetscInt kind, const PetscReal *xl, const PetscInt *p, PetscReal coef, PetscReal rest, const KernelBendLaw *law, PetscReal *H)
+/* The element lists of the Hessian by kind: 0 stretch edges (2 particles), 1 shear
+ * corners (3), 2 bending triples (3), 3 bending friction (5). */
+#define CLOTH_KINDS 4
+static inline PetscInt KindSize(PetscInt kind) { return kind == 0 ? 2 : (kind == 3 ? 5 : 3); }
+
+static inline const ClothElements *KindList(Cloth c, PetscInt kind) { return kind == 0 ? &c->stretch_el : (kind == 1 ? &c->shear_el : &c->bend_el); }
+
+static inline PetscInt KindCount(Cloth c, PetscInt kind) { return kind == 3 ? c->friction_el.n : KindList(c, kind)->n; }
+
+static inline const PetscInt *KindParticles(Cloth c, PetscInt kind, PetscInt e) { return kind == 3 ? c->friction_el.p + 5 * e : KindList(c, kind)->p + KindSize(kind) * e; }
+
+/* Hessian of element e of list `kind`; H is (3n x 3n) row-major, n = KindSize(kind).
+ * The bending friction gives its Gauss-Newton part, projected or not. */
+static inline void ElementHessian(Cloth c, PetscBool project, PetscInt kind, PetscInt e, const PetscReal *xl, PetscReal *H)
 {
-  if (kind == 0)
-    KernelStretch(xl + 3 * p[0], xl + 3 * p[1], coef, rest, NULL, H, project);
-  else
-    KernelAngle(kind == 1 ? KERNEL_SHEAR : KERNEL_BEND, xl + 3 * p[0], xl + 3 * p[1], xl + 3 * p[2], coef, law, NULL, H, project);
+  const PetscInt *p = KindParticles(c, kind, e);
+
+  if (kind == 3) {
+    const KernelFriction f = FrictionOf(c, &c->friction_el, e);
+    KernelFrictionEnergy(&f, c->friction_el.kp[e], xl + 3 * p[0], xl + 3 * p[1], xl + 3 * p[2], xl + 3 * p[3], xl + 3 * p[4], NULL, H);
+  } else {
+    const ClothElements *el = KindList(c, kind);
+    if (kind == 0)
+      KernelStretch(xl + 3 * p[0], xl + 3 * p[1], ElemCoef(el, e), ElemRest(el, e), NULL, H, project);
+    else
+      KernelAngle(kind == 1 ? KERNEL_SHEAR : KERNEL_BEND, xl + 3 * p[0], xl + 3 * p[1], xl + 3 * p[2], ElemCoef(el, e), ElemLaw(el, e), NULL, H, project);
+  }
 }
 
 /* The implicit matrix's block of element e of list `kind`: the (projected unless
  * -cloth_hessian exact) Hessian, filtered by the contact constraints; its diagonal
  * blocks before the filter are summed into c->hdiag (owned particles). */
-static inline void MatrixElementHessian(Cloth c, PetscInt kind, const ClothElements *el, PetscInt e, const PetscReal *xl, PetscReal *H)
+static inline void MatrixElementHessian(Cloth c, PetscInt kind, PetscInt e, const PetscReal *xl, PetscReal *H)
 {
-  const PetscInt  n = kind ? 3 : 2, m = 3 * n;
-  const PetscInt *p = el->p + n * e;
+  const PetscInt  n = KindSize(kind), m = 3 * n;
+  const PetscInt *p = KindParticles(c, kind, e);
 
-  ElementHessian((PetscBool) !c->exact_hessian, kind, xl, p, ElemCoef(el, e), ElemRest(el, e), ElemLaw(el, e), H);
+  ElementHessian(c, (PetscBool) !c->exact_hessian, kind, e, xl, H);
   for (PetscInt a = 0; a < n; a++)
     if (p[a] < c->nowned)
       for (PetscInt i = 0; i < 3; i++)
@@ -313,11 +354,10 @@ PetscErrorCode ClothGetHessianDiagonal(Cloth c, const PetscReal **hdiag)
 
 PetscErrorCode ClothApplyHessian(Cloth c, const PetscScalar *x, const PetscScalar *z, PetscScalar *y)
 {
-  const ClothElements *lists[3] = {&c->stretch_el, &c->shear_el, &c->bend_el};
-  const PetscScalar   *xl;
-  PetscScalar         *zl, *yl;
-  Vec                  Zl;
-  PetscReal            H[81];
+  const PetscScalar *xl;
+  PetscScalar       *zl, *yl;
+  Vec                Zl;
+  PetscReal          H[225];
 
   PetscFunctionBeginUser;
   Zl = c->Zl;
@@ -331,12 +371,11 @@ PetscErrorCode ClothApplyHessian(Cloth c, const PetscScalar *x, const PetscScala
   PetscCall(PetscArrayzero(yl, 3 * c->nlocal));
   for (PetscInt l = 0; l < c->nlocal; l++)
     if (c->pinned_local[l]) zl[3 * l] = zl[3 * l + 1] = zl[3 * l + 2] = 0;
-  for (PetscInt kind = 0; kind < 3; kind++) {
-    const ClothElements *el = lists[kind];
-    const PetscInt       n = kind ? 3 : 2, m = 3 * n;
-    for (PetscInt e = 0; e < el->n; e++) {
-      const PetscInt *p = el->p + n * e;
-      ElementHessian(PETSC_FALSE, kind, xl, p, ElemCoef(el, e), ElemRest(el, e), ElemLaw(el, e), H);
+  for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) {
+    const PetscInt n = KindSize(kind), m = 3 * n;
+    for (PetscInt e = 0; e < KindCount(c, kind); e++) {
+      const PetscInt *p = KindParticles(c, kind, e);
+      ElementHessian(c, PETSC_FALSE, kind, e, xl, H);
       for (PetscInt i = 0; i < m; i++) {
         PetscReal s = 0;
         for (PetscInt j = 0; j < m; j++) s += H[m * i + j] * zl[3 * p[j / 3] + j % 3];
@@ -482,9 +521,8 @@ PetscErrorCode ClothSetExtraBlocks(Cloth c, PetscInt n, const PetscInt rows[], c
 
 static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
 {
-  const ClothElements *lists[3] = {&c->stretch_el, &c->shear_el, &c->bend_el};
-  PetscInt            *count, total = 0, npairs = 0;
-  PetscBool            sym;
+  PetscInt *count, total = 0, npairs = 0;
+  PetscBool sym;
 
   PetscFunctionBeginUser;
   PetscCall(PetscObjectTypeCompareAny((PetscObject) J, &sym, MATSEQSBAIJ, MATMPISBAIJ, ""));
@@ -492,10 +530,10 @@ static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
   PetscCall(PetscFree(c->rb_val));
   PetscCall(PetscCalloc1(c->nowned + 1, &count));
   for (PetscInt k = 0; k < c->nowned; k++) count[k] = 1; /* the diagonal block */
-  for (PetscInt kind = 0; kind < 3; kind++) {
-    const PetscInt n = kind ? 3 : 2;
-    for (PetscInt e = 0; e < lists[kind]->n; e++) {
-      const PetscInt *p = lists[kind]->p + n * e;
+  for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) {
+    const PetscInt n = KindSize(kind);
+    for (PetscInt e = 0; e < KindCount(c, kind); e++) {
+      const PetscInt *p = KindParticles(c, kind, e);
       for (PetscInt a = 0; a < n; a++)
         if (p[a] < c->nowned)
           for (PetscInt b = 0; b < n; b++) count[p[a]]++;
@@ -512,10 +550,10 @@ static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
     c->rb_ncols[k]                                   = 0;
     c->rb_cols[c->rb_colstart[k] + c->rb_ncols[k]++] = c->global[k];
   }
-  for (PetscInt kind = 0; kind < 3; kind++) {
-    const PetscInt n = kind ? 3 : 2;
-    for (PetscInt e = 0; e < lists[kind]->n; e++) {
-      const PetscInt *p = lists[kind]->p + n * e;
+  for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) {
+    const PetscInt n = KindSize(kind);
+    for (PetscInt e = 0; e < KindCount(c, kind); e++) {
+      const PetscInt *p = KindParticles(c, kind, e);
       for (PetscInt a = 0; a < n; a++)
         for (PetscInt b = 0; b < n; b++)
           if (RowBufferHolds(c, sym, p[a], p[b])) c->rb_cols[c->rb_colstart[p[a]] + c->rb_ncols[p[a]]++] = c->col_map[p[b]];
@@ -531,10 +569,10 @@ static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
     c->rb_diag[k] = c->rb_start[k] + 3 * c->rb_diag[k];
   }
   npairs = 0;
-  for (PetscInt kind = 0; kind < 3; kind++) {
-    const PetscInt n = kind ? 3 : 2;
-    for (PetscInt e = 0; e < lists[kind]->n; e++) {
-      const PetscInt *p = lists[kind]->p + n * e;
+  for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) {
+    const PetscInt n = KindSize(kind);
+    for (PetscInt e = 0; e < KindCount(c, kind); e++) {
+      const PetscInt *p = KindParticles(c, kind, e);
       for (PetscInt a = 0; a < n; a++) {
         for (PetscInt b = 0; b < n; b++, npairs++) {
           const PetscInt col = c->col_map[p[b]];
@@ -558,18 +596,16 @@ static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
 
 static PetscErrorCode ClothAddToMatrixRows(Cloth c, const PetscReal *xl, PetscReal a, PetscReal b, Mat J)
 {
-  const ClothElements *lists[3] = {&c->stretch_el, &c->shear_el, &c->bend_el};
-  PetscReal            H[81], D[9];
-  PetscInt             pair = 0;
+  PetscReal H[225], D[9];
+  PetscInt  pair = 0;
 
   PetscFunctionBeginUser;
   PetscCall(PetscArrayzero(c->rb_val, c->rb_start[c->nowned]));
-  for (PetscInt kind = 0; kind < 3; kind++) {
-    const ClothElements *el = lists[kind];
-    const PetscInt       n = kind ? 3 : 2, m = 3 * n;
-    for (PetscInt e = 0; e < el->n; e++) {
-      const PetscInt *p = el->p + n * e;
-      MatrixElementHessian(c, kind, el, e, xl, H);
+  for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) {
+    const PetscInt n = KindSize(kind), m = 3 * n;
+    for (PetscInt e = 0; e < KindCount(c, kind); e++) {
+      const PetscInt *p = KindParticles(c, kind, e);
+      MatrixElementHessian(c, kind, e, xl, H);
       for (PetscInt pa = 0; pa < n; pa++) {
         for (PetscInt pb = 0; pb < n; pb++, pair++) {
           const PetscInt pos = c->rb_map[pair];
@@ -620,5 +656,38 @@ PetscErrorCode ClothAssembleMatrix(Cloth c, const PetscScalar *x, PetscReal a, P
   PetscCall(ClothAddToMatrixRows(c, xl, a, b, J));
   PetscCall(ClothEndScatter(c, &xl));
   PetscCall(PetscLogEventEnd(drape_log.jacobian, 0, 0, 0, 0));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ClothUpdatePlasticState(Cloth c, const PetscScalar *x, PetscInt *slid)
+{
+  ClothFrictionList *fr = &c->friction_el;
+  const PetscScalar *xl;
+  PetscInt           n = 0;
+
+  PetscFunctionBeginUser;
+  if (slid) *slid = 0;
+  if (!(c->hysteresis[0] > 0 || c->hysteresis[1] > 0)) PetscFunctionReturn(0);
+  PetscCall(ClothScatterPositions(c, x, &xl));
+  for (PetscInt e = 0; e < fr->n; e++) {
+    const PetscInt      *p  = fr->p + 5 * e;
+    const KernelFriction f  = FrictionOf(c, fr, e);
+    const PetscReal      k  = KernelTurning(xl + 3 * p[0], xl + 3 * p[1], xl + 3 * p[2], xl + 3 * p[3], xl + 3 * p[4], NULL) / f.L;
+    const PetscReal      kp = KernelFrictionReturn(&f, k, fr->kp[e]);
+    if (kp != fr->kp[e] && fr->own[e]) n++;
+    fr->kp[e] = kp;
+  }
+  PetscCall(ClothEndScatter(c, &xl));
+  if (slid) PetscCall(MPIU_Allreduce(&n, slid, 1, MPIU_INT, MPI_SUM, c->comm));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ClothGetPlasticCount(Cloth c, PetscInt *n)
+{
+  PetscInt m = 0;
+
+  PetscFunctionBeginUser;
+  for (PetscInt e = 0; e < c->friction_el.n; e++) m += c->friction_el.own[e] && c->friction_el.kp[e] != 0;
+  PetscCall(MPIU_Allreduce(&m, n, 1, MPIU_INT, MPI_SUM, c->comm));
   PetscFunctionReturn(0);
 }

@@ -522,3 +522,91 @@ static inline PetscReal KernelAngle(KernelAngleKind kind, const PetscReal *xa, c
   }
   return d.E;
 }
+
+/* Bending friction (-cloth_bend_hysteresis). The yarns of a bent fabric slide on
+ * each other; KES-F measures the moment this takes per unit width, HB, as half the
+ * width 2HB of the bending hysteresis loop (Grosberg's elastic-frictional law,
+ * M = B k + HB sign(dk/dt) once the fabric slides). It is regularised as an
+ * elastic-perfectly plastic element beside the elastic bending: a spring of
+ * stiffness K per unit width in series with a slider that carries at most HB.
+ * With a thread triple's signed curvature k = theta / L and the slider's curvature
+ * kp (the plastic curvature: a state, updated after every step by
+ * KernelFrictionReturn), the triple stores A psi(k - kp), A the area it stands for
+ * and psi Huber's function
+ *   psi(z) = K z^2 / 2 for |z| <= ky = HB / K,  HB (|z| - ky / 2) beyond,
+ * whose derivative, K z clamped to [-HB, HB], is the friction moment. With kp fixed
+ * through a step this is backward Euler's incremental potential of the plasticity,
+ * and the return mapping after the step is exact. The matrix takes the
+ * Gauss-Newton part A psi''(z) grad k grad k^T (PSD): psi'' = K in the stick range
+ * with its boundary, 0 beyond it. A triple that slid in the last step starts the
+ * next on the boundary (the return mapping leaves it there), so backward Euler's
+ * single linearisation sees the spring: should the triple slide on, the step
+ * overestimates the friction moment by K times its curvature change (dissipative:
+ * a viscosity of K h in curvature rate); should it turn back, the spring unloads as
+ * it must. Taking the boundary as sliding instead (moment HB held through the step,
+ * no stiffness) pushes a triple that turns back on with the full HB: energy put in,
+ * a Cusick drape that never came to rest (measured).
+ *
+ * theta is the signed turning angle of triple (a, b; vertex c) about the direction
+ * of the crossing thread (a0 -> a1), the axis an out-of-plane bend of the thread
+ * turns it about: with t1 = x_c - x_a, t2 = x_b - x_c, A = (x_a1 - x_a0)/|x_a1 - x_a0|,
+ *   theta = atan2((t1 x t2).A, t1.t2). */
+typedef struct {
+  PetscReal area; /* A: the area the triple stands for, m^2 */
+  PetscReal L;    /* rest length of its segments, m           */
+  PetscReal hb;   /* HB, N m/m                                */
+  PetscReal K;    /* stick stiffness per unit width, N m      */
+} KernelFriction;
+
+/* theta of triple (a, b; c) about the axis a0 -> a1, and its gradient g (15: a, b,
+ * c, a0, a1; may be NULL). */
+static inline PetscReal KernelTurning(const PetscReal *xa, const PetscReal *xb, const PetscReal *xc, const PetscReal *x0, const PetscReal *x1, PetscReal *g)
+{
+  const PetscReal t1[3] = {xc[0] - xa[0], xc[1] - xa[1], xc[2] - xa[2]}, t2[3] = {xb[0] - xc[0], xb[1] - xc[1], xb[2] - xc[2]}, d[3] = {x1[0] - x0[0], x1[1] - x0[1], x1[2] - x0[2]};
+  const PetscReal ld = PetscSqrtReal(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]), A[3] = {d[0] / ld, d[1] / ld, d[2] / ld};
+  const PetscReal n[3] = {t1[1] * t2[2] - t1[2] * t2[1], t1[2] * t2[0] - t1[0] * t2[2], t1[0] * t2[1] - t1[1] * t2[0]};
+  const PetscReal s = n[0] * A[0] + n[1] * A[1] + n[2] * A[2], co = t1[0] * t2[0] + t1[1] * t2[1] + t1[2] * t2[2], r2 = s * s + co * co;
+
+  if (g) {
+    /* d theta = (co ds - s dco) / r2; ds/dt1 = t2 x A, ds/dt2 = A x t1, ds/dd = (n - s A)/|d| */
+    const PetscReal t2A[3] = {t2[1] * A[2] - t2[2] * A[1], t2[2] * A[0] - t2[0] * A[2], t2[0] * A[1] - t2[1] * A[0]};
+    const PetscReal At1[3] = {A[1] * t1[2] - A[2] * t1[1], A[2] * t1[0] - A[0] * t1[2], A[0] * t1[1] - A[1] * t1[0]};
+    const PetscReal ir     = r2 > 0 ? 1 / r2 : 0;
+    for (PetscInt i = 0; i < 3; i++) {
+      const PetscReal g1 = (co * t2A[i] - s * t2[i]) * ir, g2 = (co * At1[i] - s * t1[i]) * ir, gd = co * (n[i] - s * A[i]) * ir / ld;
+      g[i]      = -g1;     /* a  */
+      g[3 + i]  = g2;      /* b  */
+      g[6 + i]  = g1 - g2; /* c  */
+      g[9 + i]  = -gd;     /* a0 */
+      g[12 + i] = gd;      /* a1 */
+    }
+  }
+  return PetscAtan2Real(s, co);
+}
+
+/* Friction energy A psi(theta/L - kp) of one triple, its gradient g (15) and the
+ * Gauss-Newton Hessian H (15 x 15, row-major); g and H may be NULL. */
+static inline PetscReal KernelFrictionEnergy(const KernelFriction *f, PetscReal kp, const PetscReal *xa, const PetscReal *xb, const PetscReal *xc, const PetscReal *x0, const PetscReal *x1, PetscReal *g, PetscReal *H)
+{
+  PetscReal       gt[15];
+  const PetscReal k = KernelTurning(xa, xb, xc, x0, x1, (g || H) ? gt : NULL) / f->L, z = k - kp, ky = f->hb / f->K;
+  const PetscBool stick = (PetscBool) (PetscAbsReal(z) <= ky * (1 + 1e-9)); /* the boundary: round-off of the return mapping */
+  const PetscReal m     = stick ? f->K * z : (z > 0 ? f->hb : -f->hb);
+
+  if (g)
+    for (PetscInt i = 0; i < 15; i++) g[i] = f->area * m / f->L * gt[i];
+  if (H) {
+    const PetscReal c = stick ? f->area * f->K / (f->L * f->L) : 0;
+    for (PetscInt i = 0; i < 15; i++)
+      for (PetscInt j = i; j < 15; j++) H[15 * i + j] = H[15 * j + i] = c * gt[i] * gt[j]; /* exactly symmetric */
+  }
+  return f->area * (PetscAbsReal(z) <= ky ? 0.5 * f->K * z * z : f->hb * (PetscAbsReal(z) - 0.5 * ky));
+}
+
+/* The return mapping: the plastic curvature after a step that ended at curvature k
+ * from plastic curvature kp (the slider moves by what the spring cannot carry). */
+static inline PetscReal KernelFrictionReturn(const KernelFriction *f, PetscReal k, PetscReal kp)
+{
+  const PetscReal ky = f->hb / f->K, z = k - kp;
+  return z > ky ? k - ky : (z < -ky ? k + ky : kp);
+}

@@ -199,6 +199,7 @@ static PetscErrorCode PostStep(TS ts)
     PetscCall(SelfContactFilter(s->self, t - t0, u, u + s->n, &changed));
     if (changed) PetscCall(TSDrapeBEStateChanged(ts));
   }
+  PetscCall(ClothUpdatePlasticState(s->cloth, u, NULL)); /* the step's final place: the bending friction's sliders follow */
   if (s->rest_tol > 0) {
     PetscReal loc[2] = {0, 0}, sum[2];
     for (PetscInt k = 0; k < s->n / 3; k++) {
@@ -372,6 +373,10 @@ PetscErrorCode SimulationSetUp(Simulation s)
     PetscCall(PetscArraycpy(s->x0, u, s->n));
   }
   if (s->have_restart) {
+    ClothInfo info;
+    PetscCall(ClothGetInfo(s->cloth, &info));
+    PetscCheck(!(info.hysteresis[0] > 0 || info.hysteresis[1] > 0), s->comm, PETSC_ERR_USER_INPUT,
+               "-restart cannot continue a run with -cloth_bend_hysteresis: the frames hold positions and velocities, not the plastic curvature that the bending friction remembers; run it from the start");
     PetscCall(RestartLoad(s->comm, s->restart, s->cloth, u, u + s->n, &s->restart_time, &s->restart_step, &nframes, &times));
     PetscCall(OutputSetAppend(s->output, s->restart, nframes, times));
     PetscCall(PetscFree(times));
@@ -790,6 +795,9 @@ static PetscErrorCode SimulationReportStart(Simulation s)
   PetscCall(ReportSetReal(r, "bend_bias", info.bend[2]));
   PetscCall(ReportSetString(r, "model", info.model));
   PetscCall(ReportSetBool(r, "bend_table", info.bend_table));
+  PetscCall(ReportSetReal(r, "bend_hysteresis_warp", info.hysteresis[0]));
+  PetscCall(ReportSetReal(r, "bend_hysteresis_weft", info.hysteresis[1]));
+  PetscCall(ReportSetReal(r, "hysteresis_stiffness", info.hyst_stiffness));
   if (s->stability_its > 0) {
     PetscCall(ReportSetReal(r, "omega_max", s->limits.omega));
     PetscCall(ReportSetReal(r, "symplectic_limit", s->limits.symplectic));
@@ -902,6 +910,11 @@ PetscErrorCode SimulationRun(Simulation s)
     PetscCall(ReportSetInt(r, "steps_retried", rejected));
     PetscCall(ReportSetReal(r, "strain_max", s->strain_last));
     PetscCall(ReportSetBool(r, "at_rest", s->at_rest));
+    if (info.hysteresis[0] > 0 || info.hysteresis[1] > 0) {
+      PetscInt np;
+      PetscCall(ClothGetPlasticCount(s->cloth, &np));
+      PetscCall(ReportSetInt(r, "hysteresis_plastic_triples", np)); /* triples whose yarns slid and stayed */
+    }
     PetscCall(ReportSetString(r, "stopped_by", s->interrupted == SIGTERM ? "SIGTERM" : s->interrupted ? "SIGINT" : ""));
     PetscCall(ReportSetBool(r, "self_contact", (PetscBool) !!s->self));
     if (s->self) {

@@ -968,6 +968,148 @@ static PetscErrorCode GroupKnownBendLaw(PetscRandom rnd)
   PetscFunctionReturn(0);
 }
 
+/* ---------------------------------------------------------------- bending friction */
+
+/* A thread triple (a, b; c) turned by beta about the crossing thread's direction
+ * (a0 -> a1), then rotated by R and moved by o: x holds a, b, c, a0, a1 (15). With
+ * the thread along t, the plane's normal n and the axis A = n x t: theta = beta.
+ * tilt leans the axis out of the plane and skews it in it (a sheared, bent sheet). */
+static void FrictionTriple(PetscReal beta, PetscReal l1, PetscReal l2, PetscReal la, const PetscReal tilt[2], const PetscReal R[9], const PetscReal o[3], PetscReal x[15])
+{
+  const PetscReal loc[5][3] = {{-l1, 0, 0}, {l2 * PetscCosReal(beta), 0, l2 * PetscSinReal(beta)}, {0, 0, 0}, {-la * tilt[1], -la, -la * tilt[0]}, {la * tilt[1], la, la * tilt[0]}};
+  /* t = e_x, n = e_z, A = n x t = e_y: t1 x t2 = l1 l2 (0, -sin, 0)... so b bends
+   * towards -z for theta > 0 */
+  for (PetscInt p = 0; p < 5; p++) {
+    PetscReal y[3] = {loc[p][0], loc[p][1], p == 1 ? -loc[p][2] : loc[p][2]};
+    for (PetscInt i = 0; i < 3; i++) x[3 * p + i] = o[i] + R[3 * i] * y[0] + R[3 * i + 1] * y[1] + R[3 * i + 2] * y[2];
+  }
+}
+
+/* KernelTurning and KernelFrictionEnergy: theta's known values and invariance, its
+ * gradient's Taylor order, Huber's known values, the energy's gradient (stick and
+ * slide) and Gauss-Newton Hessian (exact where the spring is unloaded) by Taylor
+ * tests, the Hessian's symmetry and PSD, the return mapping. */
+static PetscErrorCode GroupFriction(PetscRandom rnd)
+{
+  const PetscReal betas[] = {-2.8, -1.0, -0.2, -1e-3, 0, 1e-3, 0.3, 1.2, 3.0};
+  PetscReal       worst = 0, omin = 10, omax = 0, R[9], o[3], x[15], y[15], g[15], d[15], H[225] = {0};
+  PetscInt        ntaylor = 0;
+
+  PetscFunctionBeginUser;
+  for (PetscInt t = 0; t < 6; t++) {
+    PetscReal l1 = 1, l2 = 1, la = 1, tilt[2] = {0, 0};
+    PetscCall(Uniform(rnd, 0.5, 2, &l1));
+    PetscCall(Uniform(rnd, 0.5, 2, &l2));
+    PetscCall(Uniform(rnd, 0.5, 2, &la));
+    PetscCall(RandomRotation(rnd, R));
+    for (PetscInt i = 0; i < 3; i++) PetscCall(Uniform(rnd, -5, 5, &o[i]));
+    for (size_t j = 0; j < sizeof(betas) / sizeof(betas[0]); j++) {
+      PetscReal th;
+      FrictionTriple(betas[j], l1, l2, la, tilt, R, o, x);
+      th = KernelTurning(x, x + 3, x + 6, x + 9, x + 12, NULL);
+      PetscCheck(PetscAbsReal(th - betas[j]) <= 1e-13, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED known value: turning angle of a triple bent by %g (segments %g, %g) is %.17g", (double) betas[j], (double) l1, (double) l2, (double) th);
+      worst = PetscMax(worst, PetscAbsReal(th - betas[j]));
+      /* scaled about c: the same angle */
+      for (PetscInt i = 0; i < 15; i++) y[i] = x[6 + i % 3] + 3.7 * (x[i] - x[6 + i % 3]);
+      PetscCheck(PetscAbsReal(KernelTurning(y, y + 3, y + 6, y + 9, y + 12, NULL) - th) <= 1e-13, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED invariance: the turning angle changes when the triple is scaled");
+    }
+    /* Taylor: theta's gradient, then the energy's gradient (stick, slide) and the
+     * Gauss-Newton Hessian where the spring is unloaded (psi' = 0: it is exact) */
+    PetscCall(Uniform(rnd, -0.3, 0.3, &tilt[0]));
+    PetscCall(Uniform(rnd, -0.3, 0.3, &tilt[1]));
+    FrictionTriple(0.4 + 0.3 * t, l1, l2, la, tilt, R, o, x);
+    for (PetscInt i = 0; i < 15; i++) PetscCall(Uniform(rnd, -1, 1, &d[i]));
+    for (PetscInt test = 0; test < 4; test++) {
+      const PetscReal th0 = KernelTurning(x, x + 3, x + 6, x + 9, x + 12, NULL), L = 0.7;
+      KernelFriction  f = {.area = 1.3, .L = L, .hb = 2.0, .K = 5.0}; /* stick range 0.4 */
+      /* kp: the angle itself (unloaded), inside the range, beyond it (sliding) */
+      const PetscReal kp = test == 0 ? th0 / L : (test == 1 ? th0 / L - 0.15 : (test == 2 ? th0 / L + 1.5 : th0 / L - 1.5));
+      PetscReal       r[NEPS], rh[NEPS], E0 = 0, gd = 0, Hd[15], eps = EPS0;
+      if (test == 0) { /* theta itself: E = theta */
+        E0 = KernelTurning(x, x + 3, x + 6, x + 9, x + 12, g);
+      } else
+        E0 = KernelFrictionEnergy(&f, kp, x, x + 3, x + 6, x + 9, x + 12, g, H);
+      for (PetscInt i = 0; i < 15; i++) gd += g[i] * d[i];
+      if (test == 1) {
+        PetscReal lmin = 0;
+        for (PetscInt i = 0; i < 15; i++)
+          for (PetscInt j = 0; j < i; j++) PetscCheck(H[15 * i + j] == H[15 * j + i], PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED symmetry of the friction Hessian at (%" PetscInt_FMT ", %" PetscInt_FMT ")", i, j);
+        for (PetscInt i = 0; i < 15; i++) { /* H = c g g^T: d^T H d >= 0 for every d, = c (g.d)^2 */
+          PetscReal s = 0;
+          for (PetscInt j = 0; j < 15; j++) s += H[15 * i + j] * d[j];
+          lmin += d[i] * s;
+        }
+        PetscCheck(lmin >= 0, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED PSD: d^T H d = %g < 0 for the friction Hessian", (double) lmin);
+      }
+      for (PetscInt i = 0; i < 15; i++) {
+        Hd[i] = 0;
+        for (PetscInt j = 0; j < 15; j++) Hd[i] += H[15 * i + j] * d[j];
+      }
+      for (PetscInt k = 0; k < NEPS; k++, eps *= 0.5) {
+        PetscReal E1, g1[15], res = 0;
+        for (PetscInt i = 0; i < 15; i++) y[i] = x[i] + eps * d[i];
+        if (test == 0)
+          E1 = KernelTurning(y, y + 3, y + 6, y + 9, y + 12, NULL);
+        else {
+          /* the unloaded spring: kp = theta(x)/L, so psi'(x) = 0 and H is the exact Hessian */
+          KernelFriction fu = f;
+          E1                = KernelFrictionEnergy(&f, kp, y, y + 3, y + 6, y + 9, y + 12, NULL, NULL);
+          KernelFrictionEnergy(&fu, th0 / L, y, y + 3, y + 6, y + 9, y + 12, g1, NULL);
+        }
+        r[k] = PetscAbsReal(E1 - E0 - eps * gd);
+        if (test == 1) {
+          PetscReal g0[15], Hu[225];
+          KernelFrictionEnergy(&f, th0 / L, x, x + 3, x + 6, x + 9, x + 12, g0, Hu);
+          for (PetscInt i = 0; i < 15; i++) {
+            PetscReal hd = 0;
+            for (PetscInt j = 0; j < 15; j++) hd += Hu[15 * i + j] * d[j];
+            res += PetscSqr(g1[i] - g0[i] - eps * hd);
+          }
+          rh[k] = PetscSqrtReal(res);
+        }
+      }
+      for (PetscInt k = 2; k + 1 < NEPS; k++) { /* the first halvings are not yet asymptotic at eps = 1e-2 */
+        const PetscReal ord = PetscLog2Real(r[k] / r[k + 1]);
+        PetscCheck(ord >= 1.8 && ord <= 2.2, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED friction Taylor test (%s): order %.3f at halving %" PetscInt_FMT " (r = %.3e, %.3e)",
+                   test == 0 ? "turning angle" : (test == 1 ? "energy, stick" : "energy, sliding"), (double) ord, k, (double) r[k], (double) r[k + 1]);
+        omin = PetscMin(omin, ord);
+        omax = PetscMax(omax, ord);
+        if (test == 1) {
+          const PetscReal oh = PetscLog2Real(rh[k] / rh[k + 1]);
+          PetscCheck(oh >= 1.8 && oh <= 2.2, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED friction Hessian Taylor test (unloaded spring): order %.3f at halving %" PetscInt_FMT, (double) oh, k);
+          omin = PetscMin(omin, oh);
+          omax = PetscMax(omax, oh);
+        }
+      }
+      ntaylor++;
+      if (test >= 2) { /* sliding: the moment is HB, the matrix has nothing */
+        PetscReal hn = 0;
+        for (PetscInt i = 0; i < 225; i++) hn += PetscAbsReal(H[i]);
+        PetscCheck(hn == 0, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED: a sliding friction element puts %g into the matrix", (double) hn);
+      }
+    }
+  }
+  {                                                                          /* Huber's known values and the return mapping; straight triple: theta = 0 */
+    const KernelFriction f  = {.area = 2.0, .L = 0.5, .hb = 3.0, .K = 10.0}; /* ky = 0.3 */
+    const PetscReal      ky = 0.3, zs[] = {0, 0.1, -0.2, 0.3, 0.5, -1.1};
+    const PetscReal      zero[2] = {0, 0}, Id[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}, oo[3] = {0, 0, 0};
+    FrictionTriple(0, 1, 1, 1, zero, Id, oo, x);
+    for (size_t j = 0; j < sizeof(zs) / sizeof(zs[0]); j++) {
+      const PetscReal z = zs[j], E = KernelFrictionEnergy(&f, -z, x, x + 3, x + 6, x + 9, x + 12, NULL, NULL);
+      const PetscReal Eref = f.area * (PetscAbsReal(z) <= ky ? 0.5 * f.K * z * z : f.hb * (PetscAbsReal(z) - 0.5 * ky));
+      const PetscReal kp = KernelFrictionReturn(&f, 0, -z), kpref = PetscAbsReal(z) <= ky ? -z : (z > 0 ? -ky : ky);
+      PetscCheck(PetscAbsReal(E - Eref) <= 1e-14 * (1 + Eref), PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED known value: friction energy at z = %g is %.17g, expected %.17g", (double) z, (double) E, (double) Eref);
+      PetscCheck(PetscAbsReal(kp - kpref) <= 1e-15, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED return mapping at z = %g: kp = %.17g, expected %.17g", (double) z, (double) kp, (double) kpref);
+    }
+  }
+  PetscCall(PetscPrintf(PETSC_COMM_WORLD,
+                        "PASS bending friction: turning angle known to %.1e over 6 placements x 9 angles (scaling-invariant); %" PetscInt_FMT
+                        " Taylor tests (angle, energy stick/sliding, Gauss-Newton Hessian where unloaded) orders %.3f-%.3f; Hessian symmetric, PSD, 0 when sliding; Huber values and return mapping known\n",
+                        (double) worst, ntaylor, (double) omin, (double) omax));
+  npassed++;
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode Run(void)
 {
   PetscRandom rnd;
@@ -1000,6 +1142,7 @@ static PetscErrorCode Run(void)
   PetscCall(GroupKnownShear(rnd));
   PetscCall(GroupKnownBend(rnd));
   PetscCall(GroupKnownBendLaw(rnd));
+  PetscCall(GroupFriction(rnd));
 
   PetscCall(PetscRandomDestroy(&rnd));
   PetscCall(PetscPrintf(PETSC_COMM_WORLD, "%" PetscInt_FMT " passed, 0 failed\n", npassed));
