@@ -63,6 +63,14 @@ def run(args, np_=1, check=True, checks=True, timeout=600, malloc_debug=None):
     return res
 
 
+def refused(args, what):
+    """drape refuses `args` on a small sheet with one sentence containing `what`: a
+    non-zero exit, no PETSc error stack."""
+    res = run(args + " -da_grid_x 8 -da_grid_y 8 -ts_max_steps 1", check=False)
+    msg = res.stdout + res.stderr
+    assert res.returncode != 0 and what in msg and "PETSC ERROR" not in msg, msg
+
+
 def wait_for_frames(path, n, timeout=60):
     """Wait until the HDF5 file a running drape writes holds n complete frames."""
     deadline = time.time() + timeout
