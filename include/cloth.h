@@ -99,8 +99,9 @@ PETSC_EXTERN PetscErrorCode ClothGetPlasticCount(Cloth, PetscInt *n);
 /* Energies of the state (x, v), summed over all ranks; the bending friction's
  * (the energy its springs store) is in bend. */
 PETSC_EXTERN PetscErrorCode ClothComputeEnergies(Cloth, const PetscScalar *x, const PetscScalar *v, ClothEnergies *);
-/* y = H(x) z with H the exact Hessian of the internal energy; pinned rows and
- * columns removed. Matrix-free: used for the stability estimate. */
+/* y = H(x) z with H the exact Hessian of the internal energy (of the bending
+ * friction, its Gauss-Newton part: the stick springs); pinned rows and columns
+ * removed. Matrix-free: used for the stability estimate. */
 PETSC_EXTERN PetscErrorCode ClothApplyHessian(Cloth, const PetscScalar *x, const PetscScalar *z, PetscScalar *y);
 /* A matrix of the given type (block size 3) preallocated for the pattern of a*M + b*H
  * (-drape_mat_type, -drape_mat_assembly: MatSetPreallocationCOO for AIJ, block rows

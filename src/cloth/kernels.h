@@ -15,6 +15,9 @@
  * A bending triple may carry a law (KernelBendLaw): its rigidity then depends on
  * the triple's curvature, E = kappa G(1 + cos) with G(q) = q for the linear law.
  *
+ * The bending friction (KernelFriction, at the end) is a five-particle element with
+ * a state.
+ *
  * With project = PETSC_TRUE the Hessian is replaced by a positive semi-definite
  * one (design.md): the stretch factor (1 - L/l) is clamped at 0 and the angle
  * Hessian's two parts (a rank-3 part and an isotropic 2x2 (x) I3 part) each get
