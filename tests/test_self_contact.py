@@ -96,6 +96,40 @@ def test_stacked_sheets_rest_a_thickness_apart(tmp):
     assert crossings(out).max() == 0
 
 
+def test_crease_pairs_enter_the_solve(tmp):
+    """A 21 x 21 sheet creased along one lattice row: rows 0-10 flat on the floor,
+    rows 11-20 folded back over them at 40 degrees from row 10, released at rest: the
+    upper half falls onto the lower and the crease closes. Across it the diagonals of
+    the cells either side come within the thickness with their closest points inside
+    both edges: edge-edge pairs, which backward Euler takes into its solve as
+    penalties (-contact_self_solve_edges, on by default; the filter after the step
+    has them too). Frames every step: the largest edge strain stays below 1.5 %
+    (measured 0.91 %, at the crease's free end). With point-triangle pairs alone in
+    the solve the filter stops the diagonals pair by pair on their four particles,
+    and the crease's free-end edge peaks at 2.08 % (the 81^2 sphere landing's
+    one-step spikes at free edges: 14.9 % with point-triangle pairs alone, 6.5 %
+    with edge-edge pairs too). No crossing either way."""
+    start = tmp / "crease_start.h5"
+    run(f"-da_grid_x 21 -da_grid_y 21 -cloth_size 0.4 -solid_floor 0 -contact_mode friction -contact_self -ts_type drapebe -ts_dt 2e-3 "
+        f"-output_steps 1 -ts_max_steps 1 -output_file {start}")
+    s, a = 0.02, np.radians(40)
+    with h5py.File(start, "r+") as f:
+        x = f["position"][-1]
+        for j in range(x.shape[0]):
+            r = max(j - 10, 0) * s
+            x[j, :, 1] = -0.2 + min(j, 10) * s - r * np.cos(a)
+            x[j, :, 2] = 0.002 + r * np.sin(a)
+        f["position"][-1] = x
+        f["velocity"][-1] = 0 * x
+    peak = {}
+    for edges in (1, 0):
+        out = tmp / f"crease{edges}.h5"
+        rep = run(f"-restart {start} -output_file {out} -ts_max_steps 100000 -ts_max_time 0.5 -contact_self_solve_edges {edges}").report
+        peak[edges] = drape_h5.load(out).strain_max.max()
+        assert crossings(out).max() == 0 and rep["self_failsafe"] == 0, rep
+    assert peak[1] < 0.015 < 0.018 < peak[0], peak
+
+
 def test_filter_does_not_move_what_the_sticky_solid_holds(tmp):
     """The hairpin of the stacked-sheets test with sticky contact: the lower layer lies
     on the floor, held by the solid (velocity zero), and the upper layer falls onto

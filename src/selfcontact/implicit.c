@@ -31,6 +31,12 @@
  * without the penalties). */
 #define SELF_SOLVE_STIFFNESS 10.0
 #define SELF_SOLVE_FEATURE   1e-6
+/* Edge-edge pairs (-contact_self_solve_edges). Their stiffness tapers to nothing
+ * within SELF_SOLVE_EDGE_TAPER of an end of either edge, and as the edges turn
+ * parallel, from the sine 2 SELF_SOLVE_PARALLEL of their angle down to
+ * SELF_SOLVE_PARALLEL, below which they are left out (EdgeShare). */
+#define SELF_SOLVE_EDGE_TAPER 0.25
+#define SELF_SOLVE_PARALLEL   0.05
 
 PetscErrorCode SelfSolveDestroy(SelfContact sc)
 {
@@ -96,6 +102,116 @@ static PetscInt FeatureTriangles(SelfContact sc, const Pair *pr)
   return PetscMax(count, 1);
 }
 
+/* The share of the stiffness of an edge-edge pair whose closest points are at
+ * fractions a and b along its edges, sine the sine of the edges' angle: 1 inside
+ * the edges, falling linearly to 0 within SELF_SOLVE_EDGE_TAPER of either end of
+ * either edge, and to 0 as sine falls from 2 to 1 SELF_SOLVE_PARALLEL.
+ * - Ends. Near an end the closest points are nearly those of a point-triangle
+ *   pair (that end, or the other edge's, against a triangle), which already holds
+ *   that contact. Two flat layers whose lattices lie nearly over each other cross
+ *   edges close to their particles: at full stiffness such pairs stacked on the
+ *   point-triangle ones (the stacked-sheets hairpin at rest: 1448 edge-edge pairs
+ *   of the step with 2280 point-triangle ones; ICC(0) of the matrix broke down,
+ *   the solve failed at every step size). Across a one-line crease, the pairs the
+ *   filter pushed (two cells' diagonals either side of the crease) meet near the
+ *   middle of both edges: the whole stiffness.
+ * - Parallel edges. The closest points of two nearly parallel edges slide along
+ *   them with the least change of position (the layers of a flat fold, lattice
+ *   lines facing each other), so the pair's weights would follow rounding: the
+ *   fast fold on 1 and 2 ranks took different pairs and parted by 1.7 mm. The
+ *   point-triangle pairs of their ends hold such edges.
+ * Continuous, so that rounding does not switch a pair's stiffness on or off (a
+ * pair is left out only where its share is 0, or below 4e-6 at an end). */
+static PetscReal EdgeShare(const Pair *pr, PetscReal sine)
+{
+  const PetscReal a = -pr->w[1], b = pr->w[3]; /* WeightsEE */
+  const PetscReal ta = PetscMin(a, 1 - a) / SELF_SOLVE_EDGE_TAPER, tb = PetscMin(b, 1 - b) / SELF_SOLVE_EDGE_TAPER, tp = sine / SELF_SOLVE_PARALLEL - 1;
+
+  return PetscMin(ta, 1) * PetscMin(tb, 1) * PetscMin(tp, 1);
+}
+
+/* Room for one more pair of the step. */
+static PetscErrorCode SolvePairNew(SelfSolve *q, SolvePair **sp)
+{
+  PetscFunctionBeginUser;
+  if (q->n == q->m) {
+    q->m = 2 * q->m + 64;
+    PetscCall(PetscRealloc(q->m * sizeof(*q->pair), &q->pair));
+  }
+  *sp = q->pair + q->n++;
+  PetscFunctionReturn(0);
+}
+
+/* Can candidate pair p (primitives p[0..na) and p[na..4)) be a pair of the step,
+ * within reach r? Its distance at the start is at least the separation of its
+ * primitives' boxes there, and its gap at the end of its free motion (along the
+ * start's normal, with weights whose magnitudes sum to 2) at least that less twice
+ * the largest displacement of its particles. PETSC_FALSE only for pairs that
+ * SolvePairMake leaves out, without their closest points (the same pairs, the
+ * same frames; most of a kept list's candidates). */
+static PetscBool SolveReachable(const SelfSet *s, const PetscInt p[4], PetscInt na, PetscReal r)
+{
+  PetscReal dmax = 0;
+
+  for (PetscInt i = 0; i < 4; i++) {
+    PetscReal d[3];
+    V3Sub(s->x1 + 3 * p[i], s->x0 + 3 * p[i], d);
+    dmax = PetscMax(dmax, V3Dot(d, d));
+  }
+  r = 1.001 * (r + 2 * PetscSqrtReal(dmax)) + 1e-12; /* slack for rounding: never skips a pair of the step */
+  for (PetscInt d = 0; d < 3; d++) {
+    PetscReal alo = PETSC_MAX_REAL, ahi = -PETSC_MAX_REAL, blo = PETSC_MAX_REAL, bhi = -PETSC_MAX_REAL;
+    for (PetscInt i = 0; i < 4; i++) {
+      const PetscReal a = s->x0[3 * p[i] + d];
+      if (i < na)
+        alo = PetscMin(alo, a), ahi = PetscMax(ahi, a);
+      else
+        blo = PetscMin(blo, a), bhi = PetscMax(bhi, a);
+    }
+    if (alo > bhi + r || blo > ahi + r) return PETSC_FALSE;
+  }
+  return PETSC_TRUE;
+}
+
+/* Candidate (kind, c) as a pair of the step, if it is within reach: its weights
+ * and normal at the start, its rest gap, whether its free motion ends below it,
+ * and for an edge-edge pair its share of the stiffness (EdgeShare; a
+ * point-triangle pair's is the caller's). Edge-edge candidates only when the
+ * closest points are inside both edges: at an end of either edge, a
+ * point-triangle pair (that end against a triangle of the other edge) has the same
+ * closest points and already pushes them apart. PETSC_FALSE: not a pair of the
+ * step. */
+static PetscBool SolvePairMake(const SelfSet *s, PetscReal H, PetscInt kind, PetscInt c, SolvePair *sp)
+{
+  Pair      pr;
+  PetscReal n[3], dist, gp = 0, sine = 1;
+
+  PairParticles(s, kind, c, pr.p);
+  if (s->invm[pr.p[0]] == 0 && s->invm[pr.p[1]] == 0 && s->invm[pr.p[2]] == 0 && s->invm[pr.p[3]] == 0) return PETSC_FALSE;
+  if (!SolveReachable(s, pr.p, kind == 0 ? 1 : 2, SELF_SOLVE_REACH * H)) return PETSC_FALSE;
+  dist = PairClosest(kind, s->x0, &pr, n);
+  if (!(dist > 0)) return PETSC_FALSE; /* touching: no normal (the filter's fail-safe takes it) */
+  if (kind == 1) {
+    const PetscReal a = -pr.w[1], b = pr.w[3]; /* the closest points' parameters along the edges (WeightsEE) */
+    PetscReal       e[3], f[3], c[3];
+    if (!(a > SELF_SOLVE_FEATURE && a < 1 - SELF_SOLVE_FEATURE && b > SELF_SOLVE_FEATURE && b < 1 - SELF_SOLVE_FEATURE)) return PETSC_FALSE;
+    V3Sub(s->x0 + 3 * pr.p[1], s->x0 + 3 * pr.p[0], e);
+    V3Sub(s->x0 + 3 * pr.p[3], s->x0 + 3 * pr.p[2], f);
+    V3Cross(e, f, c);
+    sine = PetscSqrtReal(V3Dot(c, c) / (V3Dot(e, e) * V3Dot(f, f)));
+    if (!(sine > SELF_SOLVE_PARALLEL)) return PETSC_FALSE;
+  }
+  for (PetscInt i = 0; i < 4; i++) gp += pr.w[i] * V3Dot(n, s->x1 + 3 * pr.p[i]);
+  if (PetscMin(dist, gp) >= SELF_SOLVE_REACH * H) return PETSC_FALSE;
+  sp->pr = pr;
+  for (PetscInt d = 0; d < 3; d++) sp->n[d] = n[d];
+  sp->rest     = PetscMin(H, dist);
+  sp->share    = kind == 0 ? 1 : EdgeShare(&pr, sine);
+  sp->active   = (PetscBool) (gp < sp->rest);
+  sp->released = PETSC_FALSE;
+  return PETSC_TRUE;
+}
+
 PetscErrorCode SelfContactSolveBegin(SelfContact sc, PetscReal h, const PetscScalar *x0, const PetscScalar *v0)
 {
   SelfSet        *s = &sc->local;
@@ -123,33 +239,23 @@ PetscErrorCode SelfContactSolveBegin(SelfContact sc, PetscReal h, const PetscSca
     for (PetscInt i = 0; i < 9; i++) q->S[9 * k + i] = i % 4 == 0;
   }
   q->n = 0;
-  {
-    const PetscInt kind = 0; /* point-triangle pairs (below) */
-    for (PetscInt c = 0; c < s->npt; c++) {
-      Pair      pr;
-      PetscReal n[3], dist, gp = 0, share;
-      PairParticles(s, kind, c, pr.p);
-      if (s->invm[pr.p[0]] == 0 && s->invm[pr.p[1]] == 0 && s->invm[pr.p[2]] == 0 && s->invm[pr.p[3]] == 0) continue;
-      dist = PairClosest(kind, s->x0, &pr, n);
-      if (!(dist > 0)) continue; /* touching: no normal (the filter's fail-safe takes it) */
-      for (PetscInt i = 0; i < 4; i++) gp += pr.w[i] * V3Dot(n, s->x1 + 3 * pr.p[i]);
-      if (PetscMin(dist, gp) >= SELF_SOLVE_REACH * H) continue;
-      share = 1 / (PetscReal) FeatureTriangles(sc, &pr);
-      if (q->n == q->m) {
-        q->m = 2 * q->m + 64;
-        PetscCall(PetscRealloc(q->m * sizeof(*q->pair), &q->pair));
-      }
-      {
-        SolvePair *sp = q->pair + q->n++;
-        sp->pr        = pr;
-        for (PetscInt d = 0; d < 3; d++) sp->n[d] = n[d];
-        sp->rest     = PetscMin(H, dist);
-        sp->share    = share;
-        sp->active   = (PetscBool) (gp < sp->rest);
-        sp->released = PETSC_FALSE;
-      }
+  /* Point-triangle pairs, then (-contact_self_solve_edges) edge-edge pairs whose
+   * closest points are inside both edges (at an end, a point-triangle pair has
+   * them). A point's pairs whose closest point is the same edge or corner of
+   * several triangles are one contact and share the stiffness (FeatureTriangles).
+   * An edge-edge pair inside both edges shares its closest points with no other
+   * pair, so its share is not counted out among others but set by where they lie
+   * (EdgeShare). Sharing it among a particle's edge-edge pairs within reach
+   * instead (tried, counts summed over the ranks) left a pair across a one-line
+   * crease 1/16 of the stiffness: the 81^2 landing's filter pushes stayed. */
+  for (PetscInt kind = 0; kind < (q->edges ? 2 : 1); kind++)
+    for (PetscInt c = 0; c < (kind ? s->nee : s->npt); c++) {
+      SolvePair sp, *to = NULL;
+      if (!SolvePairMake(s, H, kind, c, &sp)) continue;
+      if (kind == 0) sp.share = 1 / (PetscReal) FeatureTriangles(sc, &sp.pr);
+      PetscCall(SolvePairNew(q, &to));
+      *to = sp;
     }
-  }
   PetscCall(PetscLogEventEnd(drape_log.self_contact, 0, 0, 0, 0));
   PetscFunctionReturn(0);
 }

@@ -59,6 +59,7 @@ PetscErrorCode SelfContactCreate(MPI_Comm comm, Cloth cloth, SelfContact *self)
   sc->unit3         = MPI_DATATYPE_NULL;
   sc->unit9         = MPI_DATATYPE_NULL;
   sc->solve.enabled = PETSC_TRUE;
+  sc->solve.edges   = PETSC_TRUE;
   *self             = sc;
   PetscFunctionReturn(0);
 }
@@ -85,6 +86,8 @@ PetscErrorCode SelfContactSetFromOptions(SelfContact sc)
   }
   PetscCall(PetscOptionsBool("-contact_self_solve", "In backward Euler (drapebe): the close pairs enter the step's solve as stiff one-sided penalties (the filter after the step stays)", "SelfContactSetFromOptions", sc->solve.enabled,
                              &sc->solve.enabled, NULL));
+  PetscCall(PetscOptionsBool("-contact_self_solve_edges", "With -contact_self_solve: the close edge-edge pairs whose closest points are inside both edges enter the solve too (else point-triangle pairs only)", "SelfContactSetFromOptions",
+                             sc->solve.edges, &sc->solve.edges, NULL));
   PetscCall(PetscOptionsReal("-contact_self_stiffness", "Stiffness of a pair's penalty in the solve (N/m; 0: 10 m/h^2, m the mean particle mass: a pair approaching by a thickness a step sinks by a tenth of it)", "SelfContactSetFromOptions",
                              sc->solve.k_set, &sc->solve.k_set, NULL));
   PetscCall(PetscOptionsInt("-contact_self_its", "Passes of collision impulses before the fail-safe takes the pairs still colliding", "SelfContactSetFromOptions", sc->its, &sc->its, NULL));

@@ -52,6 +52,7 @@ typedef struct {
 
 typedef struct {
   PetscBool  enabled;  /* -contact_self_solve (taken only by a scheme that calls SelfContactSolveBegin) */
+  PetscBool  edges;    /* -contact_self_solve_edges: edge-edge pairs too */
   PetscReal  k, k_set; /* penalty stiffness of the step; -contact_self_stiffness (0: SELF_SOLVE_STIFFNESS m / h^2), N/m */
   PetscReal  mass;     /* mean particle mass, kg */
   PetscInt   n, m;     /* the step's pairs, allocated */
