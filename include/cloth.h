@@ -90,9 +90,8 @@ PETSC_EXTERN PetscErrorCode ClothComputeAcceleration(Cloth, const PetscScalar *x
 /* Internal force only (no gravity, no damping, pins not zeroed). */
 PETSC_EXTERN PetscErrorCode ClothComputeInternalForce(Cloth, const PetscScalar *x, PetscScalar *f);
 /* After a step that ended at x (owned-particle order): the bending friction's
- * return mapping (-cloth_bend_hysteresis; nothing without it). *slid: triples whose
- * slider moved (global count; may be NULL). Collective. */
-PETSC_EXTERN PetscErrorCode ClothUpdatePlasticState(Cloth, const PetscScalar *x, PetscInt *slid);
+ * return mapping (-cloth_bend_hysteresis; nothing without it). Collective. */
+PETSC_EXTERN PetscErrorCode ClothUpdatePlasticState(Cloth, const PetscScalar *x);
 /* Triples whose bending friction holds a plastic curvature (kp != 0; global count).
  * Collective. */
 PETSC_EXTERN PetscErrorCode ClothGetPlasticCount(Cloth, PetscInt *n);

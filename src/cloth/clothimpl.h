@@ -144,6 +144,7 @@ struct _p_Cloth {
   /* blocks besides the elements' (ClothSetExtraBlocks): owned row, global block
    * column, 9 values, position in rb_val (-1: not held) */
   PetscInt   ex_n, ex_m, *ex_row, *ex_col, *ex_map;
+  PetscInt   px_n, *px_row, *px_col; /* the extra blocks the row buffer's pattern holds (PatternMerge) */
   PetscReal *ex_val;
 };
 

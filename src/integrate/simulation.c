@@ -199,7 +199,7 @@ static PetscErrorCode PostStep(TS ts)
     PetscCall(SelfContactFilter(s->self, t - t0, u, u + s->n, &changed));
     if (changed) PetscCall(TSDrapeBEStateChanged(ts));
   }
-  PetscCall(ClothUpdatePlasticState(s->cloth, u, NULL)); /* the step's final place: the bending friction's sliders follow */
+  PetscCall(ClothUpdatePlasticState(s->cloth, u)); /* the step's final place: the bending friction's sliders follow */
   if (s->rest_tol > 0) {
     PetscReal loc[2] = {0, 0}, sum[2];
     for (PetscInt k = 0; k < s->n / 3; k++) {
