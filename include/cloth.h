@@ -42,6 +42,8 @@ typedef struct {
   PetscBool   bend_table;                 /* rigidity varies with curvature (-cloth_bend_table) */
   PetscReal   hysteresis[2];              /* bending hysteresis 2HB warp, weft (N m/m; 0: none)  */
   PetscReal   hyst_stiffness;             /* its stick stiffness over the bending rigidity       */
+  PetscReal   imperfection[2];            /* initial out-of-plane imperfection: rms amplitude, wavelength (m; 0: flat) */
+  PetscInt    imperfection_seed;          /* its field's seed                                    */
 } ClothInfo;
 
 /* Create (not collective: nothing is communicated yet), read the -cloth_* and

@@ -197,13 +197,13 @@ def drape_path(build=None):
     return ROOT / (build or os.environ.get("DRAPE_BUILD", "build")) / "drape"
 
 
-def cusick_args(fabric, grid, model="drape", max_time=None, h5=None, offset=0.0):
+def cusick_args(fabric, grid, model="drape", max_time=None, h5=None, offset=0.0, extra=()):
     """drape's arguments for the Cusick scene with `fabric` on a grid x grid lattice and
     `model` ("drape", "paper", or "table": drape's with -cloth_bend_table, the bending
     rigidity varying with curvature as the fabric's table), to rest or -ts_max_time
     `max_time` (default the scene's), writing only the first and last frames to `h5` if
     given; `offset` (m) moves the specimen off the pedestal's centre along the warp (a
-    centring error)."""
+    centring error); `extra`: more drape options, last."""
     t_max = max_time if max_time is not None else float(scene_option("ts_max_time"))
     args = ["-options_file", str(SCENE), "-cloth_fabric", fabric, "-cloth_model", "drape" if model == "table" else model,
             "-da_grid_x", str(grid), "-da_grid_y", str(grid), "-ts_max_time", repr(t_max), "-output_interval", repr(t_max)]
@@ -212,7 +212,7 @@ def cusick_args(fabric, grid, model="drape", max_time=None, h5=None, offset=0.0)
     if offset:
         x, y, z = (float(v) for v in scene_option("cloth_center").split(","))
         args += ["-cloth_center", f"{x + offset!r},{y!r},{z!r}"]
-    return args + (["-output_file", str(h5)] if h5 else [])
+    return args + (["-output_file", str(h5)] if h5 else []) + list(extra)
 
 
 def row_from_result(r, fabric, grid, model="drape"):
@@ -232,9 +232,9 @@ def row_from_result(r, fabric, grid, model="drape"):
     return row
 
 
-def run_one(drape, fabric, grid, model="drape", max_time=None, h5=None, offset=0.0, timeout=1800):
+def run_one(drape, fabric, grid, model="drape", max_time=None, h5=None, offset=0.0, timeout=1800, extra=()):
     """One Cusick run (cusick_args); returns its CSV row (row_from_result)."""
-    r = drape_run.run(drape, cusick_args(fabric, grid, model, max_time, h5, offset), timeout=timeout)
+    r = drape_run.run(drape, cusick_args(fabric, grid, model, max_time, h5, offset, extra), timeout=timeout)
     return row_from_result(r, fabric, grid, model)
 
 

@@ -133,3 +133,32 @@ def test_cusick_dc_exceeds_the_radial_strip_bound(fabric):
     assert row["drape_coefficient"] > row["bound"], row
     assert 0.05 < row["bound"] < 0.5 and 0 < row["drape_coefficient"] < 1, row
     assert row["b_min"] == pytest.approx(min(row["bend_warp"], row["bend_weft"], row["bend_bias"]), rel=1e-12)
+
+
+def test_specimens_quick_smoke_run(tmp_path):
+    """scripts/cusick_specimens.py --quick: denim, specimens 1 and 2 on 21^2 and 25^2
+    for 0.2 s. Each run carries its seed and the amplitude; the two specimens are two
+    different sheets (their DCs differ; with one flat sheet they would be equal), and the
+    markdown's means and standard deviations are those of the CSV's DCs."""
+    import statistics
+    p = subprocess.run([sys.executable, str(ROOT / "scripts" / "cusick_specimens.py"), "--quick", "--jobs", "2", "--out", str(tmp_path)],
+                       capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert p.returncode == 0, p.stdout + p.stderr
+    import cusick_specimens as cs
+    with open(tmp_path / "specimens.csv", newline="") as f:
+        reader = csv.DictReader(f)
+        assert reader.fieldnames == cs.CSV_COLUMNS
+        rows = list(reader)
+    assert sorted((r["grid"], r["seed"]) for r in rows) == [("21", "1"), ("21", "2"), ("25", "1"), ("25", "2")]
+    assert all(r["status"] == "ok" and float(r["amplitude"]) == cs.AMPLITUDE for r in rows)
+    dc = {(r["grid"], r["seed"]): float(r["drape_coefficient"]) for r in rows}
+    assert dc[("21", "1")] != dc[("21", "2")] and dc[("25", "1")] != dc[("25", "2")]
+    md = (tmp_path / "specimens.md").read_text().splitlines()
+    cells = md[2].split(" | ")
+    for grid, cell in (("21", cells[2]), ("25", cells[3])):
+        values = [dc[(grid, "1")], dc[(grid, "2")]]
+        assert cell == f"{statistics.mean(values):.3f} ± {statistics.stdev(values):.3f}", (cell, values)
+    assert "Resolution floor on the specimens' mean" in "\n".join(md)
+    bad = subprocess.run([sys.executable, str(ROOT / "scripts" / "cusick_specimens.py"), "--seeds", "-1", "--out", str(tmp_path)],
+                         capture_output=True, text=True, timeout=60, cwd=ROOT)
+    assert bad.returncode == 2 and "--seeds one or more integers >= 0" in bad.stderr

@@ -1,6 +1,7 @@
 /* The cloth lattice: options, DMDA layout, masses, pins and element lists. */
 #include "clothimpl.h"
 #include <petscdmda.h>
+#include <stdint.h>
 #include <partition.h>
 #include <drape.h>
 
@@ -34,7 +35,9 @@ PetscErrorCode ClothCreate(MPI_Comm comm, Cloth *cloth)
   c->My          = 32;
 
   c->hyst_stiffness = CLOTH_HYSTERESIS_STIFFNESS;
-  *cloth            = c;
+
+  c->imperfection_seed = 1;
+  *cloth               = c;
   PetscFunctionReturn(0);
 }
 
@@ -276,6 +279,51 @@ static PetscErrorCode ClothCheckLatticeSize(Cloth c, PetscInt Mx, PetscInt My)
   PetscFunctionReturn(0);
 }
 
+/* A portable generator (splitmix64): the same numbers from a seed on every machine. */
+static PetscReal SplitMix(uint64_t *state)
+{
+  uint64_t z = (*state += 0x9E3779B97F4A7C15ULL);
+  z          = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+  z          = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+  z          = z ^ (z >> 31);
+  return (PetscReal) (z >> 11) * 0x1.0p-53; /* [0, 1) */
+}
+
+/* The imperfection's plane waves (CLOTH_IMPERFECTION_MODES in clothimpl.h), from the
+ * seed: every rank draws the same ones. */
+static PetscErrorCode ClothImperfectionSetUp(Cloth c)
+{
+  uint64_t  state = (uint64_t) c->imperfection_seed;
+  PetscReal lo    = PetscMin(c->size[0], c->size[1]);
+
+  PetscFunctionBeginUser;
+  PetscCall(DrapeCheckReal(c->comm, "-cloth_imperfection (its amplitude)", 1, &c->imperfection[0], 0, 1, "m"));
+  if (c->imperfection[1] == 0) c->imperfection[1] = 0.25 * lo;
+  PetscCall(DrapeCheckReal(c->comm, "-cloth_imperfection (its wavelength)", 1, &c->imperfection[1], 1e-4, 1e3, "m"));
+  PetscCheck(c->imperfection[0] <= 0.05 * c->imperfection[1], c->comm, PETSC_ERR_USER_INPUT,
+             "-cloth_imperfection's amplitude %g m is more than 5%% of its wavelength %g m: the initial sheet would no longer be nearly flat (its slopes reach about 2 pi sqrt(2) amplitude/wavelength); give a smaller amplitude or a longer wavelength",
+             (double) c->imperfection[0], (double) c->imperfection[1]);
+  PetscCall(DrapeCheckIntOption(c->comm, "-cloth_imperfection_seed"));
+  PetscCall(DrapeCheckInt(c->comm, "-cloth_imperfection_seed", c->imperfection_seed, 0, PETSC_MAX_INT));
+  for (PetscInt m = 0; m < CLOTH_IMPERFECTION_MODES; m++) {
+    const PetscReal alpha = PETSC_PI * (m + SplitMix(&state)) / CLOTH_IMPERFECTION_MODES; /* stratified: distinct directions */
+    c->imperf_dir[m][0]   = PetscCosReal(alpha);
+    c->imperf_dir[m][1]   = PetscSinReal(alpha);
+    c->imperf_phase[m]    = 2 * PETSC_PI * SplitMix(&state);
+  }
+  PetscFunctionReturn(0);
+}
+
+/* The imperfection at sheet coordinates (a, b) from the centre, m. */
+static PetscReal ClothImperfection(Cloth c, PetscReal a, PetscReal b)
+{
+  const PetscReal k = 2 * PETSC_PI / c->imperfection[1];
+  PetscReal       w = 0;
+
+  for (PetscInt m = 0; m < CLOTH_IMPERFECTION_MODES; m++) w += PetscCosReal(k * (a * c->imperf_dir[m][0] + b * c->imperf_dir[m][1]) + c->imperf_phase[m]);
+  return c->imperfection[0] * PetscSqrtReal(2.0 / CLOTH_IMPERFECTION_MODES) * w;
+}
+
 PetscErrorCode ClothSetFromOptions(Cloth c)
 {
   PetscInt          n, npin = 0, ipin = (PetscInt) c->pin, iorient = (PetscInt) c->orientation, hess = 0;
@@ -338,6 +386,21 @@ PetscErrorCode ClothSetFromOptions(Cloth c)
   PetscCall(PetscOptionsEList("-cloth_orientation", "Initial sheet: horizontal (warp x, weft y) or vertical (warp x, weft z)", "ClothSetFromOptions", orientation_names, 2, orientation_names[iorient], &iorient, NULL));
   PetscCall(PetscOptionsReal("-cloth_tilt", "Initial sheet turned about its warp direction by this angle from -cloth_orientation (degrees; the weft rises towards +z)", "ClothSetFromOptions", c->tilt, &c->tilt, NULL));
   PetscCall(DrapeCheckReal(c->comm, "-cloth_tilt", 1, &c->tilt, -180, 180, "degrees"));
+  n = 3; /* one more than allowed: detects extra values */
+  {
+    PetscReal tmp[3] = {0, 0, 0};
+    PetscCall(PetscOptionsRealArray("-cloth_imperfection",
+                                    "A specimen that is not quite flat: rms amplitude[,wavelength] (m) of a smooth random out-of-plane displacement of the initial sheet (a sum of plane waves in material coordinates: the same specimen on every "
+                                    "lattice); wavelength 0 or not given: a quarter of the smaller -cloth_size; amplitude 0: flat",
+                                    "ClothSetFromOptions", tmp, &n, &set));
+    PetscCheck(!set || (n > 0 && n <= 2), c->comm, PETSC_ERR_USER_INPUT, "Option -cloth_imperfection needs one value (amplitude) or two (amplitude,wavelength), in m");
+    if (set) {
+      c->imperfection[0] = tmp[0];
+      c->imperfection[1] = n == 2 ? tmp[1] : 0;
+    }
+  }
+  PetscCall(PetscOptionsInt("-cloth_imperfection_seed", "Which specimen: the seed of -cloth_imperfection's random field (an integer >= 0; the same seed gives the same specimen on any lattice, rank count and machine)", "ClothSetFromOptions",
+                            c->imperfection_seed, &c->imperfection_seed, NULL));
   {
     PetscInt  ishape = (PetscInt) c->shape;
     PetscBool set_outline;
@@ -391,6 +454,7 @@ PetscErrorCode ClothSetFromOptions(Cloth c)
   PetscCheck(!c->bend_table || c->bend_nb > 0, c->comm, PETSC_ERR_USER_INPUT, "-cloth_bend_table needs a measured bending table: give -cloth_fabric NAME (the ten fabrics of -help); without it the bending rigidity is -cloth_bend at every curvature");
   PetscCall(DrapeCheckReal(c->comm, "-gravity", 3, c->gravity, -1e3, 1e3, "m/s^2 (each component)"));
   PetscCall(DrapeCheckReal(c->comm, "-cloth_center", 3, c->origin, -1e4, 1e4, "m"));
+  PetscCall(ClothImperfectionSetUp(c));
   PetscCall(DrapeCheckIntOption(c->comm, "-cloth_pin_list"));
   PetscCall(DrapeCheckPathLength(c->comm, "-cloth_outline", c->outline, sizeof c->outline));
   PetscCheck(c->shape != CLOTH_POLYGON || c->outline[0], c->comm, PETSC_ERR_USER_INPUT, "-cloth_shape polygon needs -cloth_outline FILE");
@@ -684,20 +748,23 @@ static PetscInt CountOwned(const ClothElements *el, PetscInt per)
   return n / per;
 }
 
-/* Position of lattice particle (i, j) in the initial flat sheet. */
-static void InitialPosition(Cloth c, PetscInt i, PetscInt j, PetscReal x[3])
+/* Position of lattice particle (i, j) in the initial flat sheet, moved by the
+ * imperfection w (m) along the sheet's normal (the warp crossed with the weft). */
+static void InitialPositionOff(Cloth c, PetscInt i, PetscInt j, PetscReal w, PetscReal x[3])
 {
   PetscReal a = i * c->spacing[0] - 0.5 * c->size[0], b = j * c->spacing[1] - 0.5 * c->size[1];
   x[0] = c->origin[0] + a;
   if (c->tilt == 0) {
-    x[1] = c->origin[1] + (c->orientation == CLOTH_HORIZONTAL ? b : 0);
-    x[2] = c->origin[2] + (c->orientation == CLOTH_HORIZONTAL ? 0 : b);
+    x[1] = c->origin[1] + (c->orientation == CLOTH_HORIZONTAL ? b : -w);
+    x[2] = c->origin[2] + (c->orientation == CLOTH_HORIZONTAL ? w : b);
   } else { /* turned about the warp direction */
     const PetscReal theta = (c->orientation == CLOTH_HORIZONTAL ? 0 : PETSC_PI / 2) + c->tilt * PETSC_PI / 180;
-    x[1]                  = c->origin[1] + b * PetscCosReal(theta);
-    x[2]                  = c->origin[2] + b * PetscSinReal(theta);
+    x[1]                  = c->origin[1] + b * PetscCosReal(theta) - w * PetscSinReal(theta);
+    x[2]                  = c->origin[2] + b * PetscSinReal(theta) + w * PetscCosReal(theta);
   }
 }
+
+static void InitialPosition(Cloth c, PetscInt i, PetscInt j, PetscReal x[3]) { InitialPositionOff(c, i, j, 0, x); }
 
 static PetscBool ActiveCallback(void *ctx, PetscInt i, PetscInt j) { return ClothIsActive((Cloth) ctx, i, j); }
 
@@ -980,6 +1047,10 @@ PetscErrorCode ClothGetInfo(Cloth c, ClothInfo *info)
     info->stretch[d] = c->stretch[d];
     info->bend[d]    = c->bend[d];
   }
+
+  info->imperfection[0]   = c->imperfection[0];
+  info->imperfection[1]   = c->imperfection[1];
+  info->imperfection_seed = c->imperfection_seed;
   PetscFunctionReturn(0);
 }
 
@@ -1002,7 +1073,10 @@ PetscErrorCode ClothSetInitialState(Cloth c, PetscScalar *x, PetscScalar *v)
 {
   PetscFunctionBeginUser;
   for (PetscInt k = 0; k < c->nowned; k++) {
-    InitialPosition(c, c->natural[k] % c->Mx, c->natural[k] / c->Mx, x + 3 * k);
+    const PetscInt i = c->natural[k] % c->Mx, j = c->natural[k] / c->Mx;
+    PetscReal      w = 0;
+    if (c->imperfection[0] > 0) w = ClothImperfection(c, i * c->spacing[0] - 0.5 * c->size[0], j * c->spacing[1] - 0.5 * c->size[1]);
+    InitialPositionOff(c, i, j, w, x + 3 * k);
     for (PetscInt d = 0; d < 3; d++) v[3 * k + d] = 0;
   }
   PetscFunctionReturn(0);
@@ -1083,6 +1157,8 @@ PetscErrorCode ClothView(Cloth c, PetscViewer viewer)
                                    (double) c->bend[0], (double) c->bend[1], (double) c->bend[2], (double) c->density, (double) c->damping));
   PetscCall(PetscViewerASCIIPrintf(viewer, "  model: %s (%s)\n", model_names[c->model],
                                    c->model == CLOTH_MODEL_PAPER ? "the paper's thread triples: no twist rigidity, a 45 degree strip bends at (warp + weft)/4 or less" : "thread triples and diagonal triples: warp, weft and bias bending rigidity"));
+  if (c->imperfection[0] > 0)
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  initial imperfection (-cloth_imperfection): %g m rms out of plane, wavelength %g m, seed %" PetscInt_FMT "\n", (double) c->imperfection[0], (double) c->imperfection[1], c->imperfection_seed));
   if (c->hysteresis[0] > 0 || c->hysteresis[1] > 0)
     PetscCall(PetscViewerASCIIPrintf(viewer, "  bending hysteresis (-cloth_bend_hysteresis): 2HB %g,%g N m/m (warp, weft; friction moment HB = 2HB/2 per unit width), stick stiffness %g x B: stick range %.3g,%.3g 1/m\n", (double) c->hysteresis[0],
                                      (double) c->hysteresis[1], (double) c->hyst_stiffness, (double) (c->friction[0].K > 0 ? c->friction[0].hb / c->friction[0].K : 0), (double) (c->friction[1].K > 0 ? c->friction[1].hb / c->friction[1].K : 0)));

@@ -50,6 +50,13 @@ typedef struct {
  * (-cloth_bend_hysteresis_stiffness; BENCHMARKS.md "Bending hysteresis"). */
 #define CLOTH_HYSTERESIS_STIFFNESS 10.0
 
+/* Plane waves of the initial sheet's out-of-plane imperfection (-cloth_imperfection):
+ * w(a, b) = A sqrt(2/M) sum_m cos(k (a, b).d_m + phi_m), k = 2 pi / wavelength,
+ * directions d_m stratified over [0, pi), so that the mean of w^2 over the plane is
+ * exactly A^2. A function of the material point, not of the lattice: the same
+ * specimen on every lattice and every partition. */
+#define CLOTH_IMPERFECTION_MODES 32
+
 typedef enum {
   CLOTH_HORIZONTAL,
   CLOTH_VERTICAL
@@ -103,6 +110,12 @@ struct _p_Cloth {
   PetscInt *pin_list, npin_list; /* (i, j) pairs */
   PetscBool exact_hessian;       /* keep indefinite Hessians (tests only)  */
   PetscBool setup;
+
+  PetscReal imperfection[2];                         /* -cloth_imperfection: rms amplitude, wavelength (m; 0: flat) */
+  PetscInt  imperfection_seed;                       /* -cloth_imperfection_seed                                                   */
+  PetscReal imperf_dir[CLOTH_IMPERFECTION_MODES][2]; /* the field's plane waves: unit directions ...                               */
+  PetscReal imperf_phase[CLOTH_IMPERFECTION_MODES];  /* ... and phases                                                             */
+
   /* lattice */
   DM            da;
   Vec           Xg, Xl, Yl, Zl;             /* global (array placed), local (owned + ghost) work vectors */

@@ -798,6 +798,9 @@ static PetscErrorCode SimulationReportStart(Simulation s)
   PetscCall(ReportSetReal(r, "bend_hysteresis_warp", info.hysteresis[0]));
   PetscCall(ReportSetReal(r, "bend_hysteresis_weft", info.hysteresis[1]));
   PetscCall(ReportSetReal(r, "hysteresis_stiffness", info.hyst_stiffness));
+  PetscCall(ReportSetReal(r, "imperfection", info.imperfection[0]));
+  PetscCall(ReportSetReal(r, "imperfection_wavelength", info.imperfection[1]));
+  PetscCall(ReportSetInt(r, "imperfection_seed", info.imperfection_seed));
   if (s->stability_its > 0) {
     PetscCall(ReportSetReal(r, "omega_max", s->limits.omega));
     PetscCall(ReportSetReal(r, "symplectic_limit", s->limits.symplectic));
