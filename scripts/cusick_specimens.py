@@ -27,6 +27,11 @@ Usage:
     python3 scripts/cusick_specimens.py --fabrics camel-ponte-roma --seeds 1,2,3,4
     python3 scripts/cusick_specimens.py --seeds 1,2,3 --jobs 2    # ten fabrics, 61^2 and 81^2
     python3 scripts/cusick_specimens.py --quick --out /tmp/cs      # smoke run: 21^2, 25^2, 0.2 s
+    python3 scripts/cusick_specimens.py --resume --fabrics polyester  # add runs to the CSV already in --out
+
+With --resume the runs already in --out's specimens.csv (status ok, same amplitude and
+lattices) are kept and not run again, and the table covers every fabric in the CSV: a
+long study can be stopped and taken up again, or done a few fabrics at a time.
 """
 import argparse
 import concurrent.futures
@@ -44,6 +49,20 @@ CSV_COLUMNS = ["seed", "amplitude"] + cf.CSV_COLUMNS
 
 MD_COLUMNS = ["fabric", "specimens", "DC {a}² mean ± sd", "DC {b}² mean ± sd", "difference of means", "within 0.03",
               "largest difference of one specimen", "folds {a}²", "folds {b}²", "radial-strip bound", "all above it", "all at rest"]
+
+
+def read_rows(path):
+    """The rows of a specimens.csv, with the types summarize() uses."""
+    import csv
+    conv = {"seed": int, "amplitude": float, "grid": int, "drape_coefficient": float, "drape_folds": int, "t": float,
+            "steps": int, "wall": float, "bound": float, "at_rest": lambda v: v == "True", "exceeds_bound": lambda v: v == "True"}
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    for r in rows:
+        if r.get("status") == "ok":
+            for k, fn in conv.items():
+                r[k] = fn(r[k])
+    return rows
 
 
 def specimen_args(amplitude, seed):
@@ -94,6 +113,7 @@ def main():
     p.add_argument("--jobs", type=int, default=1, help="runs at a time (one rank each)")
     p.add_argument("--out", default=None, help="output directory (default out/cusick_specimens)")
     p.add_argument("--build", default=None, help="build directory (default $DRAPE_BUILD or build)")
+    p.add_argument("--resume", action="store_true", help="keep the runs already in --out's specimens.csv and run only the others")
     p.add_argument("--quick", action="store_true", help="smoke run: denim, 21^2 and 25^2, seeds 1,2, 0.2 s (not at rest)")
     a = p.parse_args()
     if a.quick:
@@ -124,12 +144,25 @@ def main():
         row.update(seed=seed, amplitude=a.amplitude)
         return row
 
-    jobs = [(f, n, s) for f in fabrics for s in seeds for n in grids]
     rows = []
+    csv_path = out / "specimens.csv"
+    if a.resume and csv_path.exists():
+        try:
+            rows = [r for r in read_rows(csv_path) if r["status"] == "ok"]
+        except (KeyError, ValueError) as e:
+            sys.exit(f"cusick_specimens: error: {csv_path} is not a specimens CSV ({e}): remove it or run without --resume")
+        other = {(r["amplitude"], r["grid"]) for r in rows if r["amplitude"] != a.amplitude or r["grid"] not in grids}
+        if other:
+            sys.exit(f"cusick_specimens: error: {csv_path} holds runs of another amplitude or lattice {sorted(other)}: "
+                     f"--resume adds only runs of amplitude {a.amplitude:g} m on lattices {grids}")
+    done = {(r["fabric"], r["grid"], r["seed"]) for r in rows}
+    jobs = [(f, n, s) for f in fabrics for s in seeds for n in grids if (f, n, s) not in done]
+    if done:
+        print(f"cusick_specimens: {len(done)} runs kept from {csv_path}, {len(jobs)} to run", flush=True)
     with concurrent.futures.ThreadPoolExecutor(max_workers=a.jobs) as pool:
         for row in pool.map(one, jobs):
             rows.append(row)
-            write_csv(out / "specimens.csv", rows, CSV_COLUMNS)
+            write_csv(csv_path, rows, CSV_COLUMNS)
             what = (f"DC {row['drape_coefficient']:.4f}, {row['drape_folds']} folds, {'at rest' if row['at_rest'] else 'NOT at rest'}, wall {row['wall']:.0f} s"
                     if row["status"] == "ok" else row["status"])
             print(f"  {row['fabric']:20s} {row['grid']:3d}² specimen {row['seed']}: {what}", flush=True)

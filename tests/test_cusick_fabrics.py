@@ -159,6 +159,14 @@ def test_specimens_quick_smoke_run(tmp_path):
         values = [dc[(grid, "1")], dc[(grid, "2")]]
         assert cell == f"{statistics.mean(values):.3f} ± {statistics.stdev(values):.3f}", (cell, values)
     assert "Resolution floor on the specimens' mean" in "\n".join(md)
+    # --resume keeps the four runs (none is run again) and rewrites the same table
+    again = subprocess.run([sys.executable, str(ROOT / "scripts" / "cusick_specimens.py"), "--quick", "--resume", "--out", str(tmp_path)],
+                           capture_output=True, text=True, timeout=60, cwd=ROOT)
+    assert again.returncode == 0 and "4 runs kept" in again.stdout and "0 to run" in again.stdout, again.stdout + again.stderr
+    assert (tmp_path / "specimens.md").read_text().splitlines() == md
+    other = subprocess.run([sys.executable, str(ROOT / "scripts" / "cusick_specimens.py"), "--quick", "--resume", "--amplitude", "1e-4",
+                            "--out", str(tmp_path)], capture_output=True, text=True, timeout=60, cwd=ROOT)
+    assert other.returncode == 1 and "holds runs of another amplitude" in other.stderr, other.stdout + other.stderr
     bad = subprocess.run([sys.executable, str(ROOT / "scripts" / "cusick_specimens.py"), "--seeds", "-1", "--out", str(tmp_path)],
                          capture_output=True, text=True, timeout=60, cwd=ROOT)
     assert bad.returncode == 2 and "--seeds one or more integers >= 0" in bad.stderr
