@@ -62,8 +62,8 @@ def test_cantilever_with_bending_friction_rests_on_its_law(angle):
 def test_plastic_state_is_the_same_on_any_rank_count(tmp):
     """The slider's curvature is a state of each triple, updated after every step by
     every rank holding the triple from the same positions: symplectic Euler's frames
-    are bitwise the same on 1, 2 and 3 ranks (METIS), backward Euler's within solver
-    round-off; the friction acted (hundreds of triples slid and kept a plastic
+    are the same on 1, 2 and 3 ranks (METIS) to the BLAS's rounding (conftest.ROUNDOFF),
+    backward Euler's within solver round-off; the friction acted (hundreds of triples slid and kept a plastic
     curvature; the frames differ from the run without it by centimetres)."""
     for scheme, tol in (("-ts_type basicsymplectic -ts_dt 2e-4", ROUNDOFF), ("-ts_type drapebe -ts_dt 2e-3 -ksp_rtol 1e-12", 1e-9)):
         ref = tmp / "ref.h5"
