@@ -127,14 +127,25 @@ def _is_number(tok):
 
 
 def active_mask(mx, my, shape=None):
-    """[My, Mx] bool: the particles of the cloth. A circle specimen (-cloth_shape circle)
-    is the disc inscribed in the lattice, as in drape's ClothIsActive: with (i, j)
-    scaled to [-1, 1], a^2 + b^2 <= 1 + 1e-12; the particles outside never move."""
+    """[My, Mx] bool: the particles of the cloth, for a file without /active. A circle
+    specimen (-cloth_shape circle) is the disc inscribed in the lattice, as in drape's
+    ClothIsActive (with (i, j) scaled to [-1, 1], a^2 + b^2 <= 1 + 1e-12), less the
+    spikes of the cut, as in ClothCreate: a particle that is a corner of no lattice cell
+    with four corners in the disc (the four points where the circle meets the lattice's
+    axes on a square lattice) is not part of the cloth. The particles outside never
+    move. A polygon outline is not rebuilt here (all particles)."""
     if shape != "circle":
         return np.ones((my, mx), dtype=bool)
     a = (np.arange(mx) - 0.5 * (mx - 1)) / (0.5 * (mx - 1)) if mx > 1 else np.zeros(1)
     b = (np.arange(my) - 0.5 * (my - 1)) / (0.5 * (my - 1)) if my > 1 else np.zeros(1)
-    return a[None, :] ** 2 + b[:, None] ** 2 <= 1 + 1e-12
+    disc = a[None, :] ** 2 + b[:, None] ** 2 <= 1 + 1e-12
+    cell = disc[:-1, :-1] & disc[:-1, 1:] & disc[1:, :-1] & disc[1:, 1:]
+    corner = np.zeros_like(disc)
+    corner[:-1, :-1] |= cell
+    corner[:-1, 1:] |= cell
+    corner[1:, :-1] |= cell
+    corner[1:, 1:] |= cell
+    return disc & corner
 
 
 def load(path):
@@ -173,6 +184,7 @@ def load(path):
             contact={c: _series(f, f"contact_{c}", n) for c in CONTACT if f"contact_{c}" in f},
             strain_max=_series(f, "strain_max", n) if "strain_max" in f else None,
             solid_triangles=_triangles(f),
+            active=_active(f, pos.shape[1], pos.shape[2], path),
         )
 
 
@@ -180,6 +192,17 @@ def _series(f, name, n):
     """The first n rows of a per-frame dataset: [n] for one value a frame, else [n, k]."""
     d = f[name][:n]
     return d.reshape(n) if d.shape[1:] == (1,) else d.reshape(n, -1)
+
+
+def _active(f, my, mx, path):
+    """/active (written by drape since the cut outline's spikes were pruned) as [My, Mx]
+    bool, or None for an older file (then active_mask rebuilds it)."""
+    if "active" not in f:
+        return None
+    a = np.asarray(f["active"][...]).ravel()
+    if a.size != mx * my:
+        raise ValueError(f"{path}: /active has {a.size} entries, expected {my} x {mx}")
+    return a.reshape(my, mx) != 0
 
 
 def _triangles(f):

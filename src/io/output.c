@@ -10,6 +10,8 @@
  *                            previous frame (N; 0 in the first frame)
  *   /strain_max      [t][1]  largest stretch of a lattice edge, (l - L)/L
  *   /solid_triangles  [9 x triangles]       (m) the solid's mesh, for pictures
+ *   /active          [My x Mx]  1 for the particles of the cloth, 0 for the lattice
+ *                    points outside its outline (they never move), natural order
  *   attributes of /: options (as given) and the run's report (report.h): the
  *                    start-up numbers when the file is opened (drape_version,
  *                    lattice, material, limits), the summary at the end.
@@ -188,6 +190,7 @@ PetscErrorCode OutputLastStep(Output o, PetscInt *step)
 typedef struct {
   Output    o;
   ClothInfo info;
+  Cloth     cloth;
   Solid     solid;
 } OutputOpenContext;
 
@@ -230,6 +233,19 @@ static PetscErrorCode OutputCreateFile(void *ctx)
     }
     PetscCall(PetscFree(xyz));
   }
+  {
+    /* the cloth's own particles, so that a reader need not redo the cut of the outline */
+    Vec          A;
+    PetscScalar *a;
+    PetscCall(VecCreateMPI(o->comm, rank ? 0 : o->Mx * o->My, o->Mx * o->My, &A));
+    PetscCall(PetscObjectSetName((PetscObject) A, "active"));
+    PetscCall(VecGetArray(A, &a));
+    if (!rank)
+      for (PetscInt n = 0; n < o->Mx * o->My; n++) a[n] = ClothIsActive(c->cloth, n % o->Mx, n / o->Mx) ? 1.0 : 0.0;
+    PetscCall(VecRestoreArray(A, &a));
+    PetscCall(VecView(A, o->viewer));
+    PetscCall(VecDestroy(&A));
+  }
   PetscCall(PetscViewerHDF5PushTimestepping(o->viewer));
   PetscFunctionReturn(0);
 }
@@ -238,7 +254,7 @@ PetscErrorCode OutputOpen(Output o, Cloth cloth, Solid solid)
 {
   DM                da;
   PetscMPIInt       rank;
-  OutputOpenContext ctx = {.o = o, .solid = solid};
+  OutputOpenContext ctx = {.o = o, .cloth = cloth, .solid = solid};
   char              what[PETSC_MAX_PATH_LEN + 64];
 
   PetscFunctionBeginUser;
