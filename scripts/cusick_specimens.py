@@ -35,6 +35,7 @@ long study can be stopped and taken up again, or done a few fabrics at a time.
 """
 import argparse
 import concurrent.futures
+import csv
 import statistics
 import sys
 from pathlib import Path
@@ -53,7 +54,6 @@ MD_COLUMNS = ["fabric", "specimens", "DC {a}² mean ± sd", "DC {b}² mean ± sd
 
 def read_rows(path):
     """The rows of a specimens.csv, with the types summarize() uses."""
-    import csv
     conv = {"seed": int, "amplitude": float, "grid": int, "drape_coefficient": float, "drape_folds": int, "t": float,
             "steps": int, "wall": float, "bound": float, "at_rest": lambda v: v == "True", "exceeds_bound": lambda v: v == "True"}
     with open(path, newline="") as f:
@@ -71,7 +71,7 @@ def specimen_args(amplitude, seed):
 
 def summarize(rows, grids):
     """One markdown row per fabric (MD_COLUMNS) and the verdicts (floor on the means, bound)."""
-    a, b = grids[0], grids[1] if len(grids) > 1 else grids[0]
+    a, b = grids
     out, floor, bound = [], [], []
     for fabric in dict.fromkeys(r["fabric"] for r in rows):
         ok = [r for r in rows if r["fabric"] == fabric and r["status"] == "ok"]

@@ -19,6 +19,19 @@ import cusick_fabrics as cf  # noqa: E402
 import elastica  # noqa: E402
 
 
+def script(name, *args, timeout=120):
+    """Run scripts/<name> with `args` from the repository's root."""
+    return subprocess.run([sys.executable, str(ROOT / "scripts" / name), *map(str, args)], capture_output=True, text=True, timeout=timeout, cwd=ROOT)
+
+
+def csv_rows(path, columns):
+    """The rows of the CSV `path`, whose header must be `columns`."""
+    with open(path, newline="") as f:
+        reader = csv.DictReader(f)
+        assert reader.fieldnames == columns
+        return list(reader)
+
+
 @pytest.mark.parametrize("lam", [0.3, 8.0, 50.0, 300.0])
 def test_elastica_from_the_tip_agrees_with_solve(lam):
     """Shooting from the tip (solve_tip) and from the clamp (solve) find the same strip
@@ -100,13 +113,9 @@ def test_quick_smoke_run(tmp_path):
     """--quick: two fabrics on two coarse lattices for 0.3 s; the CSV has CSV_COLUMNS and
     a row per run (not at rest: the table says so), the markdown MD-style columns and a
     row per fabric, and a picture per fabric."""
-    p = subprocess.run([sys.executable, str(ROOT / "scripts" / "cusick_fabrics.py"), "--quick", "--out", str(tmp_path)],
-                       capture_output=True, text=True, timeout=120, cwd=ROOT)
+    p = script("cusick_fabrics.py", "--quick", "--out", tmp_path)
     assert p.returncode == 0, p.stdout + p.stderr
-    with open(tmp_path / "cusick_fabrics.csv", newline="") as f:
-        reader = csv.DictReader(f)
-        assert reader.fieldnames == cf.CSV_COLUMNS
-        rows = list(reader)
+    rows = csv_rows(tmp_path / "cusick_fabrics.csv", cf.CSV_COLUMNS)
     assert [(r["fabric"], r["grid"]) for r in rows] == [("denim", "21"), ("denim", "25"), ("gray-interlock", "21"), ("gray-interlock", "25")]
     for r in rows:
         assert r["status"] == "ok" and r["at_rest"] == "False" and float(r["t"]) == pytest.approx(0.3)
@@ -141,14 +150,10 @@ def test_specimens_quick_smoke_run(tmp_path):
     different sheets (their DCs differ; with one flat sheet they would be equal), and the
     markdown's means and standard deviations are those of the CSV's DCs."""
     import statistics
-    p = subprocess.run([sys.executable, str(ROOT / "scripts" / "cusick_specimens.py"), "--quick", "--jobs", "2", "--out", str(tmp_path)],
-                       capture_output=True, text=True, timeout=120, cwd=ROOT)
+    p = script("cusick_specimens.py", "--quick", "--jobs", 2, "--out", tmp_path)
     assert p.returncode == 0, p.stdout + p.stderr
     import cusick_specimens as cs
-    with open(tmp_path / "specimens.csv", newline="") as f:
-        reader = csv.DictReader(f)
-        assert reader.fieldnames == cs.CSV_COLUMNS
-        rows = list(reader)
+    rows = csv_rows(tmp_path / "specimens.csv", cs.CSV_COLUMNS)
     assert sorted((r["grid"], r["seed"]) for r in rows) == [("21", "1"), ("21", "2"), ("25", "1"), ("25", "2")]
     assert all(r["status"] == "ok" and float(r["amplitude"]) == cs.AMPLITUDE for r in rows)
     dc = {(r["grid"], r["seed"]): float(r["drape_coefficient"]) for r in rows}
@@ -160,13 +165,10 @@ def test_specimens_quick_smoke_run(tmp_path):
         assert cell == f"{statistics.mean(values):.3f} ± {statistics.stdev(values):.3f}", (cell, values)
     assert "Resolution floor on the specimens' mean" in "\n".join(md)
     # --resume keeps the four runs (none is run again) and rewrites the same table
-    again = subprocess.run([sys.executable, str(ROOT / "scripts" / "cusick_specimens.py"), "--quick", "--resume", "--out", str(tmp_path)],
-                           capture_output=True, text=True, timeout=60, cwd=ROOT)
+    again = script("cusick_specimens.py", "--quick", "--resume", "--out", tmp_path, timeout=60)
     assert again.returncode == 0 and "4 runs kept" in again.stdout and "0 to run" in again.stdout, again.stdout + again.stderr
     assert (tmp_path / "specimens.md").read_text().splitlines() == md
-    other = subprocess.run([sys.executable, str(ROOT / "scripts" / "cusick_specimens.py"), "--quick", "--resume", "--amplitude", "1e-4",
-                            "--out", str(tmp_path)], capture_output=True, text=True, timeout=60, cwd=ROOT)
+    other = script("cusick_specimens.py", "--quick", "--resume", "--amplitude", "1e-4", "--out", tmp_path, timeout=60)
     assert other.returncode == 1 and "holds runs of another amplitude" in other.stderr, other.stdout + other.stderr
-    bad = subprocess.run([sys.executable, str(ROOT / "scripts" / "cusick_specimens.py"), "--seeds", "-1", "--out", str(tmp_path)],
-                         capture_output=True, text=True, timeout=60, cwd=ROOT)
+    bad = script("cusick_specimens.py", "--seeds", "-1", "--out", tmp_path, timeout=60)
     assert bad.returncode == 2 and "--seeds one or more integers >= 0" in bad.stderr

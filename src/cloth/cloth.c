@@ -748,12 +748,14 @@ static PetscInt CountOwned(const ClothElements *el, PetscInt per)
   return n / per;
 }
 
-/* Position of lattice particle (i, j) in the initial flat sheet, moved by the
- * imperfection w (m) along the sheet's normal (the warp crossed with the weft). */
-static void InitialPositionOff(Cloth c, PetscInt i, PetscInt j, PetscReal w, PetscReal x[3])
+/* Position of lattice particle (i, j) in the initial sheet: flat, or with `imperfect`
+ * moved by the imperfection (-cloth_imperfection) along the sheet's normal (the warp
+ * crossed with the weft). */
+static void InitialPosition(Cloth c, PetscInt i, PetscInt j, PetscBool imperfect, PetscReal x[3])
 {
   PetscReal a = i * c->spacing[0] - 0.5 * c->size[0], b = j * c->spacing[1] - 0.5 * c->size[1];
-  x[0] = c->origin[0] + a;
+  PetscReal w = imperfect && c->imperfection[0] > 0 ? ClothImperfection(c, a, b) : 0;
+  x[0]        = c->origin[0] + a;
   if (c->tilt == 0) {
     x[1] = c->origin[1] + (c->orientation == CLOTH_HORIZONTAL ? b : -w);
     x[2] = c->origin[2] + (c->orientation == CLOTH_HORIZONTAL ? w : b);
@@ -763,8 +765,6 @@ static void InitialPositionOff(Cloth c, PetscInt i, PetscInt j, PetscReal w, Pet
     x[2]                  = c->origin[2] + b * PetscSinReal(theta) + w * PetscCosReal(theta);
   }
 }
-
-static void InitialPosition(Cloth c, PetscInt i, PetscInt j, PetscReal x[3]) { InitialPositionOff(c, i, j, 0, x); }
 
 static PetscBool ActiveCallback(void *ctx, PetscInt i, PetscInt j) { return ClothIsActive((Cloth) ctx, i, j); }
 
@@ -919,7 +919,7 @@ PetscErrorCode ClothSetUp(Cloth c)
       PetscCall(PetscMalloc1(c->Mx * c->My, &weight));
       for (PetscInt n = 0; n < c->Mx * c->My; n++) {
         PetscReal x[3];
-        InitialPosition(c, n % c->Mx, n / c->Mx, x);
+        InitialPosition(c, n % c->Mx, n / c->Mx, PETSC_FALSE, x);
         weight[n] = c->work(c->work_ctx, x);
       }
     }
@@ -1073,10 +1073,7 @@ PetscErrorCode ClothSetInitialState(Cloth c, PetscScalar *x, PetscScalar *v)
 {
   PetscFunctionBeginUser;
   for (PetscInt k = 0; k < c->nowned; k++) {
-    const PetscInt i = c->natural[k] % c->Mx, j = c->natural[k] / c->Mx;
-    PetscReal      w = 0;
-    if (c->imperfection[0] > 0) w = ClothImperfection(c, i * c->spacing[0] - 0.5 * c->size[0], j * c->spacing[1] - 0.5 * c->size[1]);
-    InitialPositionOff(c, i, j, w, x + 3 * k);
+    InitialPosition(c, c->natural[k] % c->Mx, c->natural[k] / c->Mx, PETSC_TRUE, x + 3 * k);
     for (PetscInt d = 0; d < 3; d++) v[3 * k + d] = 0;
   }
   PetscFunctionReturn(0);
