@@ -168,6 +168,42 @@ static inline KernelFriction FrictionOf(Cloth c, const ClothFrictionList *fl, Pe
   f.area           = fl->area[e];
   return f;
 }
+/* The element lists of the Hessian by kind: 0 stretch edges (2 particles), 1 shear
+ * corners (3), 2 bending triples (3), 3 bending friction (5). */
+#define CLOTH_KINDS 4
+static inline PetscInt KindSize(PetscInt kind) { return kind == 0 ? 2 : (kind == 3 ? 5 : 3); }
+
+static inline const ClothElements *KindList(Cloth c, PetscInt kind) { return kind == 0 ? &c->stretch_el : (kind == 1 ? &c->shear_el : &c->bend_el); }
+
+static inline PetscInt KindCount(Cloth c, PetscInt kind) { return kind == 3 ? c->friction_el.n : KindList(c, kind)->n; }
+
+static inline const PetscInt *KindParticles(Cloth c, PetscInt kind, PetscInt e) { return kind == 3 ? c->friction_el.p + 5 * e : KindList(c, kind)->p + KindSize(kind) * e; }
+
+/* The Gauss-Newton Hessian of friction element e (out of line: the loops over the
+ * other kinds stay as small as they were). */
+static __attribute__((noinline)) void FrictionHessian(Cloth c, PetscInt e, const PetscInt *p, const PetscReal *xl, PetscReal *H)
+{
+  const KernelFriction f = FrictionOf(c, &c->friction_el, e);
+  KernelFrictionEnergy(&f, c->friction_el.kp[e], xl + 3 * p[0], xl + 3 * p[1], xl + 3 * p[2], xl + 3 * p[3], xl + 3 * p[4], NULL, H);
+}
+
+/* Hessian of element e of list `kind`; H is (3n x 3n) row-major, n = KindSize(kind).
+ * The bending friction gives its Gauss-Newton part, projected or not. */
+static inline void ElementHessian(Cloth c, PetscBool project, PetscInt kind, PetscInt e, const PetscReal *xl, PetscReal *H)
+{
+  const PetscInt *p = KindParticles(c, kind, e);
+
+  if (kind == 3)
+    FrictionHessian(c, e, p, xl, H);
+  else {
+    const ClothElements *el = KindList(c, kind);
+    if (kind == 0)
+      KernelStretch(xl + 3 * p[0], xl + 3 * p[1], ElemCoef(el, e), ElemRest(el, e), NULL, H, project);
+    else
+      KernelAngle(kind == 1 ? KERNEL_SHEAR : KERNEL_BEND, xl + 3 * p[0], xl + 3 * p[1], xl + 3 * p[2], ElemCoef(el, e), ElemLaw(el, e), NULL, H, project);
+  }
+}
+
 PETSC_INTERN PetscErrorCode ClothScatterPositions(Cloth, const PetscScalar *, const PetscScalar **);
 PETSC_INTERN PetscErrorCode ClothEndScatter(Cloth, const PetscScalar **);
 

@@ -300,42 +300,6 @@ PetscErrorCode ClothGetConstraintScale(Cloth c, PetscReal a, PetscReal b, PetscI
   PetscFunctionReturn(0);
 }
 
-/* The element lists of the Hessian by kind: 0 stretch edges (2 particles), 1 shear
- * corners (3), 2 bending triples (3), 3 bending friction (5). */
-#define CLOTH_KINDS 4
-static inline PetscInt KindSize(PetscInt kind) { return kind == 0 ? 2 : (kind == 3 ? 5 : 3); }
-
-static inline const ClothElements *KindList(Cloth c, PetscInt kind) { return kind == 0 ? &c->stretch_el : (kind == 1 ? &c->shear_el : &c->bend_el); }
-
-static inline PetscInt KindCount(Cloth c, PetscInt kind) { return kind == 3 ? c->friction_el.n : KindList(c, kind)->n; }
-
-static inline const PetscInt *KindParticles(Cloth c, PetscInt kind, PetscInt e) { return kind == 3 ? c->friction_el.p + 5 * e : KindList(c, kind)->p + KindSize(kind) * e; }
-
-/* The Gauss-Newton Hessian of friction element e (out of line: the loops over the
- * other kinds stay as small as they were). */
-static __attribute__((noinline)) void FrictionHessian(Cloth c, PetscInt e, const PetscInt *p, const PetscReal *xl, PetscReal *H)
-{
-  const KernelFriction f = FrictionOf(c, &c->friction_el, e);
-  KernelFrictionEnergy(&f, c->friction_el.kp[e], xl + 3 * p[0], xl + 3 * p[1], xl + 3 * p[2], xl + 3 * p[3], xl + 3 * p[4], NULL, H);
-}
-
-/* Hessian of element e of list `kind`; H is (3n x 3n) row-major, n = KindSize(kind).
- * The bending friction gives its Gauss-Newton part, projected or not. */
-static inline void ElementHessian(Cloth c, PetscBool project, PetscInt kind, PetscInt e, const PetscReal *xl, PetscReal *H)
-{
-  const PetscInt *p = KindParticles(c, kind, e);
-
-  if (kind == 3)
-    FrictionHessian(c, e, p, xl, H);
-  else {
-    const ClothElements *el = KindList(c, kind);
-    if (kind == 0)
-      KernelStretch(xl + 3 * p[0], xl + 3 * p[1], ElemCoef(el, e), ElemRest(el, e), NULL, H, project);
-    else
-      KernelAngle(kind == 1 ? KERNEL_SHEAR : KERNEL_BEND, xl + 3 * p[0], xl + 3 * p[1], xl + 3 * p[2], ElemCoef(el, e), ElemLaw(el, e), NULL, H, project);
-  }
-}
-
 /* The implicit matrix's block of element e of list `kind`: the (projected unless
  * -cloth_hessian exact) Hessian, filtered by the contact constraints; its diagonal
  * blocks before the filter are summed into c->hdiag (owned particles). */
@@ -356,45 +320,6 @@ PetscErrorCode ClothGetHessianDiagonal(Cloth c, const PetscReal **hdiag)
 {
   PetscFunctionBeginUser;
   *hdiag = c->hdiag;
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode ClothApplyHessian(Cloth c, const PetscScalar *x, const PetscScalar *z, PetscScalar *y)
-{
-  const PetscScalar *xl;
-  PetscScalar       *zl, *yl;
-  Vec                Zl;
-  PetscReal          H[225];
-
-  PetscFunctionBeginUser;
-  Zl = c->Zl;
-  PetscCall(VecPlaceArray(c->Xg, z));
-  PetscCall(VecScatterBegin(c->ghost, c->Xg, Zl, INSERT_VALUES, SCATTER_FORWARD));
-  PetscCall(VecScatterEnd(c->ghost, c->Xg, Zl, INSERT_VALUES, SCATTER_FORWARD));
-  PetscCall(VecResetArray(c->Xg));
-  PetscCall(ClothScatterPositions(c, x, &xl));
-  PetscCall(VecGetArray(Zl, &zl));
-  PetscCall(VecGetArray(c->Yl, &yl));
-  PetscCall(PetscArrayzero(yl, 3 * c->nlocal));
-  for (PetscInt l = 0; l < c->nlocal; l++)
-    if (c->pinned_local[l]) zl[3 * l] = zl[3 * l + 1] = zl[3 * l + 2] = 0;
-  for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) {
-    const PetscInt n = KindSize(kind), m = 3 * n;
-    for (PetscInt e = 0; e < KindCount(c, kind); e++) {
-      const PetscInt *p = KindParticles(c, kind, e);
-      ElementHessian(c, PETSC_FALSE, kind, e, xl, H);
-      for (PetscInt i = 0; i < m; i++) {
-        PetscReal s = 0;
-        for (PetscInt j = 0; j < m; j++) s += H[m * i + j] * zl[3 * p[j / 3] + j % 3];
-        yl[3 * p[i / 3] + i % 3] += s;
-      }
-    }
-  }
-  for (PetscInt k = 0; k < c->nowned; k++)
-    for (PetscInt d = 0; d < 3; d++) y[3 * k + d] = c->pinned[k] ? 0 : yl[3 * c->owned_local[k] + d];
-  PetscCall(VecRestoreArray(c->Yl, &yl));
-  PetscCall(VecRestoreArray(Zl, &zl));
-  PetscCall(ClothEndScatter(c, &xl));
   PetscFunctionReturn(0);
 }
 
