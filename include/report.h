@@ -26,3 +26,7 @@ PETSC_EXTERN PetscErrorCode ReportGetEntry(Report, PetscInt k, const char **name
  * PETSC_INFINITY, as null), printed by
  * rank 0. Collective. */
 PETSC_EXTERN PetscErrorCode ReportPrintJSON(Report);
+/* This process's CPU time so far, s: user + system time of all its threads
+ * (getrusage RUSAGE_SELF), so a loaded machine, which stretches wall time, does not
+ * change it much. Not collective. */
+PETSC_EXTERN PetscErrorCode ReportCPUTime(PetscLogDouble *seconds);

@@ -825,7 +825,7 @@ static PetscErrorCode SimulationReportStart(Simulation s)
 
 PetscErrorCode SimulationRun(Simulation s)
 {
-  PetscLogDouble     t1;
+  PetscLogDouble     t1, cpu0, cpu1; /* wall clock at the loop's end; this rank's CPU time at its start and end */
   const PetscScalar *u;
   PetscInt           steps, last, its;
   PetscReal          t;
@@ -847,6 +847,7 @@ PetscErrorCode SimulationRun(Simulation s)
   signal(SIGTERM, SignalHandler);
   signal(SIGINT, SignalHandler);
   PetscCall(PetscTime(&s->wall0));
+  PetscCall(ReportCPUTime(&cpu0));
   s->wall_last = s->wall0;
   PetscCall(PetscLogStagePush(drape_log.timeloop));
   PetscCall(TSSolve(s->ts, s->U));
@@ -862,6 +863,7 @@ PetscErrorCode SimulationRun(Simulation s)
                failure && failure[0] ? failure : "a step failed", failure && failure[0] ? ", and so did its retries at smaller steps" : "", TSConvergedReasons[reason]);
   }
   PetscCall(PetscTime(&t1));
+  PetscCall(ReportCPUTime(&cpu1));
   PetscCall(TSGetStepNumber(s->ts, &steps));
   PetscCall(TSGetTime(s->ts, &t));
   PetscCall(OutputLastStep(s->output, &last));
@@ -895,19 +897,27 @@ PetscErrorCode SimulationRun(Simulation s)
     PetscCall(ReportSetInt(s->report, "drape_folds", folds));
   }
   {
-    const PetscReal mywall = (PetscReal) (t1 - s->wall0);
-    const PetscInt  run    = steps - s->restart_step; /* steps taken by this run */
-    PetscReal       wall;
+    const PetscReal mywall = (PetscReal) (t1 - s->wall0), mycpu = (PetscReal) (cpu1 - cpu0);
+    const PetscInt  run = steps - s->restart_step; /* steps taken by this run */
+    PetscReal       wall, cpu, cpu_max, psteps;
     PetscInt        solves, rejected;
     Report          r = s->report;
     PetscCall(MPIU_Allreduce(&mywall, &wall, 1, MPIU_REAL, MPIU_MAX, s->comm)); /* the job's, the same on every rank */
+    /* CPU time of the time loop: the sum over ranks (the CPU seconds the job used; MPI's
+     * waits count, as Open MPI spins in them) and the busiest rank's */
+    PetscCall(MPIU_Allreduce(&mycpu, &cpu, 1, MPIU_REAL, MPIU_SUM, s->comm));
+    PetscCall(MPIU_Allreduce(&mycpu, &cpu_max, 1, MPIU_REAL, MPIU_MAX, s->comm));
+    psteps = (PetscReal) run * info.nparticles;
     PetscCall(TSGetKSPIterations(s->ts, &its));
     PetscCall(TSDrapeBEGetStatistics(s->ts, &solves, &rejected, NULL));
     PetscCall(ReportSetInt(r, "steps", run));
     PetscCall(ReportSetInt(r, "step", steps));
     PetscCall(ReportSetReal(r, "t", t));
     PetscCall(ReportSetReal(r, "wall", wall));
-    PetscCall(ReportSetReal(r, "particle_steps_per_s", wall > 0 ? (PetscReal) run * info.nparticles / wall : 0));
+    PetscCall(ReportSetReal(r, "particle_steps_per_s", wall > 0 ? psteps / wall : 0));
+    PetscCall(ReportSetReal(r, "cpu", cpu));
+    PetscCall(ReportSetReal(r, "cpu_rank_max", cpu_max));
+    PetscCall(ReportSetReal(r, "particle_steps_per_cpu_s", cpu > 0 ? psteps / cpu : 0));
     PetscCall(ReportSetReal(r, "cg_per_step", (PetscReal) its / PetscMax(run, 1)));
     PetscCall(ReportSetReal(r, "solves_per_step", (PetscReal) solves / PetscMax(run, 1)));
     PetscCall(ReportSetInt(r, "steps_retried", rejected));
@@ -934,7 +944,8 @@ PetscErrorCode SimulationRun(Simulation s)
       PetscCall(ReportSetInt(r, "self_solve_pairs_max", st.solve_pairs_max));
     }
     if (s->summary) {
-      PetscCall(PetscPrintf(s->comm, "Summary: %" PetscInt_FMT " steps to t = %g s in %.3f s wall, %.4e particle-steps/s", run, (double) t, (double) wall, wall > 0 ? ((double) run * info.nparticles / wall) : 0.0));
+      PetscCall(PetscPrintf(s->comm, "Summary: %" PetscInt_FMT " steps to t = %g s in %.3f s wall, %.4e particle-steps/s; %.3f s CPU (all ranks), %.4e particle-steps per CPU second", run, (double) t, (double) wall,
+                            wall > 0 ? (double) (psteps / wall) : 0.0, (double) cpu, cpu > 0 ? (double) (psteps / cpu) : 0.0));
       if (its > 0) PetscCall(PetscPrintf(s->comm, ", %.2f CG iterations per step", (double) its / PetscMax(run, 1)));
       if (solves > run) PetscCall(PetscPrintf(s->comm, ", %.2f solves per step", (double) solves / PetscMax(run, 1)));
       if (rejected) PetscCall(PetscPrintf(s->comm, ", %" PetscInt_FMT " steps retried at a smaller step", rejected));

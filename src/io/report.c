@@ -1,5 +1,6 @@
 /* Named numbers of a run, for HDF5 attributes and one JSON line (report.h). */
 #include <report.h>
+#include <sys/resource.h>
 
 typedef struct {
   char         *name;
@@ -169,5 +170,15 @@ PetscErrorCode ReportPrintJSON(Report r)
     }
   }
   PetscCall(PetscPrintf(r->comm, "}\n"));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ReportCPUTime(PetscLogDouble *seconds)
+{
+  struct rusage u;
+
+  PetscFunctionBeginUser;
+  PetscCheck(getrusage(RUSAGE_SELF, &u) == 0, PETSC_COMM_SELF, PETSC_ERR_SYS, "getrusage(RUSAGE_SELF) failed: the process's CPU time is unknown");
+  *seconds = (PetscLogDouble) u.ru_utime.tv_sec + 1e-6 * (PetscLogDouble) u.ru_utime.tv_usec + (PetscLogDouble) u.ru_stime.tv_sec + 1e-6 * (PetscLogDouble) u.ru_stime.tv_usec;
   PetscFunctionReturn(0);
 }
