@@ -81,6 +81,9 @@ typedef enum {
   CLOTH_POLYGON
 } ClothShape;
 
+/* The lattice patch of the explicit force kernel (lattice.c). */
+typedef struct _n_ClothLattice ClothLattice;
+
 struct _p_Cloth {
   MPI_Comm comm;
   /* options */
@@ -118,8 +121,10 @@ struct _p_Cloth {
 
   /* lattice */
   DM            da;
-  Vec           Xg, Xl, Yl, Zl;             /* global (array placed), local (owned + ghost) work vectors */
-  VecScatter    ghost;                      /* global -> local                                    */
+  /* Xg: global, wraps caller arrays; Yl: local (owned + ghost) force; Xl: local
+   * positions, only with ghosts (ClothScatterPositions); Zl: ClothSetUpImplicit */
+  Vec           Xg, Xl, Yl, Zl;
+  VecScatter    ghost;                      /* global -> local (without ghosts: a copy)           */
   VecScatter    to_dmda;                    /* Cloth order -> DMDA order (NULL: the same)         */
   PetscInt     *natural;                    /* local -> natural lattice index j Mx + i            */
   PetscInt      rstart;                     /* global block number of the first owned particle    */
@@ -128,12 +133,15 @@ struct _p_Cloth {
   PetscInt      Mx, My;
   PetscReal     spacing[2];
   PetscInt      nowned, nlocal;
+  /* index maps; where two are equal they are one array (ClothDestroy frees it once):
+   * owned_local is 0, 1, ... and is natural or global where those are too; global is
+   * natural on one rank; row_map is col_map without ghosts */
   PetscInt     *owned_local;       /* local index of each owned particle       */
-  PetscInt     *row_map, *col_map; /* local -> global block index, or -1       */
+  PetscInt     *row_map, *col_map; /* local -> global block index, or -1 (pinned; row_map: ghosts); ClothSetUpImplicit */
   PetscInt     *global;            /* local -> global block index              */
   PetscReal    *mass;              /* owned particles                          */
   PetscBool    *pinned;            /* owned particles                          */
-  PetscBool    *pinned_local;      /* owned + ghost; inactive particles too    */
+  PetscBool    *pinned_local;      /* owned + ghost; inactive particles too; ClothSetUpImplicit */
   PetscBool    *active;            /* owned: inside the cloth outline          */
   ClothElements stretch_el, shear_el, bend_el;
   PetscInt      nstretch, nshear, nbend, npinned; /* global counts            */
@@ -159,6 +167,8 @@ struct _p_Cloth {
   PetscInt   ex_n, ex_m, *ex_row, *ex_col, *ex_map;
   PetscInt   px_n, *px_row, *px_col; /* the extra blocks the row buffer's pattern holds (PatternMerge) */
   PetscReal *ex_val;
+
+  ClothLattice *lattice; /* the explicit force kernel's patch (lattice.c); NULL: the element lists' loops */
 };
 
 /* forces.c */
@@ -206,6 +216,15 @@ static inline void ElementHessian(Cloth c, PetscBool project, PetscInt kind, Pet
 
 PETSC_INTERN PetscErrorCode ClothScatterPositions(Cloth, const PetscScalar *, const PetscScalar **);
 PETSC_INTERN PetscErrorCode ClothEndScatter(Cloth, const PetscScalar **);
+
+/* lattice.c: the explicit force kernel on the lattice patch. ClothLatticeComputeForces
+ * takes the local (owned + ghost) positions and leaves the forces in the patch:
+ * particle l's at f[d][slot[l]]. */
+PETSC_INTERN PetscErrorCode ClothLatticeSetUp(Cloth);
+PETSC_INTERN PetscErrorCode ClothLatticeDestroy(Cloth);
+PETSC_INTERN PetscErrorCode ClothLatticeComputeForces(Cloth, const PetscScalar *);
+PETSC_INTERN PetscErrorCode ClothLatticeGetForces(Cloth, const PetscInt **, const PetscReal *[3]);
+PETSC_INTERN PetscReal      ClothLatticeAsin(PetscReal);
 
 /* fabrics.c: the measured fabrics of -cloth_fabric */
 PETSC_INTERN PetscErrorCode ClothSetFabric(Cloth, const char *);

@@ -115,6 +115,8 @@ static void AccumulateInternalForce(Cloth c, const PetscReal *restrict xl, Petsc
   AccumulateFrictionForces(c, xl, fl);
 }
 
+/* The internal force on owned particle k, before its scaling: from the lattice
+ * kernel's patch or from the element lists' ghosted array fl. */
 PetscErrorCode ClothComputeInternalForce(Cloth c, const PetscScalar *x, PetscScalar *f)
 {
   const PetscScalar *xl;
@@ -123,38 +125,55 @@ PetscErrorCode ClothComputeInternalForce(Cloth c, const PetscScalar *x, PetscSca
   PetscFunctionBeginUser;
   PetscCall(PetscLogEventBegin(drape_log.forces, 0, 0, 0, 0));
   PetscCall(ClothScatterPositions(c, x, &xl));
-  PetscCall(VecGetArray(c->Yl, &fl));
-  PetscCall(PetscArrayzero(fl, 3 * c->nlocal));
-  AccumulateInternalForce(c, xl, fl);
-  for (PetscInt k = 0; k < c->nowned; k++)
-    for (PetscInt d = 0; d < 3; d++) f[3 * k + d] = fl[3 * c->owned_local[k] + d];
-  PetscCall(VecRestoreArray(c->Yl, &fl));
+  if (c->lattice) {
+    const PetscInt  *slot;
+    const PetscReal *F[3];
+    PetscCall(ClothLatticeComputeForces(c, xl));
+    PetscCall(ClothLatticeGetForces(c, &slot, F));
+    for (PetscInt k = 0; k < c->nowned; k++)
+      for (PetscInt d = 0; d < 3; d++) f[3 * k + d] = F[d][slot[k]];
+  } else {
+    PetscCall(VecGetArray(c->Yl, &fl));
+    PetscCall(PetscArrayzero(fl, 3 * c->nlocal));
+    AccumulateInternalForce(c, xl, fl);
+    for (PetscInt k = 0; k < c->nowned; k++)
+      for (PetscInt d = 0; d < 3; d++) f[3 * k + d] = fl[3 * c->owned_local[k] + d];
+    PetscCall(VecRestoreArray(c->Yl, &fl));
+  }
   PetscCall(ClothEndScatter(c, &xl));
   PetscCall(PetscLogEventEnd(drape_log.forces, 0, 0, 0, 0));
   PetscFunctionReturn(0);
 }
 
+/* a = M^-1 F_int + g - c v on owned particles (0 on pinned ones); owned particle k is
+ * local particle k (owned_local[k] = k). */
 PetscErrorCode ClothComputeAcceleration(Cloth c, const PetscScalar *x, const PetscScalar *v, PetscScalar *a)
 {
   const PetscScalar *xl;
-  PetscScalar       *fl;
+  PetscScalar       *fl = NULL;
   const PetscReal    cd = c->damping;
+  const PetscInt    *slot = NULL;
+  const PetscReal   *F[3] = {NULL, NULL, NULL};
 
   PetscFunctionBeginUser;
   PetscCall(PetscLogEventBegin(drape_log.forces, 0, 0, 0, 0));
   PetscCall(ClothScatterPositions(c, x, &xl));
-  PetscCall(VecGetArray(c->Yl, &fl));
-  PetscCall(PetscArrayzero(fl, 3 * c->nlocal));
-  AccumulateInternalForce(c, xl, fl);
+  if (c->lattice) {
+    PetscCall(ClothLatticeComputeForces(c, xl));
+    PetscCall(ClothLatticeGetForces(c, &slot, F));
+  } else {
+    PetscCall(VecGetArray(c->Yl, &fl));
+    PetscCall(PetscArrayzero(fl, 3 * c->nlocal));
+    AccumulateInternalForce(c, xl, fl);
+  }
   for (PetscInt k = 0; k < c->nowned; k++) {
-    const PetscInt l = c->owned_local[k];
     if (c->pinned[k]) {
       a[3 * k] = a[3 * k + 1] = a[3 * k + 2] = 0;
       continue;
     }
-    for (PetscInt d = 0; d < 3; d++) a[3 * k + d] = fl[3 * l + d] / c->mass[k] + c->gravity[d] - cd * v[3 * k + d];
+    for (PetscInt d = 0; d < 3; d++) a[3 * k + d] = (slot ? F[d][slot[k]] : fl[3 * c->owned_local[k] + d]) / c->mass[k] + c->gravity[d] - cd * v[3 * k + d];
   }
-  PetscCall(VecRestoreArray(c->Yl, &fl));
+  if (fl) PetscCall(VecRestoreArray(c->Yl, &fl));
   PetscCall(ClothEndScatter(c, &xl));
   PetscCall(PetscLogEventEnd(drape_log.forces, 0, 0, 0, 0));
   PetscFunctionReturn(0);
