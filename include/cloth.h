@@ -52,6 +52,12 @@ typedef struct {
 PETSC_EXTERN PetscErrorCode ClothCreate(MPI_Comm, Cloth *);
 PETSC_EXTERN PetscErrorCode ClothSetFromOptions(Cloth);
 PETSC_EXTERN PetscErrorCode ClothSetUp(Cloth);
+/* What the Hessian and the implicit matrix need besides the explicit force (a
+ * third local work vector, the maps of local particles to matrix rows and columns,
+ * the ghosts' pin flags), made once: call after ClothSetUp and before
+ * ClothApplyHessian, ClothSetConstraints or ClothCreateMatrix. An explicit run
+ * without the stability estimate never pays for them. Collective. */
+PETSC_EXTERN PetscErrorCode ClothSetUpImplicit(Cloth);
 PETSC_EXTERN PetscErrorCode ClothDestroy(Cloth *);
 PETSC_EXTERN PetscErrorCode ClothView(Cloth, PetscViewer);
 /* The lattice and material in numbers (global counts are set up collectively by

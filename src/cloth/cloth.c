@@ -773,14 +773,30 @@ static PetscBool ActiveCallback(void *ctx, PetscInt i, PetscInt j) { return Clot
  * ghosts. */
 static const PetscInt neighbours[16][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}, {1, 1}, {-1, 1}, {1, -1}, {-1, -1}, {2, 0}, {-2, 0}, {0, 2}, {0, -2}, {2, 2}, {-2, 2}, {2, -2}, {-2, -2}};
 
+/* Global -> local scatter (owned + ghost). Its index lists cost about 48 bytes per
+ * local particle while it is made and 24 after, even as a copy (no ghosts): made
+ * only where a rank has ghosts or the Hessian's work needs it. Collective. */
+static PetscErrorCode ClothBuildGhostScatter(Cloth c)
+{
+  IS from, to;
+
+  PetscFunctionBeginUser;
+  PetscCall(ISCreateBlock(c->comm, 3, c->nlocal, c->global, PETSC_USE_POINTER, &from));
+  PetscCall(ISCreateStride(PETSC_COMM_SELF, 3 * c->nlocal, 0, 1, &to));
+  PetscCall(VecScatterCreate(c->Xg, from, c->Yl, to, &c->ghost));
+  PetscCall(ISDestroy(&from));
+  PetscCall(ISDestroy(&to));
+  PetscFunctionReturn(0);
+}
+
 /* Local layout from the owner array: owned particles first (natural order), then
- * ghosts (natural order); global block numbers rank by rank; ghost scatter. */
+ * ghosts (natural order); global block numbers rank by rank; ghost scatter where
+ * some rank has ghosts. */
 static PetscErrorCode ClothBuildLayout(Cloth c, const PetscInt *owner, PetscInt **local_out)
 {
   const PetscInt N = c->Mx * c->My;
   PetscMPIInt    rank, size;
   PetscInt      *local, *offset, *count, *gl, nghost = 0;
-  IS             from, to;
 
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_rank(c->comm, &rank));
@@ -809,62 +825,84 @@ static PetscErrorCode ClothBuildLayout(Cloth c, const PetscInt *owner, PetscInt 
     }
   }
   c->nlocal = c->nowned + nghost;
-  PetscCall(PetscMalloc2(c->nlocal, &c->natural, c->nlocal, &c->global));
+  PetscCall(PetscMalloc1(c->nlocal, &c->natural));
   for (PetscInt n = 0; n < N; n++)
-    if (local[n] >= 0) {
-      c->natural[local[n]] = n;
-      c->global[local[n]]  = gl[n];
+    if (local[n] >= 0) c->natural[local[n]] = n;
+  /* one array where the global block numbers are the natural ones (one rank) */
+  {
+    PetscBool same = PETSC_TRUE;
+    for (PetscInt l = 0; l < c->nlocal && same; l++) same = (PetscBool) (gl[c->natural[l]] == c->natural[l]);
+    if (same)
+      c->global = c->natural;
+    else {
+      PetscCall(PetscMalloc1(c->nlocal, &c->global));
+      for (PetscInt l = 0; l < c->nlocal; l++) c->global[l] = gl[c->natural[l]];
     }
+  }
   c->rstart = offset[rank];
   PetscCall(PetscFree(gl));
   PetscCall(PetscFree2(offset, count));
-  /* vectors and the ghost scatter */
-  PetscCall(VecCreateMPI(c->comm, 3 * c->nowned, PETSC_DETERMINE, &c->Xg));
-  PetscCall(VecSetBlockSize(c->Xg, 3));
-  PetscCall(VecCreateSeq(PETSC_COMM_SELF, 3 * c->nlocal, &c->Xl));
-  PetscCall(VecSetBlockSize(c->Xl, 3));
-  PetscCall(VecDuplicate(c->Xl, &c->Yl));
-  PetscCall(VecDuplicate(c->Xl, &c->Zl));
-  PetscCall(ISCreateBlock(c->comm, 3, c->nlocal, c->global, PETSC_COPY_VALUES, &from));
-  PetscCall(ISCreateStride(PETSC_COMM_SELF, 3 * c->nlocal, 0, 1, &to));
-  PetscCall(VecScatterCreate(c->Xg, from, c->Xl, to, &c->ghost));
-  PetscCall(ISDestroy(&from));
-  PetscCall(ISDestroy(&to));
-  PetscCall(VecReplaceArray(c->Xg, NULL)); /* the global vector only ever wraps caller arrays */
+  /* vectors and the ghost scatter: the global vector only ever wraps caller arrays;
+   * the positions need a local copy only with ghosts (ClothScatterPositions) */
+  PetscCall(VecCreateMPIWithArray(c->comm, 3, 3 * c->nowned, PETSC_DETERMINE, NULL, &c->Xg));
+  if (nghost) {
+    PetscCall(VecCreateSeq(PETSC_COMM_SELF, 3 * c->nlocal, &c->Xl));
+    PetscCall(VecSetBlockSize(c->Xl, 3));
+  }
+  PetscCall(VecCreateSeq(PETSC_COMM_SELF, 3 * c->nlocal, &c->Yl));
+  PetscCall(VecSetBlockSize(c->Yl, 3));
+  PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &nghost, 1, MPIU_INT, MPI_MAX, c->comm));
+  if (nghost) PetscCall(ClothBuildGhostScatter(c)); /* else only ClothSetUpImplicit needs it */
   *local_out = local;
   PetscFunctionReturn(0);
 }
 
 /* Scatter between the Cloth's particle order and the DMDA's (I/O in natural
- * order); NULL when they are the same (the DMDA partition). */
+ * order); NULL when they are the same (the DMDA partition, or one rank). The DMDA's
+ * numbering is computed from its ownership ranges (rank by rank, each rank's block
+ * row by row), not asked of its AO, which would keep two more integers for every
+ * unknown for the rest of the run. */
 static PetscErrorCode ClothBuildDMDAScatter(Cloth c)
 {
-  AO        ao;
-  PetscInt *idx;
-  IS        from, to;
-  Vec       Xda;
+  const PetscInt *lx, *ly;
+  PetscInt       *idx, *start, *col, *row, *x0, *y0, m, n;
+  PetscMPIInt     rank;
+  IS              from, to;
+  Vec             Xda;
+  PetscBool       same = PETSC_TRUE;
 
   PetscFunctionBeginUser;
   if (c->partition == PARTITION_DMDA) PetscFunctionReturn(0);
-  PetscCall(DMDAGetAO(c->da, &ao));
-  PetscCall(PetscMalloc1(c->nowned, &idx));
-  /* the DMDA's AO numbers unknowns (3 per particle): map the first of each */
-  for (PetscInt k = 0; k < c->nowned; k++) idx[k] = 3 * c->natural[k];
-  PetscCall(AOApplicationToPetsc(ao, c->nowned, idx));
-  for (PetscInt k = 0; k < c->nowned; k++) idx[k] /= 3;
-  PetscCall(ISCreateBlock(c->comm, 3, c->nowned, idx, PETSC_COPY_VALUES, &to));
-  PetscCall(ISCreateStride(c->comm, 3 * c->nowned, 3 * c->rstart, 1, &from));
-  PetscCall(DMCreateGlobalVector(c->da, &Xda));
-  {
-    Vec X;
-    PetscCall(VecCreateMPI(c->comm, 3 * c->nowned, PETSC_DETERMINE, &X));
-    PetscCall(VecScatterCreate(X, from, Xda, to, &c->to_dmda));
-    PetscCall(VecDestroy(&X));
+  PetscCallMPI(MPI_Comm_rank(c->comm, &rank));
+  PetscCall(DMDAGetInfo(c->da, NULL, NULL, NULL, NULL, &m, &n, NULL, NULL, NULL, NULL, NULL, NULL, NULL));
+  PetscCall(DMDAGetOwnershipRanges(c->da, &lx, &ly, NULL));
+  /* the DMDA rank column (row) of each lattice column (row), where each starts, and
+   * each rank's first block */
+  PetscCall(PetscMalloc6(m * n + 1, &start, c->Mx, &col, c->My, &row, m + 1, &x0, n + 1, &y0, c->nowned + 1, &idx));
+  x0[0] = y0[0] = start[0] = 0;
+  for (PetscInt pi = 0; pi < m; pi++) x0[pi + 1] = x0[pi] + lx[pi];
+  for (PetscInt pj = 0; pj < n; pj++) y0[pj + 1] = y0[pj] + ly[pj];
+  for (PetscInt pi = 0; pi < m; pi++)
+    for (PetscInt i = x0[pi]; i < x0[pi + 1]; i++) col[i] = pi;
+  for (PetscInt pj = 0; pj < n; pj++)
+    for (PetscInt j = y0[pj]; j < y0[pj + 1]; j++) row[j] = pj;
+  for (PetscInt r = 0; r < m * n; r++) start[r + 1] = start[r] + lx[r % m] * ly[r / m];
+  for (PetscInt k = 0; k < c->nowned; k++) {
+    const PetscInt i = c->natural[k] % c->Mx, j = c->natural[k] / c->Mx, pi = col[i], pj = row[j];
+    idx[k] = start[pj * m + pi] + (j - y0[pj]) * lx[pi] + (i - x0[pi]);
+    same   = (PetscBool) (same && idx[k] == c->rstart + k);
   }
-  PetscCall(VecDestroy(&Xda));
-  PetscCall(ISDestroy(&from));
-  PetscCall(ISDestroy(&to));
-  PetscCall(PetscFree(idx));
+  PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &same, 1, MPIU_BOOL, MPI_LAND, c->comm));
+  if (!same) {
+    PetscCall(ISCreateBlock(c->comm, 3, c->nowned, idx, PETSC_USE_POINTER, &to));
+    PetscCall(ISCreateStride(c->comm, 3 * c->nowned, 3 * c->rstart, 1, &from));
+    PetscCall(VecCreateMPIWithArray(c->comm, 3, 3 * lx[rank % m] * ly[rank / m], PETSC_DETERMINE, NULL, &Xda));
+    PetscCall(VecScatterCreate(c->Xg, from, Xda, to, &c->to_dmda));
+    PetscCall(VecDestroy(&Xda));
+    PetscCall(ISDestroy(&from));
+    PetscCall(ISDestroy(&to));
+  }
+  PetscCall(PetscFree6(start, col, row, x0, y0, idx));
   PetscFunctionReturn(0);
 }
 
@@ -929,21 +967,24 @@ PetscErrorCode ClothSetUp(Cloth c)
   PetscCall(ClothBuildLayout(c, owner, &local));
   PetscCall(ClothBuildDMDAScatter(c));
 
-  PetscCall(PetscMalloc4(c->nowned, &c->owned_local, c->nowned, &c->mass, c->nowned, &c->pinned, c->nowned, &c->active));
-  PetscCall(PetscMalloc3(c->nlocal, &c->row_map, c->nlocal, &c->col_map, c->nlocal, &c->pinned_local));
+  PetscCall(PetscMalloc3(c->nowned, &c->mass, c->nowned, &c->pinned, c->nowned, &c->active));
+  /* the owned particles come first in the local order: owned_local is 0, 1, ...,
+   * which the natural (or global) numbers already are on one rank (on rank 0) */
+  c->owned_local = c->natural;
+  for (PetscInt k = 0; k < c->nowned && c->owned_local; k++)
+    if (c->natural[k] != k) c->owned_local = NULL;
+  if (!c->owned_local && c->rstart == 0) c->owned_local = c->global;
+  if (!c->owned_local) {
+    PetscCall(PetscMalloc1(c->nowned, &c->owned_local));
+    for (PetscInt k = 0; k < c->nowned; k++) c->owned_local[k] = k;
+  }
   mass = 0;
-  for (PetscInt l = 0; l < c->nlocal; l++) {
-    PetscInt i = c->natural[l] % c->Mx, j = c->natural[l] / c->Mx;
-    c->pinned_local[l] = (PetscBool) (IsPinned(c, i, j) || !ClothIsActive(c, i, j));
-    c->col_map[l]      = c->pinned_local[l] ? -1 : c->global[l];
-    c->row_map[l]      = l < c->nowned ? c->col_map[l] : -1;
-    if (l < c->nowned) {
-      c->owned_local[l] = l;
-      c->mass[l]        = c->density * c->spacing[0] * c->spacing[1] * (ClothIsActive(c, i, j) ? ClothCellWeight(c, i, j) : 1); /* inactive: held like a pin, a nominal mass for the matrix */
-      c->pinned[l]      = c->pinned_local[l];
-      c->active[l]      = ClothIsActive(c, i, j);
-      if (c->active[l]) mass += c->mass[l];
-    }
+  for (PetscInt k = 0; k < c->nowned; k++) {
+    PetscInt i = c->natural[k] % c->Mx, j = c->natural[k] / c->Mx;
+    c->active[k] = ClothIsActive(c, i, j);
+    c->mass[k]   = c->density * c->spacing[0] * c->spacing[1] * (c->active[k] ? ClothCellWeight(c, i, j) : 1); /* inactive: held like a pin, a nominal mass for the matrix */
+    c->pinned[k] = (PetscBool) (IsPinned(c, i, j) || !c->active[k]);
+    if (c->active[k]) mass += c->mass[k];
   }
   PetscCall(ClothBuildElements(c, local, owner, rank));
   /* partition quality: owned active particles and cut stretch edges */
@@ -978,6 +1019,29 @@ PetscErrorCode ClothSetUp(Cloth c)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode ClothSetUpImplicit(Cloth c)
+{
+  PetscFunctionBeginUser;
+  PetscCheck(c->setup, c->comm, PETSC_ERR_ORDER, "ClothSetUpImplicit needs ClothSetUp first");
+  if (c->Zl) PetscFunctionReturn(0);
+  if (!c->ghost) PetscCall(ClothBuildGhostScatter(c));
+  PetscCall(VecDuplicate(c->Yl, &c->Zl));
+  PetscCall(PetscMalloc1(c->nlocal, &c->col_map));
+  PetscCall(PetscMalloc1(c->nlocal, &c->pinned_local));
+  for (PetscInt l = 0; l < c->nlocal; l++) {
+    PetscInt i = c->natural[l] % c->Mx, j = c->natural[l] / c->Mx;
+    c->pinned_local[l] = (PetscBool) (IsPinned(c, i, j) || !ClothIsActive(c, i, j));
+    c->col_map[l]      = c->pinned_local[l] ? -1 : c->global[l];
+  }
+  if (c->nlocal == c->nowned) /* no ghosts: every row is a column */
+    c->row_map = c->col_map;
+  else {
+    PetscCall(PetscMalloc1(c->nlocal, &c->row_map));
+    for (PetscInt l = 0; l < c->nlocal; l++) c->row_map[l] = l < c->nowned ? c->col_map[l] : -1;
+  }
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode ClothDestroy(Cloth *cloth)
 {
   Cloth c = *cloth;
@@ -992,9 +1056,13 @@ PetscErrorCode ClothDestroy(Cloth *cloth)
     PetscCall(ElementsDestroy(&c->stretch_el));
     PetscCall(ElementsDestroy(&c->shear_el));
     PetscCall(ElementsDestroy(&c->bend_el));
-    PetscCall(PetscFree4(c->owned_local, c->mass, c->pinned, c->active));
-    PetscCall(PetscFree3(c->row_map, c->col_map, c->pinned_local));
-    PetscCall(PetscFree2(c->natural, c->global));
+    PetscCall(PetscFree3(c->mass, c->pinned, c->active));
+    if (c->owned_local != c->natural && c->owned_local != c->global) PetscCall(PetscFree(c->owned_local));
+    if (c->row_map != c->col_map) PetscCall(PetscFree(c->row_map));
+    PetscCall(PetscFree(c->col_map));
+    PetscCall(PetscFree(c->pinned_local));
+    if (c->global != c->natural) PetscCall(PetscFree(c->global));
+    PetscCall(PetscFree(c->natural));
     PetscCall(PetscFree3(c->ctype, c->cnormal, c->cblock));
     PetscCall(PetscFree(c->hdiag));
     PetscCall(PetscFree6(c->rb_start, c->rb_ncols, c->rb_colstart, c->rb_cols, c->rb_map, c->rb_diag));

@@ -417,6 +417,13 @@ PetscErrorCode SimulationSetUp(Simulation s)
   }
   PetscCall(TSSetFromOptions(s->ts));
   PetscCall(TSSetErrorIfStepFails(s->ts, PETSC_FALSE)); /* drape says why, after TSSolve */
+  {
+    /* the Hessian's work (the stability estimate, drapebe's matrix and constraints):
+     * an explicit run without the estimate never makes it */
+    PetscBool implicit;
+    PetscCall(PetscObjectTypeCompare((PetscObject) s->ts, TSDRAPEBE, &implicit));
+    if (implicit || s->stability_its > 0) PetscCall(ClothSetUpImplicit(s->cloth));
+  }
   PetscCall(TSDrapeBESetCloth(s->ts, s->cloth));
   if (s->contact) PetscCall(TSDrapeBESetContact(s->ts, s->contact));
   if (s->self) {
