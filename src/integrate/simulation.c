@@ -105,6 +105,157 @@ static PetscErrorCode RHSMomentum(TS ts, PetscReal t, Vec X, Vec A, void *ctx)
   PetscFunctionReturn(0);
 }
 
+/* -ts_type basicsymplectic, drape's own. PETSc's TSBASICSYMPLECTIC keeps a work
+ * copy of the whole state (x, v: 48 bytes a particle) and copies v into it before
+ * every position update; drape's position split is dx/dt = v (RHSPosition), so here
+ * the position update reads v in place and only the acceleration needs room (24
+ * bytes a particle). The same schemes (-ts_basicsymplectic_type 1: symplectic Euler,
+ * 2: velocity Verlet, 3, 4), stages, coefficients and AXPYs as PETSc's, so the same
+ * frames bit for bit; registered under PETSc's name, so every test of the type and
+ * TSBasicSymplecticSetType/GetType keep working. No interpolation (drape lands on
+ * -ts_max_time by TS_EXACTFINALTIME_MATCHSTEP). */
+#define SYMPLECTIC_CBRT2 1.2599210498948731647672106
+static const struct {
+  const char *name;
+  PetscInt    s;
+  PetscReal   c[4], d[4]; /* velocity and position coefficients of each stage */
+} symplectic_schemes[] = {
+  {TSBASICSYMPLECTICSIEULER,   1, {1.0},                        {1.0}                        },
+  {TSBASICSYMPLECTICVELVERLET, 2, {0, 1.0},                     {0.5, 0.5}                   },
+  {TSBASICSYMPLECTIC3,         3, {1, -2.0 / 3.0, 2.0 / 3.0},   {-1.0 / 24.0, 3.0 / 4.0, 7.0 / 24.0}},
+  {TSBASICSYMPLECTIC4,         4, {1.0 / 2.0 / (2.0 - SYMPLECTIC_CBRT2), (1.0 - SYMPLECTIC_CBRT2) / 2.0 / (2.0 - SYMPLECTIC_CBRT2), (1.0 - SYMPLECTIC_CBRT2) / 2.0 / (2.0 - SYMPLECTIC_CBRT2), 1.0 / 2.0 / (2.0 - SYMPLECTIC_CBRT2)},
+   {1.0 / (2.0 - SYMPLECTIC_CBRT2), -SYMPLECTIC_CBRT2 / (2.0 - SYMPLECTIC_CBRT2), 1.0 / (2.0 - SYMPLECTIC_CBRT2), 0}},
+};
+#define SYMPLECTIC_NSCHEMES ((PetscInt) (sizeof symplectic_schemes / sizeof symplectic_schemes[0]))
+
+typedef struct {
+  PetscInt scheme; /* index into symplectic_schemes */
+  IS       is_x, is_v;
+  TS       momentum; /* the sub-TS of the "momentum" split: its RHS is the acceleration */
+  Vec      A;        /* acceleration, 3 per owned particle */
+} TS_Symplectic;
+
+static PetscErrorCode TSStep_Symplectic(TS ts)
+{
+  TS_Symplectic  *sy = (TS_Symplectic *) ts->data;
+  const PetscInt  k  = sy->scheme;
+  const PetscReal h  = ts->time_step;
+  Vec             x, v;
+  PetscBool       ok = PETSC_TRUE;
+
+  PetscFunctionBeginUser;
+  PetscCall(VecGetSubVector(ts->vec_sol, sy->is_x, &x));
+  PetscCall(VecGetSubVector(ts->vec_sol, sy->is_v, &v));
+  for (PetscInt i = 0; i < symplectic_schemes[k].s && ok; i++) {
+    PetscCall(TSPreStage(ts, ts->ptime));
+    if (symplectic_schemes[k].c[i]) {
+      PetscCall(TSComputeRHSFunction(sy->momentum, ts->ptime, x, sy->A));
+      PetscCall(VecAXPY(v, symplectic_schemes[k].c[i] * h, sy->A));
+    }
+    if (symplectic_schemes[k].d[i]) {
+      PetscCall(VecAXPY(x, symplectic_schemes[k].d[i] * h, v));
+      ts->ptime += symplectic_schemes[k].d[i] * h;
+    }
+    PetscCall(TSPostStage(ts, ts->ptime, 0, &ts->vec_sol));
+    PetscCall(TSAdaptCheckStage(ts->adapt, ts, ts->ptime, ts->vec_sol, &ok));
+    if (!ok) ts->reason = TS_DIVERGED_STEP_REJECTED;
+  }
+  PetscCall(VecRestoreSubVector(ts->vec_sol, sy->is_x, &x));
+  PetscCall(VecRestoreSubVector(ts->vec_sol, sy->is_v, &v));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode TSSetUp_Symplectic(TS ts)
+{
+  TS_Symplectic *sy = (TS_Symplectic *) ts->data;
+  Vec            v;
+
+  PetscFunctionBeginUser;
+  PetscCall(TSRHSSplitGetIS(ts, "position", &sy->is_x));
+  PetscCall(TSRHSSplitGetIS(ts, "momentum", &sy->is_v));
+  PetscCall(TSRHSSplitGetSubTS(ts, "momentum", &sy->momentum));
+  PetscCheck(sy->is_x && sy->is_v && sy->momentum, PetscObjectComm((PetscObject) ts), PETSC_ERR_ORDER, "-ts_type basicsymplectic needs the position and momentum splits (TSRHSSplitSetIS, TSRHSSplitSetRHSFunction)");
+  PetscCall(VecGetSubVector(ts->vec_sol, sy->is_v, &v));
+  PetscCall(VecDuplicate(v, &sy->A));
+  PetscCall(VecRestoreSubVector(ts->vec_sol, sy->is_v, &v));
+  PetscCall(TSGetAdapt(ts, &ts->adapt));
+  PetscCall(TSAdaptCandidatesClear(ts->adapt)); /* fixed steps */
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode TSReset_Symplectic(TS ts)
+{
+  TS_Symplectic *sy = (TS_Symplectic *) ts->data;
+
+  PetscFunctionBeginUser;
+  PetscCall(VecDestroy(&sy->A));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode TSSymplecticSetType(TS ts, TSBasicSymplecticType type)
+{
+  TS_Symplectic *sy = (TS_Symplectic *) ts->data;
+  PetscBool      match = PETSC_FALSE;
+
+  PetscFunctionBeginUser;
+  for (PetscInt k = 0; k < SYMPLECTIC_NSCHEMES && !match; k++) {
+    PetscCall(PetscStrcmp(symplectic_schemes[k].name, type, &match));
+    if (match) sy->scheme = k;
+  }
+  PetscCheck(match, PetscObjectComm((PetscObject) ts), PETSC_ERR_ARG_UNKNOWN_TYPE, "-ts_basicsymplectic_type %s is not one of 1 (symplectic Euler), 2 (velocity Verlet), 3, 4", type);
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode TSSymplecticGetType(TS ts, TSBasicSymplecticType *type)
+{
+  PetscFunctionBeginUser;
+  *type = symplectic_schemes[((TS_Symplectic *) ts->data)->scheme].name;
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode TSDestroy_Symplectic(TS ts)
+{
+  PetscFunctionBeginUser;
+  PetscCall(TSReset_Symplectic(ts));
+  PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSBasicSymplecticSetType_C", NULL));
+  PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSBasicSymplecticGetType_C", NULL));
+  PetscCall(PetscFree(ts->data));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode TSSetFromOptions_Symplectic(TS ts, PetscOptionItems *PetscOptionsObject)
+{
+  TS_Symplectic *sy = (TS_Symplectic *) ts->data;
+  const char    *names[SYMPLECTIC_NSCHEMES];
+  PetscInt       choice = sy->scheme;
+  PetscBool      set;
+
+  PetscFunctionBeginUser;
+  for (PetscInt k = 0; k < SYMPLECTIC_NSCHEMES; k++) names[k] = symplectic_schemes[k].name;
+  PetscOptionsHeadBegin(PetscOptionsObject, "Basic symplectic integrator options (drape's: no work copy of the state)");
+  PetscCall(PetscOptionsEList("-ts_basicsymplectic_type", "Scheme: 1 symplectic Euler, 2 velocity Verlet, 3 or 4 (orders)", "TSBasicSymplecticSetType", names, SYMPLECTIC_NSCHEMES, names[sy->scheme], &choice, &set));
+  if (set) sy->scheme = choice;
+  PetscOptionsHeadEnd();
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode TSCreate_Symplectic(TS ts)
+{
+  TS_Symplectic *sy;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscNew(&sy));
+  ts->data                = (void *) sy;
+  ts->ops->setup          = TSSetUp_Symplectic;
+  ts->ops->step           = TSStep_Symplectic;
+  ts->ops->reset          = TSReset_Symplectic;
+  ts->ops->destroy        = TSDestroy_Symplectic;
+  ts->ops->setfromoptions = TSSetFromOptions_Symplectic;
+  PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSBasicSymplecticSetType_C", TSSymplecticSetType));
+  PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSBasicSymplecticGetType_C", TSSymplecticGetType));
+  PetscFunctionReturn(0);
+}
+
 /* Land exactly on -ts_max_time (TS_EXACTFINALTIME_MATCHSTEP) for every TS type:
  * basicsymplectic and drapebe take fixed steps without a TSAdapt to clip the last
  * one. A step that ends within round-off of the end keeps its size (so a run
@@ -384,6 +535,7 @@ PetscErrorCode SimulationSetUp(Simulation s)
   PetscCall(VecRestoreArray(s->U, &u));
 
   PetscCall(DrapeTSRegister());
+  PetscCall(TSRegister(TSBASICSYMPLECTIC, TSCreate_Symplectic)); /* drape's, in PETSc's place */
   PetscCall(TSCreate(s->comm, &s->ts));
   PetscCall(TSSetApplicationContext(s->ts, s));
   PetscCall(TSSetProblemType(s->ts, TS_NONLINEAR));
