@@ -58,6 +58,7 @@ struct _p_Simulation {
   PetscBool       at_rest;     /* stopped by -drape_rest_tol */
   /* monitor state */
   PetscReal energy0, energy_scale, wall0, wall_last;
+  PetscLogDouble rss0; /* resident memory before the set-up, bytes */
 };
 
 static const char *const supported_types[] = {TSEULER, TSBASICSYMPLECTIC, TSDRAPEBE, TSRK, TSSSP, NULL};
@@ -381,6 +382,7 @@ PetscErrorCode SimulationCreate(MPI_Comm comm, Simulation *sim)
 
   PetscFunctionBeginUser;
   PetscCall(PetscNew(&s));
+  PetscCall(PetscMemoryGetCurrentUsage(&s->rss0));
   s->comm              = comm;
   s->stability_its     = 30;
   s->divergence_factor = 1.0;
@@ -932,6 +934,15 @@ static PetscErrorCode SimulationReportStart(Simulation s)
   PetscCall(ReportSetInt(r, "lattice_mx", info.Mx));
   PetscCall(ReportSetInt(r, "lattice_my", info.My));
   PetscCall(ReportSetInt(r, "particles", info.nparticles));
+  {
+    /* what the set-up made, per particle: the resident memory it added on all ranks
+     * (lattice, element lists, state, solver work; before the output's buffers) */
+    PetscLogDouble rss, mine, sum;
+    PetscCall(PetscMemoryGetCurrentUsage(&rss));
+    mine = rss - s->rss0;
+    PetscCall(MPIU_Allreduce(&mine, &sum, 1, MPIU_PETSCLOGDOUBLE, MPI_SUM, s->comm));
+    PetscCall(ReportSetReal(r, "setup_bytes_per_particle", (PetscReal) (sum / info.nparticles)));
+  }
   PetscCall(ReportSetInt(r, "active_particles", info.nactive));
   PetscCall(ReportSetInt(r, "pinned", info.npinned));
   PetscCall(ReportSetInt(r, "stretch_edges", info.nstretch));
