@@ -108,8 +108,24 @@ PETSC_EXTERN PetscErrorCode ClothGetPlasticCount(Cloth, PetscInt *n);
 PETSC_EXTERN PetscErrorCode ClothComputeEnergies(Cloth, const PetscScalar *x, const PetscScalar *v, ClothEnergies *);
 /* y = H(x) z with H the exact Hessian of the internal energy (of the bending
  * friction, its Gauss-Newton part: the stick springs); pinned rows and columns
- * removed. Matrix-free: used for the stability estimate. */
+ * removed. Matrix-free, from each element's directional derivatives: used for the
+ * stability estimate. ClothApplyHessianElementwise: the same product through each
+ * element's full matrix (several times slower; the reference of the tests). */
 PETSC_EXTERN PetscErrorCode ClothApplyHessian(Cloth, const PetscScalar *x, const PetscScalar *z, PetscScalar *y);
+PETSC_EXTERN PetscErrorCode ClothApplyHessianElementwise(Cloth, const PetscScalar *x, const PetscScalar *z, PetscScalar *y);
+/* The Hessian restricted to lattice rectangles (rect: i0, i1, j0, j1 each, inclusive):
+ * every element that touches a particle inside, gathered with its particles to every
+ * rank in an order independent of the partition (Collective); then, on each rank
+ * alone, y = H z with z and y zero at the particles outside the rectangles or pinned
+ * (a principal submatrix of ClothApplyHessian's operator). */
+typedef struct _p_ClothWindow *ClothWindow;
+PETSC_EXTERN PetscErrorCode ClothWindowCreate(Cloth, const PetscScalar *x, PetscInt nrect, const PetscInt rect[], ClothWindow *);
+PETSC_EXTERN PetscErrorCode ClothWindowGetParticles(ClothWindow, PetscInt *n, const PetscInt **natural, const PetscReal **mass, const PetscBool **free);
+PETSC_EXTERN PetscErrorCode ClothWindowApplyHessian(ClothWindow, const PetscScalar *z, PetscScalar *y);
+PETSC_EXTERN PetscErrorCode ClothWindowDestroy(ClothWindow *);
+/* Natural index of the first particle of the stretch edge that tension stiffens most
+ * (the largest k (1 + max(0, 1 - L/l))). Collective; the same on any partition. */
+PETSC_EXTERN PetscErrorCode ClothStretchHotSpot(Cloth, const PetscScalar *x, PetscInt *natural);
 /* A matrix of the given type (block size 3) preallocated for the pattern of a*M + b*H
  * (-drape_mat_type, -drape_mat_assembly: MatSetPreallocationCOO for AIJ, block rows
  * through MATPREALLOCATOR otherwise). Collective. */

@@ -48,12 +48,14 @@ PETSC_EXTERN PetscErrorCode TSDrapeBEGetContactImpulse(TS, PetscReal[3]);
 /* Solves made and steps rejected so far, and the last failed solve in words. */
 PETSC_EXTERN PetscErrorCode TSDrapeBEGetStatistics(TS, PetscInt *solves, PetscInt *rejected, const char **failure);
 
-/* stability.c: Omega_max^2 = lambda_max(M^-1 H) by power iteration, and the step
- * limits it implies for the explicit schemes. Collective. */
+/* stability.c: Omega_max^2 = lambda_max(M^-1 H) by the Lanczos process (at most
+ * `iterations` steps, fewer once it has converged), and the step limits it implies
+ * for the explicit schemes. Collective. */
 typedef struct {
+  PetscBool reference;  /* in: exactly `iterations` steps, each product through the elements' full matrices (tests) */
   PetscReal omega;      /* rad/s                                          */
   PetscReal symplectic; /* largest stable step of symplectic Euler, s     */
   PetscReal euler;      /* largest stable step of explicit Euler (0: none) */
-  PetscInt  iterations;
+  PetscInt  iterations; /* Lanczos steps taken                            */
 } StabilityLimits;
 PETSC_EXTERN PetscErrorCode StabilityEstimate(Cloth, const PetscScalar *x, PetscInt iterations, StabilityLimits *);

@@ -613,3 +613,52 @@ static inline PetscReal KernelFrictionReturn(const KernelFriction *f, PetscReal 
   const PetscReal ky = f->hb / f->K, z = k - kp;
   return z > ky ? k - ky : (z < -ky ? k + ky : kp);
 }
+
+/* ---- Hessian-vector products (the stability estimate, src/cloth/hessian.c) ----
+ *
+ * y += H z for one element without forming its matrix: the exact Hessian (as
+ * KernelStretch/KernelAngle with project = PETSC_FALSE) applied to z = [z_a, z_b(,
+ * z_c)] through directional derivatives. For an angle energy E(u, w, s) with
+ * d1 = z_a - z_c, d2 = z_b - z_c, du = 2 e1.d1, dw = 2 e2.d2, ds = e1.d2 + e2.d1 and
+ * dE_u = E_uu du + E_uw dw + E_us ds (and so on):
+ *   h1 = 2 dE_u e1 + dE_s e2 + 2 E_u d1 + E_s d2,  h2 = 2 dE_w e2 + dE_s e1 + 2 E_w d2 + E_s d1,
+ * y_a += h1, y_b += h2, y_c -= h1 + h2: about 60 flops besides the partials, where
+ * the 9 x 9 matrix and its product take some 400. */
+static inline void KernelStretchHessianVector(const PetscReal *xa, const PetscReal *xb, PetscReal k, PetscReal L, const PetscReal *za, const PetscReal *zb, PetscReal *ya, PetscReal *yb)
+{
+  const PetscReal e[3] = {xb[0] - xa[0], xb[1] - xa[1], xb[2] - xa[2]}, d[3] = {zb[0] - za[0], zb[1] - za[1], zb[2] - za[2]};
+  const PetscReal l2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2], il = 1 / PetscSqrtReal(l2);
+  const PetscReal s = k * (1 - L * il), t = k * L * il * (e[0] * d[0] + e[1] * d[1] + e[2] * d[2]) / l2; /* H = k (L/l) u u^T + k (1 - L/l) I */
+
+  for (PetscInt i = 0; i < 3; i++) {
+    const PetscReal h = t * e[i] + s * d[i];
+    yb[i] += h;
+    ya[i] -= h;
+  }
+}
+
+static inline void KernelAngleHessianVector(KernelAngleKind kind, const PetscReal *xa, const PetscReal *xb, const PetscReal *xc, PetscReal kappa, const KernelBendLaw *law, const PetscReal *za, const PetscReal *zb, const PetscReal *zc, PetscReal *ya, PetscReal *yb, PetscReal *yc)
+{
+  const PetscReal     e1[3] = {xa[0] - xc[0], xa[1] - xc[1], xa[2] - xc[2]}, e2[3] = {xb[0] - xc[0], xb[1] - xc[1], xb[2] - xc[2]};
+  const PetscReal     d1[3] = {za[0] - zc[0], za[1] - zc[1], za[2] - zc[2]}, d2[3] = {zb[0] - zc[0], zb[1] - zc[1], zb[2] - zc[2]};
+  const PetscReal     u = e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2], w = e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2], s = e1[0] * e2[0] + e1[1] * e2[1] + e1[2] * e2[2];
+  const PetscReal     du = 2 * (e1[0] * d1[0] + e1[1] * d1[1] + e1[2] * d1[2]), dw = 2 * (e2[0] * d2[0] + e2[1] * d2[1] + e2[2] * d2[2]);
+  const PetscReal     ds = e1[0] * d2[0] + e1[1] * d2[1] + e1[2] * d2[2] + e2[0] * d1[0] + e2[1] * d1[1] + e2[2] * d1[2];
+  KernelAnglePartials p = {0};
+  PetscReal           dEu, dEw, dEs;
+
+  if (kind == KERNEL_SHEAR)
+    KernelShearPartials(kappa, u, w, s, 2, &p);
+  else
+    KernelBendPartials(kappa, law, u, w, s, 2, &p);
+  dEu = p.Euu * du + p.Euw * dw + p.Eus * ds;
+  dEw = p.Euw * du + p.Eww * dw + p.Ews * ds;
+  dEs = p.Eus * du + p.Ews * dw + p.Ess * ds;
+  for (PetscInt i = 0; i < 3; i++) {
+    const PetscReal h1 = 2 * dEu * e1[i] + dEs * e2[i] + 2 * p.Eu * d1[i] + p.Es * d2[i];
+    const PetscReal h2 = 2 * dEw * e2[i] + dEs * e1[i] + 2 * p.Ew * d2[i] + p.Es * d1[i];
+    ya[i] += h1;
+    yb[i] += h2;
+    yc[i] -= h1 + h2;
+  }
+}

@@ -443,7 +443,7 @@ static PetscErrorCode BEChoosePreconditioner(TS ts, TS_DrapeBE *be, PC pc)
   PetscCall(PetscOptionsHasName(NULL, ((PetscObject) pc)->prefix, "-pc_type", &set));
   if (set) PetscFunctionReturn(0);
   if (be->omega <= 0) { /* not given: estimate it (the start-up estimate takes more iterations) */
-    StabilityLimits    lim;
+    StabilityLimits    lim = {0};
     const PetscScalar *u;
     PetscCall(VecGetArrayRead(ts->vec_sol, &u));
     PetscCall(StabilityEstimate(be->cloth, u, 10, &lim));

@@ -425,7 +425,8 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
     if (!output_given) PetscCall(PetscOptionsSetValue(NULL, "-output_file", s->restart));
   }
   PetscOptionsBegin(s->comm, NULL, "drape run control", "Simulation");
-  PetscCall(PetscOptionsInt("-drape_stability_its", "Power iterations for the Omega_max estimate printed at start-up (0: skip)", "StabilityEstimate", s->stability_its, &s->stability_its, NULL));
+  PetscCall(PetscOptionsInt("-drape_stability_its", "Most Lanczos steps for the Omega_max estimate printed at start-up (it stops once converged; 0: skip)", "StabilityEstimate", s->stability_its, &s->stability_its, NULL));
+  PetscCall(PetscOptionsBool("-drape_stability_reference", "Omega_max by exactly -drape_stability_its Lanczos steps on the elements' full matrices (slow; tests)", "StabilityEstimate", s->limits.reference, &s->limits.reference, NULL));
   PetscCall(
     PetscOptionsReal("-drape_divergence_factor", "Stop when the mechanical energy exceeds its initial value by this many times the run's energy scale (M g L + initial energy)", "SimulationRun", s->divergence_factor, &s->divergence_factor, NULL));
   PetscCall(PetscOptionsReal("-drape_max_strain", "Stop when a lattice edge is stretched by more than this (relative; 1: twice its length)", "SimulationRun", s->max_strain, &s->max_strain, NULL));
@@ -882,7 +883,7 @@ static PetscErrorCode SimulationViewStart(Simulation s)
   if (s->contact) PetscCall(ContactView(s->contact, viewer));
   if (s->self) PetscCall(SelfContactView(s->self, viewer));
   if (s->stability_its > 0) {
-    PetscCall(PetscViewerASCIIPrintf(viewer, "Stability (estimated at t = 0, %" PetscInt_FMT " power iterations): Omega_max = %.4e rad/s\n", s->limits.iterations, (double) s->limits.omega));
+    PetscCall(PetscViewerASCIIPrintf(viewer, "Stability (estimated at t = 0, %" PetscInt_FMT " Lanczos steps): Omega_max = %.4e rad/s\n", s->limits.iterations, (double) s->limits.omega));
     PetscCall(PetscViewerASCIIPrintf(viewer, "  symplectic Euler: stable for h < %.4e s (2/Omega_max, reduced by damping)\n", (double) s->limits.symplectic));
     if (s->limits.euler > 0)
       PetscCall(PetscViewerASCIIPrintf(viewer, "  explicit Euler: stable for h < %.4e s at damping %g 1/s (c/Omega_max^2)\n", (double) s->limits.euler, (double) info.damping));
