@@ -95,6 +95,11 @@ PETSC_EXTERN PetscErrorCode ClothSetInitialState(Cloth, PetscScalar *x, PetscSca
 /* Acceleration a = F(x, v)/m with internal, gravity and damping forces; 0 at pins.
  * Collective (ghost exchange), as are the four below. */
 PETSC_EXTERN PetscErrorCode ClothComputeAcceleration(Cloth, const PetscScalar *x, const PetscScalar *v, PetscScalar *a);
+/* One symplectic update in place, v += kick a(x, v), then x += drift v, in one pass
+ * over the cloth; *done = PETSC_FALSE (nothing changed) where the force loop cannot
+ * fuse it (the element lists' loop: -cloth_force_kernel elements, bending laws or
+ * friction): then compute a and update apart. Collective. */
+PETSC_EXTERN PetscErrorCode ClothKickDrift(Cloth, PetscScalar *x, PetscScalar *v, PetscReal kick, PetscReal drift, PetscBool *done);
 /* Internal force only (no gravity, no damping, pins not zeroed). */
 PETSC_EXTERN PetscErrorCode ClothComputeInternalForce(Cloth, const PetscScalar *x, PetscScalar *f);
 /* After a step that ended at x (owned-particle order): the bending friction's
@@ -119,10 +124,10 @@ PETSC_EXTERN PetscErrorCode ClothApplyHessianElementwise(Cloth, const PetscScala
  * alone, y = H z with z and y zero at the particles outside the rectangles or pinned
  * (a principal submatrix of ClothApplyHessian's operator). */
 typedef struct _p_ClothWindow *ClothWindow;
-PETSC_EXTERN PetscErrorCode ClothWindowCreate(Cloth, const PetscScalar *x, PetscInt nrect, const PetscInt rect[], ClothWindow *);
-PETSC_EXTERN PetscErrorCode ClothWindowGetParticles(ClothWindow, PetscInt *n, const PetscInt **natural, const PetscReal **mass, const PetscBool **free);
-PETSC_EXTERN PetscErrorCode ClothWindowApplyHessian(ClothWindow, const PetscScalar *z, PetscScalar *y);
-PETSC_EXTERN PetscErrorCode ClothWindowDestroy(ClothWindow *);
+PETSC_EXTERN PetscErrorCode    ClothWindowCreate(Cloth, const PetscScalar *x, PetscInt nrect, const PetscInt rect[], ClothWindow *);
+PETSC_EXTERN PetscErrorCode    ClothWindowGetParticles(ClothWindow, PetscInt *n, const PetscInt **natural, const PetscReal **mass, const PetscBool **free);
+PETSC_EXTERN PetscErrorCode    ClothWindowApplyHessian(ClothWindow, const PetscScalar *z, PetscScalar *y);
+PETSC_EXTERN PetscErrorCode    ClothWindowDestroy(ClothWindow *);
 /* Natural index of the first particle of the stretch edge that tension stiffens most
  * (the largest k (1 + max(0, 1 - L/l))). Collective; the same on any partition. */
 PETSC_EXTERN PetscErrorCode ClothStretchHotSpot(Cloth, const PetscScalar *x, PetscInt *natural);

@@ -773,6 +773,17 @@ static PetscBool ActiveCallback(void *ctx, PetscInt i, PetscInt j) { return Clot
  * ghosts. */
 static const PetscInt neighbours[16][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}, {1, 1}, {-1, 1}, {1, -1}, {-1, -1}, {2, 0}, {-2, 0}, {0, 2}, {0, -2}, {2, 2}, {-2, 2}, {2, -2}, {-2, -2}};
 
+PetscErrorCode ClothGetLocalWork(Cloth c, Vec *Yl)
+{
+  PetscFunctionBeginUser;
+  if (!c->Yl) {
+    PetscCall(VecCreateSeq(PETSC_COMM_SELF, 3 * c->nlocal, &c->Yl));
+    PetscCall(VecSetBlockSize(c->Yl, 3));
+  }
+  *Yl = c->Yl;
+  PetscFunctionReturn(0);
+}
+
 /* Global -> local scatter (owned + ghost). Its index lists cost about 48 bytes per
  * local particle while it is made and 24 after, even as a copy (no ghosts): made
  * only where a rank has ghosts or the Hessian's work needs it. Collective. */
@@ -780,10 +791,13 @@ static PetscErrorCode ClothBuildGhostScatter(Cloth c)
 {
   IS from, to;
 
+  Vec Yl;
+
   PetscFunctionBeginUser;
+  PetscCall(ClothGetLocalWork(c, &Yl));
   PetscCall(ISCreateBlock(c->comm, 3, c->nlocal, c->global, PETSC_USE_POINTER, &from));
   PetscCall(ISCreateStride(PETSC_COMM_SELF, 3 * c->nlocal, 0, 1, &to));
-  PetscCall(VecScatterCreate(c->Xg, from, c->Yl, to, &c->ghost));
+  PetscCall(VecScatterCreate(c->Xg, from, Yl, to, &c->ghost));
   PetscCall(ISDestroy(&from));
   PetscCall(ISDestroy(&to));
   PetscFunctionReturn(0);
@@ -849,8 +863,6 @@ static PetscErrorCode ClothBuildLayout(Cloth c, const PetscInt *owner, PetscInt 
     PetscCall(VecCreateSeq(PETSC_COMM_SELF, 3 * c->nlocal, &c->Xl));
     PetscCall(VecSetBlockSize(c->Xl, 3));
   }
-  PetscCall(VecCreateSeq(PETSC_COMM_SELF, 3 * c->nlocal, &c->Yl));
-  PetscCall(VecSetBlockSize(c->Yl, 3));
   PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &nghost, 1, MPIU_INT, MPI_MAX, c->comm));
   if (nghost) PetscCall(ClothBuildGhostScatter(c)); /* else only ClothSetUpImplicit needs it */
   *local_out = local;
@@ -987,6 +999,7 @@ PetscErrorCode ClothSetUp(Cloth c)
     if (c->active[k]) mass += c->mass[k];
   }
   PetscCall(ClothBuildElements(c, local, owner, rank));
+  PetscCall(ClothLatticeSetUp(c));
   /* partition quality: owned active particles and cut stretch edges */
   counts[0] = CountOwned(&c->stretch_el, 1);
   counts[1] = CountOwned(&c->shear_el, 4);
@@ -1025,7 +1038,8 @@ PetscErrorCode ClothSetUpImplicit(Cloth c)
   PetscCheck(c->setup, c->comm, PETSC_ERR_ORDER, "ClothSetUpImplicit needs ClothSetUp first");
   if (c->Zl) PetscFunctionReturn(0);
   if (!c->ghost) PetscCall(ClothBuildGhostScatter(c));
-  PetscCall(VecDuplicate(c->Yl, &c->Zl));
+  PetscCall(VecCreateSeq(PETSC_COMM_SELF, 3 * c->nlocal, &c->Zl));
+  PetscCall(VecSetBlockSize(c->Zl, 3));
   PetscCall(PetscMalloc1(c->nlocal, &c->col_map));
   PetscCall(PetscMalloc1(c->nlocal, &c->pinned_local));
   for (PetscInt l = 0; l < c->nlocal; l++) {
@@ -1053,6 +1067,7 @@ PetscErrorCode ClothDestroy(Cloth *cloth)
   PetscCall(PetscFree(c->ring_xy));
   PetscCall(PetscFree(c->ring_start));
   if (c->setup) {
+    PetscCall(ClothLatticeDestroy(c));
     PetscCall(ElementsDestroy(&c->stretch_el));
     PetscCall(ElementsDestroy(&c->shear_el));
     PetscCall(ElementsDestroy(&c->bend_el));

@@ -120,19 +120,19 @@ struct _p_Cloth {
   PetscReal imperf_phase[CLOTH_IMPERFECTION_MODES];  /* ... and phases                                                             */
 
   /* lattice */
-  DM            da;
+  DM da;
   /* Xg: global, wraps caller arrays; Yl: local (owned + ghost) force; Xl: local
    * positions, only with ghosts (ClothScatterPositions); Zl: ClothSetUpImplicit */
-  Vec           Xg, Xl, Yl, Zl;
-  VecScatter    ghost;                      /* global -> local (without ghosts: a copy)           */
-  VecScatter    to_dmda;                    /* Cloth order -> DMDA order (NULL: the same)         */
-  PetscInt     *natural;                    /* local -> natural lattice index j Mx + i            */
-  PetscInt      rstart;                     /* global block number of the first owned particle    */
-  PetscInt      ncut, owned_min, owned_max; /* partition quality                      */
-  PetscReal     active_total;
-  PetscInt      Mx, My;
-  PetscReal     spacing[2];
-  PetscInt      nowned, nlocal;
+  Vec        Xg, Xl, Yl, Zl;
+  VecScatter ghost;                      /* global -> local (without ghosts: a copy)           */
+  VecScatter to_dmda;                    /* Cloth order -> DMDA order (NULL: the same)         */
+  PetscInt  *natural;                    /* local -> natural lattice index j Mx + i            */
+  PetscInt   rstart;                     /* global block number of the first owned particle    */
+  PetscInt   ncut, owned_min, owned_max; /* partition quality                      */
+  PetscReal  active_total;
+  PetscInt   Mx, My;
+  PetscReal  spacing[2];
+  PetscInt   nowned, nlocal;
   /* index maps; where two are equal they are one array (ClothDestroy frees it once):
    * owned_local is 0, 1, ... and is natural or global where those are too; global is
    * natural on one rank; row_map is col_map without ghosts */
@@ -214,17 +214,21 @@ static inline void ElementHessian(Cloth c, PetscBool project, PetscInt kind, Pet
   }
 }
 
+/* The local (owned + ghost) work vector Yl of the element lists' force loop and the
+ * Hessian product, made at its first use (the lattice kernel needs none). Not
+ * collective. */
+PETSC_INTERN PetscErrorCode ClothGetLocalWork(Cloth, Vec *);
 PETSC_INTERN PetscErrorCode ClothScatterPositions(Cloth, const PetscScalar *, const PetscScalar **);
 PETSC_INTERN PetscErrorCode ClothEndScatter(Cloth, const PetscScalar **);
 
-/* lattice.c: the explicit force kernel on the lattice patch. ClothLatticeComputeForces
- * takes the local (owned + ghost) positions and leaves the forces in the patch:
- * particle l's at f[d][slot[l]]. */
+/* lattice.c: the explicit force kernel on the lattice patch, from the local (owned +
+ * ghost) positions xl: the internal force f, or the acceleration a = M^-1 F + g - c v
+ * (0 on pinned particles), of the owned particles. Not collective. */
 PETSC_INTERN PetscErrorCode ClothLatticeSetUp(Cloth);
 PETSC_INTERN PetscErrorCode ClothLatticeDestroy(Cloth);
-PETSC_INTERN PetscErrorCode ClothLatticeComputeForces(Cloth, const PetscScalar *);
-PETSC_INTERN PetscErrorCode ClothLatticeGetForces(Cloth, const PetscInt **, const PetscReal *[3]);
-PETSC_INTERN PetscReal      ClothLatticeAsin(PetscReal);
+PETSC_INTERN PetscErrorCode ClothLatticeComputeForce(Cloth, const PetscScalar *xl, PetscScalar *f);
+PETSC_INTERN PetscErrorCode ClothLatticeComputeAcceleration(Cloth, const PetscScalar *xl, const PetscScalar *v, PetscScalar *a);
+PETSC_INTERN PetscErrorCode ClothLatticeKickDrift(Cloth, const PetscScalar *xl, PetscScalar *x, PetscScalar *v, PetscReal kick, PetscReal drift);
 
 /* fabrics.c: the measured fabrics of -cloth_fabric */
 PETSC_INTERN PetscErrorCode ClothSetFabric(Cloth, const char *);

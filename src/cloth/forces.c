@@ -121,24 +121,21 @@ PetscErrorCode ClothComputeInternalForce(Cloth c, const PetscScalar *x, PetscSca
 {
   const PetscScalar *xl;
   PetscScalar       *fl;
+  Vec                Yl;
 
   PetscFunctionBeginUser;
   PetscCall(PetscLogEventBegin(drape_log.forces, 0, 0, 0, 0));
   PetscCall(ClothScatterPositions(c, x, &xl));
-  if (c->lattice) {
-    const PetscInt  *slot;
-    const PetscReal *F[3];
-    PetscCall(ClothLatticeComputeForces(c, xl));
-    PetscCall(ClothLatticeGetForces(c, &slot, F));
-    for (PetscInt k = 0; k < c->nowned; k++)
-      for (PetscInt d = 0; d < 3; d++) f[3 * k + d] = F[d][slot[k]];
-  } else {
-    PetscCall(VecGetArray(c->Yl, &fl));
+  if (c->lattice)
+    PetscCall(ClothLatticeComputeForce(c, xl, f));
+  else {
+    PetscCall(ClothGetLocalWork(c, &Yl));
+    PetscCall(VecGetArray(Yl, &fl));
     PetscCall(PetscArrayzero(fl, 3 * c->nlocal));
     AccumulateInternalForce(c, xl, fl);
     for (PetscInt k = 0; k < c->nowned; k++)
       for (PetscInt d = 0; d < 3; d++) f[3 * k + d] = fl[3 * c->owned_local[k] + d];
-    PetscCall(VecRestoreArray(c->Yl, &fl));
+    PetscCall(VecRestoreArray(Yl, &fl));
   }
   PetscCall(ClothEndScatter(c, &xl));
   PetscCall(PetscLogEventEnd(drape_log.forces, 0, 0, 0, 0));
@@ -150,30 +147,44 @@ PetscErrorCode ClothComputeInternalForce(Cloth c, const PetscScalar *x, PetscSca
 PetscErrorCode ClothComputeAcceleration(Cloth c, const PetscScalar *x, const PetscScalar *v, PetscScalar *a)
 {
   const PetscScalar *xl;
-  PetscScalar       *fl = NULL;
+  PetscScalar       *fl;
   const PetscReal    cd = c->damping;
-  const PetscInt    *slot = NULL;
-  const PetscReal   *F[3] = {NULL, NULL, NULL};
+  Vec                Yl;
 
   PetscFunctionBeginUser;
   PetscCall(PetscLogEventBegin(drape_log.forces, 0, 0, 0, 0));
   PetscCall(ClothScatterPositions(c, x, &xl));
-  if (c->lattice) {
-    PetscCall(ClothLatticeComputeForces(c, xl));
-    PetscCall(ClothLatticeGetForces(c, &slot, F));
-  } else {
-    PetscCall(VecGetArray(c->Yl, &fl));
+  if (c->lattice)
+    PetscCall(ClothLatticeComputeAcceleration(c, xl, v, a));
+  else {
+    PetscCall(ClothGetLocalWork(c, &Yl));
+    PetscCall(VecGetArray(Yl, &fl));
     PetscCall(PetscArrayzero(fl, 3 * c->nlocal));
     AccumulateInternalForce(c, xl, fl);
-  }
-  for (PetscInt k = 0; k < c->nowned; k++) {
-    if (c->pinned[k]) {
-      a[3 * k] = a[3 * k + 1] = a[3 * k + 2] = 0;
-      continue;
+    for (PetscInt k = 0; k < c->nowned; k++) {
+      if (c->pinned[k]) {
+        a[3 * k] = a[3 * k + 1] = a[3 * k + 2] = 0;
+        continue;
+      }
+      for (PetscInt d = 0; d < 3; d++) a[3 * k + d] = fl[3 * c->owned_local[k] + d] / c->mass[k] + c->gravity[d] - cd * v[3 * k + d];
     }
-    for (PetscInt d = 0; d < 3; d++) a[3 * k + d] = (slot ? F[d][slot[k]] : fl[3 * c->owned_local[k] + d]) / c->mass[k] + c->gravity[d] - cd * v[3 * k + d];
+    PetscCall(VecRestoreArray(Yl, &fl));
   }
-  if (fl) PetscCall(VecRestoreArray(c->Yl, &fl));
+  PetscCall(ClothEndScatter(c, &xl));
+  PetscCall(PetscLogEventEnd(drape_log.forces, 0, 0, 0, 0));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ClothKickDrift(Cloth c, PetscScalar *x, PetscScalar *v, PetscReal kick, PetscReal drift, PetscBool *done)
+{
+  const PetscScalar *xl;
+
+  PetscFunctionBeginUser;
+  *done = (PetscBool) (c->lattice != NULL);
+  if (!*done) PetscFunctionReturn(0);
+  PetscCall(PetscLogEventBegin(drape_log.forces, 0, 0, 0, 0));
+  PetscCall(ClothScatterPositions(c, x, &xl));
+  PetscCall(ClothLatticeKickDrift(c, xl, x, v, kick, drift));
   PetscCall(ClothEndScatter(c, &xl));
   PetscCall(PetscLogEventEnd(drape_log.forces, 0, 0, 0, 0));
   PetscFunctionReturn(0);

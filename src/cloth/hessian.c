@@ -45,8 +45,8 @@ static PetscErrorCode ClothApplyHessian_Private(Cloth c, PetscBool elementwise, 
         KernelStretchHessianVector(xl + 3 * p[0], xl + 3 * p[1], ElemCoef(el, e), ElemRest(el, e), zl + 3 * p[0], zl + 3 * p[1], yl + 3 * p[0], yl + 3 * p[1]);
       }
     } else {
-      const ClothElements  *el    = KindList(c, kind);
-      const KernelAngleKind ak    = kind == 1 ? KERNEL_SHEAR : KERNEL_BEND;
+      const ClothElements  *el = KindList(c, kind);
+      const KernelAngleKind ak = kind == 1 ? KERNEL_SHEAR : KERNEL_BEND;
       for (PetscInt e = 0; e < el->n; e++) {
         const PetscInt *p = el->p + 3 * e;
         KernelAngleHessianVector(ak, xl + 3 * p[0], xl + 3 * p[1], xl + 3 * p[2], ElemCoef(el, e), ElemLaw(el, e), zl + 3 * p[0], zl + 3 * p[1], zl + 3 * p[2], yl + 3 * p[0], yl + 3 * p[1], yl + 3 * p[2]);
@@ -80,7 +80,7 @@ PetscErrorCode ClothApplyHessianElementwise(Cloth c, const PetscScalar *x, const
 /* One element of a window as doubles (gathered with one MPI_Allgatherv): kind, its
  * particles' natural indices (-1: none), coefficient, rest length, bending law (n,
  * L, dk, b[]), friction (area, L, hb, K, kp). */
-#define WINDOW_ELEMENT (1 + 5 + 2 + 3 + KERNEL_BEND_LAW_MAX + 5)
+#define WINDOW_ELEMENT  (1 + 5 + 2 + 3 + KERNEL_BEND_LAW_MAX + 5)
 #define WINDOW_PARTICLE 6 /* natural index, x, mass, pinned */
 
 struct _p_ClothWindow {
@@ -253,7 +253,8 @@ PetscErrorCode ClothWindowApplyHessian(ClothWindow w, const PetscScalar *z, Pets
     const PetscReal *r = w->el + WINDOW_ELEMENT * e;
     const PetscInt  *p = w->idx + 5 * e, kind = (PetscInt) r[0];
     const PetscReal *x = w->x;
-    if (kind == 0) KernelStretchHessianVector(x + 3 * p[0], x + 3 * p[1], r[6], r[7], z + 3 * p[0], z + 3 * p[1], y + 3 * p[0], y + 3 * p[1]);
+    if (kind == 0)
+      KernelStretchHessianVector(x + 3 * p[0], x + 3 * p[1], r[6], r[7], z + 3 * p[0], z + 3 * p[1], y + 3 * p[0], y + 3 * p[1]);
     else if (kind < 3) {
       KernelBendLaw law;
       law.n = (PetscInt) r[8];
@@ -299,8 +300,8 @@ PetscErrorCode ClothWindowDestroy(ClothWindow *w)
 PetscErrorCode ClothStretchHotSpot(Cloth c, const PetscScalar *x, PetscInt *natural)
 {
   const PetscScalar   *xl;
-  const ClothElements *el   = &c->stretch_el;
-  PetscReal            best = -1, gbest;
+  const ClothElements *el    = &c->stretch_el;
+  PetscReal            best  = -1, gbest;
   PetscInt             where = PETSC_MAX_INT, gwhere;
 
   PetscFunctionBeginUser;

@@ -2,16 +2,21 @@
  *
  * The element lists (clothimpl.h) say which elements a rank computes; this kernel
  * computes the same elements, but reads them from a rectangular patch of the
- * lattice: the bounding box of the rank's local (owned and ghost) particles, in
- * structure-of-arrays form (x, y, z and the forces each in its own array, row by
- * row, with a frame of one empty slot around it). An element is then named by its
- * kind and the slot of its centre (or first corner), and its particles sit at fixed
- * offsets from it: the loops below run along a lattice row with unit stride and no
- * index arrays, and the compiler vectorises them (sqrt, division, and an asin of our
- * own: KernelAsin). Which elements are present, and their coefficients, is one byte
- * per kind and slot: the element's class in the list (0: absent). Absent elements
- * are computed on harmless numbers and multiplied by a coefficient 0: they add exact
- * zeros.
+ * lattice: the bounding box of the rank's local (owned and ghost) particles, with a
+ * frame of one empty slot around it. An element is named by its kind and the slot of
+ * its centre (or first corner), and its particles sit at fixed offsets from it: the
+ * loops below run along a lattice row with unit stride and no index arrays, and the
+ * compiler vectorises them (sqrt, division, and an asin of our own: KernelAsin).
+ * Which elements are present, and their coefficients, is one byte per kind and slot:
+ * the element's class in the list (0: absent). Absent elements are computed on
+ * harmless numbers and multiplied by a coefficient 0: they add exact zeros.
+ *
+ * One sweep down the patch does everything: before the elements centred on row j
+ * are computed, row j + 1's positions are copied from the caller's array (x, y, z
+ * apart: structure of arrays) into a ring of four rows; after them, row j - 1's
+ * forces are complete and go out at once (as forces, or as accelerations with
+ * gravity and damping). Positions and forces of the whole patch are never held: the
+ * step streams the caller's arrays once, and the rows it works on stay in the cache.
  *
  * The kernel does not know how the particles were partitioned: any set of local
  * particles gives a patch (a DMDA block and its ghosts fill it; a METIS part leaves
@@ -36,58 +41,36 @@ enum {
   LAT_KINDS
 };
 
+/* Local particles l, ..., l + n - 1 at patch columns p, ..., p + n - 1 of one row. */
+typedef struct {
+  PetscInt p, n, l;
+} LatticeRun;
+
+#define LATTICE_RING 4 /* rows of positions and forces held: j - 1, j, j + 1 and one free */
+
 struct _n_ClothLattice {
   PetscInt       i0, j0, W, H, ld; /* patch origin and size in the lattice; padded row length W + 2 */
-  PetscInt       nslot;            /* (W + 2) (H + 2)                                              */
-  PetscInt      *slot;             /* local particle -> padded slot                                */
-  PetscReal     *x[3], *f[3];      /* positions and forces, padded patch                           */
-  unsigned char *cls[LAT_KINDS];   /* class + 1 of the element anchored at each slot, 0: none; NULL: no element of the kind */
+  PetscInt      *row_run;          /* runs of patch row r: row_run[r] .. row_run[r + 1] - 1          */
+  LatticeRun    *run;              /* local particles by patch row, owned and ghost runs apart       */
+  PetscInt       nowned;           /* local particles below nowned are owned                         */
+  PetscReal     *x[3], *f[3];      /* rings of LATTICE_RING padded rows                              */
+  unsigned char *cls[LAT_KINDS];   /* class + 1 of the element anchored at each padded slot, 0: none; NULL: no element of the kind */
   PetscReal      coef[LAT_KINDS][CLOTH_ELEMENT_CLASSES + 1];
   PetscReal      coef_rest[2][CLOTH_ELEMENT_CLASSES + 1]; /* stretch: k L */
   PetscReal     *tmp;                                     /* 12 rows of W + 4: one row's element gradients */
-  PetscReal     *krow;                                    /* a row's coefficients, mask, k L (3 W)      */
+  PetscReal     *krow;                                    /* a row's coefficients, mask, k L (3 W)         */
 };
 
-/* asin(x) for |x| <= 1 to 2 ulp, in a form the compiler vectorises (no branch, no
- * table): asin(x) = x + x^3 P(x^2) on |x| <= 1/2, and pi/2 - 2 asin(sqrt((1 - |x|)/2))
- * above. P is a degree-11 polynomial fitted to the relative error of asin on
- * [0, 1/2] (Lawson-weighted least squares in 50-digit arithmetic; approximation
- * error 1.5e-17); against glibc's asin: at most 1 ulp below 1/2, 2 ulp above
- * (tests/unit/test_kernels.c). */
-static inline __attribute__((always_inline)) PetscReal KernelAsin(PetscReal x)
-{
-  const PetscReal ax = PetscAbsReal(x);
-  const PetscBool big = (PetscBool) (ax > 0.5);
-  const PetscReal z = big ? 0.5 * (1 - ax) : x * x, s = big ? PetscSqrtReal(z) : ax;
-  PetscReal       u = 0.03190975805482998;
-
-  u = u * z - 0.01622056329858812;
-  u = u * z + 0.019525904250609717;
-  u = u * z + 0.006528838282604679;
-  u = u * z + 0.012169013109334418;
-  u = u * z + 0.013885265313232309;
-  u = u * z + 0.01735970181594715;
-  u = u * z + 0.022371758237395522;
-  u = u * z + 0.030381959129763308;
-  u = u * z + 0.04464285682847867;
-  u = u * z + 0.07500000000336884;
-  u = u * z + 0.16666666666665408;
-  u = s + s * z * u;
-  u = big ? 1.5707963267948966 - 2 * u : u;
-  return x < 0 ? -u : u;
-}
-
-PetscReal ClothLatticeAsin(PetscReal x) { return KernelAsin(x); }
-
-/* One shear corner (KernelShearCorner) with KernelAsin. */
-static inline __attribute__((always_inline)) void LatticeShearCorner(PetscReal u, PetscReal w, PetscReal s, PetscReal kappa, PetscReal *q, PetscReal *beta)
-{
-  const PetscReal inv = 1 / (u * w), iP = PetscSqrtReal(u * w) * inv;
-  const PetscReal c = PetscMin(PetscMax(s * iP, -1 + 1e-14), 1 - 1e-14), a = KernelAsin(c), g1 = 2 * a / PetscSqrtReal(1 - c * c);
-
-  *q    = kappa * iP * (a * a - g1 * c);
-  *beta = kappa * g1;
-}
+/* What a sweep reads and where its forces go (owned particles): out = F (v ==
+ * NULL); or the acceleration a = F/m + g - c v, 0 on pinned particles: out = a, or,
+ * with kick != 0, the symplectic update in place v += kick a, then x += drift v. */
+typedef struct {
+  const PetscScalar *xl, *v;
+  const PetscReal   *mass, *gravity;
+  const PetscBool   *pinned;
+  PetscReal          damping, kick, drift;
+  PetscScalar       *out, *x;
+} LatticeSweep;
 
 /* Bending coefficients (KernelAngleCoefficients, linear law) of the triple with
  * e1 = x_a - x_c, e2 = x_b - x_c, and its gradient with respect to x_a and x_b
@@ -114,65 +97,78 @@ static inline __attribute__((always_inline)) void LatticeBend(PetscReal m, Petsc
  * the mask M (1: present, 0: absent), in a scalar pass: the vector loops then read
  * unit-stride rows, no table and no comparison. An absent element computes on
  * u = M u + (1 - M) = 1, s = M s = 0 (no division by zero) with coefficient 0. */
-static inline __attribute__((always_inline)) void LatticeCoefficients(const ClothLattice *L, PetscInt kind, PetscInt b, PetscInt p0, PetscInt p1, PetscReal *restrict K, PetscReal *restrict M, PetscReal *restrict KL)
+static inline __attribute__((always_inline)) void LatticeCoefficients(const ClothLattice *L, PetscInt kind, PetscInt b, PetscReal *restrict K, PetscReal *restrict M, PetscReal *restrict KL)
 {
   const unsigned char *restrict cls = L->cls[kind] + b;
-  const PetscReal *restrict     tab = L->coef[kind], *restrict tab_rest = L->coef_rest[kind < 2 ? kind : 0];
+  const PetscReal *restrict tab = L->coef[kind], *restrict tab_rest = L->coef_rest[kind < 2 ? kind : 0];
+  const PetscInt W = L->W;
 
-  for (PetscInt i = p0; i < p1; i++) {
+  for (PetscInt i = 0; i < W; i++) {
     const int c = cls[i];
     K[i]        = tab[c];
     M[i]        = c ? 1.0 : 0.0;
   }
   if (KL)
-    for (PetscInt i = p0; i < p1; i++) {
+    for (PetscInt i = 0; i < W; i++) {
       const int c = cls[i];
       KL[i]       = tab_rest[c];
     }
 }
 
-/* A triple of kind `kind` along every anchor of row j: a at offset oa, b at ob from
- * the vertex, in the rows above and below. Each iteration writes three particles of
- * three different rows, so the iterations are independent. */
-static inline __attribute__((always_inline)) void LatticeBendRow(const ClothLattice *L, PetscInt kind, PetscInt b, PetscInt p0, PetscInt p1, PetscInt oa, PetscInt ob)
-{
-  const PetscReal *restrict X = L->x[0] + b, *restrict Y = L->x[1] + b, *restrict Z = L->x[2] + b;
-  PetscReal *restrict       FX = L->f[0] + b, *restrict FY = L->f[1] + b, *restrict FZ = L->f[2] + b;
-  PetscReal *restrict       K = L->krow, *restrict M = L->krow + L->W;
+/* Three rows of a ring: -1, 0, +1 relative to the anchor row, each component apart. */
+typedef struct {
+  PetscReal *r[3][3]; /* [row][component] */
+} LatticeRows;
 
-  LatticeCoefficients(L, kind, b, p0, p1, K, M, NULL);
+/* A triple of kind `kind` along every anchor of row j: a in row ra at column offset
+ * oa, b in row rb at offset ob (rows -1, 0, +1 as 0, 1, 2), the vertex in row j.
+ * Each iteration writes three particles of three different rows, so the iterations
+ * are independent. */
+static inline __attribute__((always_inline)) void LatticeBendRow(const ClothLattice *L, PetscInt kind, PetscInt b, const LatticeRows *X, const LatticeRows *F, PetscInt ra, PetscInt oa, PetscInt rb, PetscInt ob)
+{
+  const PetscReal *restrict X0 = X->r[1][0], *restrict Y0 = X->r[1][1], *restrict Z0 = X->r[1][2];
+  const PetscReal *restrict XA = X->r[ra][0] + oa, *restrict YA = X->r[ra][1] + oa, *restrict ZA = X->r[ra][2] + oa;
+  const PetscReal *restrict XB = X->r[rb][0] + ob, *restrict YB = X->r[rb][1] + ob, *restrict ZB = X->r[rb][2] + ob;
+  PetscReal *restrict FX0 = F->r[1][0], *restrict FY0 = F->r[1][1], *restrict FZ0 = F->r[1][2];
+  PetscReal *restrict FXA = F->r[ra][0] + oa, *restrict FYA = F->r[ra][1] + oa, *restrict FZA = F->r[ra][2] + oa;
+  PetscReal *restrict FXB = F->r[rb][0] + ob, *restrict FYB = F->r[rb][1] + ob, *restrict FZB = F->r[rb][2] + ob;
+  PetscReal *restrict K = L->krow, *restrict M = L->krow + L->W;
+
+  LatticeCoefficients(L, kind, b, K, M, NULL);
 #pragma GCC ivdep
-  for (PetscInt i = p0; i < p1; i++) {
-    const PetscReal e1[3] = {X[i + oa] - X[i], Y[i + oa] - Y[i], Z[i + oa] - Z[i]}, e2[3] = {X[i + ob] - X[i], Y[i + ob] - Y[i], Z[i + ob] - Z[i]};
+  for (PetscInt i = 0; i < L->W; i++) {
+    const PetscReal e1[3] = {XA[i] - X0[i], YA[i] - Y0[i], ZA[i] - Z0[i]}, e2[3] = {XB[i] - X0[i], YB[i] - Y0[i], ZB[i] - Z0[i]};
     PetscReal       ga[3], gb[3];
     LatticeBend(M[i], K[i], e1, e2, ga, gb);
-    FX[i + oa] -= ga[0];
-    FY[i + oa] -= ga[1];
-    FZ[i + oa] -= ga[2];
-    FX[i + ob] -= gb[0];
-    FY[i + ob] -= gb[1];
-    FZ[i + ob] -= gb[2];
-    FX[i] += ga[0] + gb[0];
-    FY[i] += ga[1] + gb[1];
-    FZ[i] += ga[2] + gb[2];
+    FXA[i] -= ga[0];
+    FYA[i] -= ga[1];
+    FZA[i] -= ga[2];
+    FXB[i] -= gb[0];
+    FYB[i] -= gb[1];
+    FZB[i] -= gb[2];
+    FX0[i] += ga[0] + gb[0];
+    FY0[i] += ga[1] + gb[1];
+    FZ0[i] += ga[2] + gb[2];
   }
 }
 
-/* Forces of the elements anchored in row j (padded row start b) at patch columns
- * p0 <= i < p1. */
-static inline __attribute__((always_inline)) void LatticeRow(const ClothLattice *L, PetscInt b, PetscInt p0, PetscInt p1)
+/* Forces of the elements anchored in row j (b: its first slot in the class arrays),
+ * positions in the ring rows X, forces into the ring rows F. */
+static inline __attribute__((always_inline)) void LatticeRow(const ClothLattice *L, PetscInt b, const LatticeRows *XR, const LatticeRows *FR)
 {
-  const PetscInt   W = L->W, ld = L->ld;
-  const PetscReal *restrict X = L->x[0] + b, *restrict Y = L->x[1] + b, *restrict Z = L->x[2] + b;
-  PetscReal *restrict       FX = L->f[0] + b, *restrict FY = L->f[1] + b, *restrict FZ = L->f[2] + b;
-  PetscReal *restrict       T[12];
+  const PetscInt W = L->W, ld = L->ld, p0 = 0, p1 = W;
+  const PetscReal *restrict X = XR->r[1][0], *restrict Y = XR->r[1][1], *restrict Z = XR->r[1][2];
+  const PetscReal *restrict XP = XR->r[2][0], *restrict YP = XR->r[2][1], *restrict ZP = XR->r[2][2];
+  PetscReal *restrict FX = FR->r[1][0], *restrict FY = FR->r[1][1], *restrict FZ = FR->r[1][2];
+  PetscReal *restrict FXP = FR->r[2][0], *restrict FYP = FR->r[2][1], *restrict FZP = FR->r[2][2];
+  PetscReal *restrict T[12];
 
   for (PetscInt k = 0; k < 12; k++) T[k] = L->tmp + k * (ld + 2) + 2; /* T[k][-2] .. T[k][W + 1] */
 
   if (L->cls[LAT_STRETCH_WARP]) { /* f_a += t e, f_b -= t e, b = a + 1: two passes */
     PetscReal *restrict K = L->krow, *restrict M = L->krow + W, *restrict KL = L->krow + 2 * W;
     PetscReal *restrict GX = T[0], *restrict GY = T[1], *restrict GZ = T[2];
-    LatticeCoefficients(L, LAT_STRETCH_WARP, b, p0, p1, K, M, KL);
+    LatticeCoefficients(L, LAT_STRETCH_WARP, b, K, M, KL);
 #pragma GCC ivdep
     for (PetscInt i = p0; i < p1; i++) {
       const PetscReal ex = X[i + 1] - X[i], ey = Y[i + 1] - Y[i], ez = Z[i + 1] - Z[i];
@@ -191,40 +187,40 @@ static inline __attribute__((always_inline)) void LatticeRow(const ClothLattice 
   }
   if (L->cls[LAT_STRETCH_WEFT]) {
     PetscReal *restrict K = L->krow, *restrict M = L->krow + W, *restrict KL = L->krow + 2 * W;
-    LatticeCoefficients(L, LAT_STRETCH_WEFT, b, p0, p1, K, M, KL);
+    LatticeCoefficients(L, LAT_STRETCH_WEFT, b, K, M, KL);
 #pragma GCC ivdep
     for (PetscInt i = p0; i < p1; i++) {
-      const PetscReal ex = X[i + ld] - X[i], ey = Y[i + ld] - Y[i], ez = Z[i + ld] - Z[i];
+      const PetscReal ex = XP[i] - X[i], ey = YP[i] - Y[i], ez = ZP[i] - Z[i];
       const PetscReal l2 = M[i] * (ex * ex + ey * ey + ez * ez) + (1 - M[i]), t = K[i] - KL[i] / PetscSqrtReal(l2);
       FX[i] += t * ex;
       FY[i] += t * ey;
       FZ[i] += t * ez;
-      FX[i + ld] -= t * ex;
-      FY[i + ld] -= t * ey;
-      FZ[i + ld] -= t * ez;
+      FXP[i] -= t * ex;
+      FYP[i] -= t * ey;
+      FZP[i] -= t * ez;
     }
   }
   if (L->cls[LAT_SHEAR]) { /* KernelShearCellCoefficients and KernelShearCellGradient; corners x0 = (i,j), x1 = (i+1,j), x2 = (i,j+1), x3 = (i+1,j+1) */
     PetscReal *restrict K = L->krow, *restrict M = L->krow + W;
     PetscReal *restrict g0x = T[0], *restrict g0y = T[1], *restrict g0z = T[2], *restrict g1x = T[3], *restrict g1y = T[4], *restrict g1z = T[5];
     PetscReal *restrict g2x = T[6], *restrict g2y = T[7], *restrict g2z = T[8], *restrict g3x = T[9], *restrict g3y = T[10], *restrict g3z = T[11];
-    LatticeCoefficients(L, LAT_SHEAR, b, p0, p1, K, M, NULL);
+    LatticeCoefficients(L, LAT_SHEAR, b, K, M, NULL);
 #pragma GCC ivdep
     for (PetscInt i = p0; i < p1; i++) {
       const PetscReal kappa = K[i], m = M[i];
-      const PetscReal Ax = X[i + 1] - X[i], Ay = Y[i + 1] - Y[i], Az = Z[i + 1] - Z[i];                          /* x1 - x0 */
-      const PetscReal Bx = X[i + ld] - X[i], By = Y[i + ld] - Y[i], Bz = Z[i + ld] - Z[i];                       /* x2 - x0 */
-      const PetscReal Cx = X[i + ld + 1] - X[i + ld], Cy = Y[i + ld + 1] - Y[i + ld], Cz = Z[i + ld + 1] - Z[i + ld]; /* x3 - x2 */
-      const PetscReal Dx = X[i + ld + 1] - X[i + 1], Dy = Y[i + ld + 1] - Y[i + 1], Dz = Z[i + ld + 1] - Z[i + 1];    /* x3 - x1 */
+      const PetscReal Ax = X[i + 1] - X[i], Ay = Y[i + 1] - Y[i], Az = Z[i + 1] - Z[i];                /* x1 - x0 */
+      const PetscReal Bx = XP[i] - X[i], By = YP[i] - Y[i], Bz = ZP[i] - Z[i];                         /* x2 - x0 */
+      const PetscReal Cx = XP[i + 1] - XP[i], Cy = YP[i + 1] - YP[i], Cz = ZP[i + 1] - ZP[i];          /* x3 - x2 */
+      const PetscReal Dx = XP[i + 1] - X[i + 1], Dy = YP[i + 1] - Y[i + 1], Dz = ZP[i + 1] - Z[i + 1]; /* x3 - x1 */
       const PetscReal uA = m * (Ax * Ax + Ay * Ay + Az * Az) + (1 - m), uB = m * (Bx * Bx + By * By + Bz * Bz) + (1 - m);
       const PetscReal uC = m * (Cx * Cx + Cy * Cy + Cz * Cz) + (1 - m), uD = m * (Dx * Dx + Dy * Dy + Dz * Dz) + (1 - m);
       const PetscReal sAB = m * (Ax * Bx + Ay * By + Az * Bz), sAD = m * (Ax * Dx + Ay * Dy + Az * Dz);
       const PetscReal sCB = m * (Cx * Bx + Cy * By + Cz * Bz), sDC = m * (Dx * Cx + Dy * Cy + Dz * Cz);
       PetscReal       q0, q1, q2, q3, w4, w5, w6, w7, w0, w1, w2, w3;
-      LatticeShearCorner(uA, uB, sAB, kappa, &q0, &w4);
-      LatticeShearCorner(uA, uD, -sAD, kappa, &q1, &w5);
-      LatticeShearCorner(uC, uB, -sCB, kappa, &q2, &w6);
-      LatticeShearCorner(uD, uC, sDC, kappa, &q3, &w7);
+      KernelShearCorner(uA, uB, sAB, kappa, &q0, &w4);
+      KernelShearCorner(uA, uD, -sAD, kappa, &q1, &w5);
+      KernelShearCorner(uC, uB, -sCB, kappa, &q2, &w6);
+      KernelShearCorner(uD, uC, sDC, kappa, &q3, &w7);
       w0 = q0 * uB + q1 * uD;
       w1 = q0 * uA + q2 * uC;
       w2 = q3 * uD + q2 * uB;
@@ -243,20 +239,20 @@ static inline __attribute__((always_inline)) void LatticeRow(const ClothLattice 
       }
     }
     for (PetscInt k = 0; k < 12; k++) T[k][p0 - 1] = T[k][p1] = 0;
-    /* f(i,j) -= g_0(i) + g_1(i-1), f(i,j+1) -= g_2(i) + g_3(i-1) */
+      /* f(i,j) -= g_0(i) + g_1(i-1), f(i,j+1) -= g_2(i) + g_3(i-1) */
 #pragma GCC ivdep
     for (PetscInt i = p0; i <= p1; i++) {
       FX[i] -= T[0][i] + T[3][i - 1];
       FY[i] -= T[1][i] + T[4][i - 1];
       FZ[i] -= T[2][i] + T[5][i - 1];
-      FX[i + ld] -= T[6][i] + T[9][i - 1];
-      FY[i + ld] -= T[7][i] + T[10][i - 1];
-      FZ[i + ld] -= T[8][i] + T[11][i - 1];
+      FXP[i] -= T[6][i] + T[9][i - 1];
+      FYP[i] -= T[7][i] + T[10][i - 1];
+      FZP[i] -= T[8][i] + T[11][i - 1];
     }
   }
   if (L->cls[LAT_BEND_WARP]) { /* a = i-1, b = i+1 of the same row: gradients first, then the sums */
     PetscReal *restrict K = L->krow, *restrict M = L->krow + W;
-    LatticeCoefficients(L, LAT_BEND_WARP, b, p0, p1, K, M, NULL);
+    LatticeCoefficients(L, LAT_BEND_WARP, b, K, M, NULL);
 #pragma GCC ivdep
     for (PetscInt i = p0; i < p1; i++) {
       const PetscReal m     = M[i];
@@ -269,7 +265,7 @@ static inline __attribute__((always_inline)) void LatticeRow(const ClothLattice 
       }
     }
     for (PetscInt k = 0; k < 6; k++) T[k][p0 - 2] = T[k][p0 - 1] = T[k][p1] = T[k][p1 + 1] = 0;
-    /* f(i) += g_a(i) + g_b(i) - g_a(i+1) - g_b(i-1), i = -1 .. W */
+      /* f(i) += g_a(i) + g_b(i) - g_a(i+1) - g_b(i-1), i = -1 .. W */
 #pragma GCC ivdep
     for (PetscInt i = p0 - 1; i <= p1; i++) {
       FX[i] += T[0][i] + T[3][i] - T[0][i + 1] - T[3][i - 1];
@@ -277,18 +273,78 @@ static inline __attribute__((always_inline)) void LatticeRow(const ClothLattice 
       FZ[i] += T[2][i] + T[5][i] - T[2][i + 1] - T[5][i - 1];
     }
   }
-  if (L->cls[LAT_BEND_WEFT]) LatticeBendRow(L, LAT_BEND_WEFT, b, p0, p1, -ld, ld);
-  if (L->cls[LAT_BEND_DIAG]) LatticeBendRow(L, LAT_BEND_DIAG, b, p0, p1, -ld - 1, ld + 1);
-  if (L->cls[LAT_BEND_ANTI]) LatticeBendRow(L, LAT_BEND_ANTI, b, p0, p1, ld - 1, -ld + 1);
+  if (L->cls[LAT_BEND_WEFT]) LatticeBendRow(L, LAT_BEND_WEFT, b, XR, FR, 0, 0, 2, 0);
+  if (L->cls[LAT_BEND_DIAG]) LatticeBendRow(L, LAT_BEND_DIAG, b, XR, FR, 0, -1, 2, 1);
+  if (L->cls[LAT_BEND_ANTI]) LatticeBendRow(L, LAT_BEND_ANTI, b, XR, FR, 2, -1, 0, 1);
 }
 
-/* Strips of LATTICE_STRIP lattice columns, bounded at multiples of LATTICE_STRIP in
- * the whole lattice (not the patch: a particle's force is summed in the same order on
- * every partition), each swept row by row: the three rows of positions and forces an
- * anchor row touches stay in the first-level cache as the sweep moves down. */
-#define LATTICE_STRIP 128
+/* Row r of a ring (r = -1 .. H): its column -1 .. W. */
+static inline PetscReal *LatticeRingRow(PetscReal *ring, PetscInt ld, PetscInt r) { return ring + ((r + 1) % LATTICE_RING) * ld + 1; }
 
-/* All strips, with the instruction set chosen when the program starts (x86-64:
+static inline void LatticeRingRows(const ClothLattice *L, PetscReal *const ring[3], PetscInt j, LatticeRows *R)
+{
+  for (PetscInt q = 0; q < 3; q++)
+    for (PetscInt d = 0; d < 3; d++) R->r[q][d] = LatticeRingRow(ring[d], L->ld, j - 1 + q);
+}
+
+/* Patch row r's positions into the ring, from the caller's (owned + ghost) array. */
+static inline void LatticeLoadRow(const ClothLattice *L, const LatticeSweep *S, PetscInt r)
+{
+  PetscReal *restrict X = LatticeRingRow(L->x[0], L->ld, r), *restrict Y = LatticeRingRow(L->x[1], L->ld, r), *restrict Z = LatticeRingRow(L->x[2], L->ld, r);
+
+  for (PetscInt q = L->row_run[r]; q < L->row_run[r + 1]; q++) {
+    const LatticeRun R             = L->run[q];
+    const PetscScalar *restrict xl = S->xl + 3 * R.l;
+    for (PetscInt k = 0; k < R.n; k++) {
+      X[R.p + k] = xl[3 * k];
+      Y[R.p + k] = xl[3 * k + 1];
+      Z[R.p + k] = xl[3 * k + 2];
+    }
+  }
+}
+
+/* Patch row r's forces, now complete, out to the owned particles. */
+static inline void LatticeStoreRow(const ClothLattice *L, const LatticeSweep *S, PetscInt r)
+{
+  const PetscReal *restrict FX = LatticeRingRow(L->f[0], L->ld, r), *restrict FY = LatticeRingRow(L->f[1], L->ld, r), *restrict FZ = LatticeRingRow(L->f[2], L->ld, r);
+
+  for (PetscInt q = L->row_run[r]; q < L->row_run[r + 1]; q++) {
+    const LatticeRun R        = L->run[q];
+    PetscScalar *restrict out = S->out + 3 * R.l;
+    if (R.l >= L->nowned) continue;
+    if (!S->v) {
+      for (PetscInt k = 0; k < R.n; k++) {
+        out[3 * k]     = FX[R.p + k];
+        out[3 * k + 1] = FY[R.p + k];
+        out[3 * k + 2] = FZ[R.p + k];
+      }
+    } else if (!S->kick) {
+      const PetscScalar *restrict v = S->v + 3 * R.l;
+      const PetscReal *restrict m = S->mass + R.l, *g = S->gravity, cd = S->damping;
+      const PetscBool *restrict pin = S->pinned + R.l;
+      for (PetscInt k = 0; k < R.n; k++) {
+        const PetscReal h = pin[k] ? 0 : 1; /* pinned: no acceleration */
+        out[3 * k]        = h * (FX[R.p + k] / m[k] + g[0] - cd * v[3 * k]);
+        out[3 * k + 1]    = h * (FY[R.p + k] / m[k] + g[1] - cd * v[3 * k + 1]);
+        out[3 * k + 2]    = h * (FZ[R.p + k] / m[k] + g[2] - cd * v[3 * k + 2]);
+      }
+    } else { /* the row's positions were read into the ring when it was loaded: x may change now */
+      PetscScalar *restrict v = out, *restrict x = S->x + 3 * R.l;
+      const PetscReal *restrict m = S->mass + R.l, *g = S->gravity, cd = S->damping, kick = S->kick, drift = S->drift;
+      const PetscBool *restrict pin = S->pinned + R.l;
+      for (PetscInt k = 0; k < R.n; k++) {
+        const PetscReal h = pin[k] ? 0 : kick;
+        v[3 * k] += h * (FX[R.p + k] / m[k] + g[0] - cd * v[3 * k]);
+        v[3 * k + 1] += h * (FY[R.p + k] / m[k] + g[1] - cd * v[3 * k + 1]);
+        v[3 * k + 2] += h * (FZ[R.p + k] / m[k] + g[2] - cd * v[3 * k + 2]);
+      }
+      if (drift)
+        for (PetscInt k = 0; k < 3 * R.n; k++) x[k] += drift * v[k];
+    }
+  }
+}
+
+/* The sweep, with the instruction set chosen when the program starts (x86-64:
  * AVX-512, AVX2 with FMA, or the baseline SSE2): the build needs no -march, and runs on
  * any x86-64 processor at its own speed. The rounding may differ between these (fused
  * multiply-adds), so results agree across machines to round-off; on one machine every
@@ -297,36 +353,93 @@ static inline __attribute__((always_inline)) void LatticeRow(const ClothLattice 
 __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 #endif
 static void
-LatticeForces(const ClothLattice *L)
+LatticeSweepRows(const ClothLattice *L, const LatticeSweep *S)
 {
-  for (PetscInt p0 = 0; p0 < L->W;) {
-    const PetscInt p1 = PetscMin(L->W, p0 + LATTICE_STRIP - (L->i0 + p0) % LATTICE_STRIP);
-    for (PetscInt j = 0; j < L->H; j++) LatticeRow(L, (j + 1) * L->ld + 1, p0, p1);
-    p0 = p1;
+  LatticeRows X, F;
+
+  for (PetscInt d = 0; d < 3; d++) {
+    PetscArrayzero(LatticeRingRow(L->f[d], L->ld, -1) - 1, L->ld);
+    PetscArrayzero(LatticeRingRow(L->f[d], L->ld, 0) - 1, L->ld);
   }
+  LatticeLoadRow(L, S, 0);
+  for (PetscInt j = 0; j < L->H; j++) {
+    if (j + 1 < L->H) LatticeLoadRow(L, S, j + 1);
+    for (PetscInt d = 0; d < 3; d++) PetscArrayzero(LatticeRingRow(L->f[d], L->ld, j + 1) - 1, L->ld);
+    LatticeRingRows(L, L->x, j, &X);
+    LatticeRingRows(L, L->f, j, &F);
+    LatticeRow(L, (j + 1) * L->ld + 1, &X, &F);
+    if (j > 0) LatticeStoreRow(L, S, j - 1);
+  }
+  LatticeStoreRow(L, S, L->H - 1);
 }
 
-PetscErrorCode ClothLatticeComputeForces(Cloth c, const PetscScalar *xl)
+PetscErrorCode ClothLatticeComputeForce(Cloth c, const PetscScalar *xl, PetscScalar *f)
 {
-  ClothLattice *L = c->lattice;
+  const LatticeSweep S = {xl, NULL, NULL, NULL, NULL, 0, 0, 0, f, NULL};
 
   PetscFunctionBeginUser;
-  for (PetscInt l = 0; l < c->nlocal; l++) {
-    const PetscInt s = L->slot[l];
-    L->x[0][s]       = xl[3 * l];
-    L->x[1][s]       = xl[3 * l + 1];
-    L->x[2][s]       = xl[3 * l + 2];
-  }
-  for (PetscInt d = 0; d < 3; d++) PetscCall(PetscArrayzero(L->f[d], L->nslot));
-  LatticeForces(L);
+  LatticeSweepRows(c->lattice, &S);
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode ClothLatticeGetForces(Cloth c, const PetscInt **slot, const PetscReal *f[3])
+PetscErrorCode ClothLatticeComputeAcceleration(Cloth c, const PetscScalar *xl, const PetscScalar *v, PetscScalar *a)
 {
+  const LatticeSweep S = {xl, v, c->mass, c->gravity, c->pinned, c->damping, 0, 0, a, NULL};
+
   PetscFunctionBeginUser;
-  *slot = c->lattice->slot;
-  for (PetscInt d = 0; d < 3; d++) f[d] = c->lattice->f[d];
+  LatticeSweepRows(c->lattice, &S);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ClothLatticeKickDrift(Cloth c, const PetscScalar *xl, PetscScalar *x, PetscScalar *v, PetscReal kick, PetscReal drift)
+{
+  const LatticeSweep S = {xl, v, c->mass, c->gravity, c->pinned, c->damping, kick, drift, v, x};
+
+  PetscFunctionBeginUser;
+  PetscCheck(kick != 0, PETSC_COMM_SELF, PETSC_ERR_ARG_OUTOFRANGE, "ClothLatticeKickDrift needs a kick");
+  LatticeSweepRows(c->lattice, &S);
+  PetscFunctionReturn(0);
+}
+
+/* Padded slot of local particle l in the class arrays. */
+static inline PetscInt Slot(Cloth c, const ClothLattice *L, PetscInt l) { return (c->natural[l] / c->Mx - L->j0 + 1) * L->ld + (c->natural[l] % c->Mx - L->i0 + 1); }
+
+/* The runs of each patch row: local particles with consecutive local numbers at
+ * consecutive columns (owned and ghost particles are numbered apart, each in
+ * natural order: a DMDA block row is one owned run and a ghost run or two). */
+static PetscErrorCode LatticeBuildRuns(Cloth c, ClothLattice *L)
+{
+  PetscInt *order, nrun = 0;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscMalloc1(c->nlocal, &order));
+  for (PetscInt l = 0; l < c->nlocal; l++) order[l] = l;
+  /* local particles by natural number (the patch's row-major order), owned first at equal rows */
+  {
+    PetscInt *key;
+    PetscCall(PetscMalloc1(c->nlocal, &key));
+    for (PetscInt l = 0; l < c->nlocal; l++) key[l] = c->natural[l];
+    PetscCall(PetscSortIntWithArray(c->nlocal, key, order));
+    PetscCall(PetscFree(key));
+  }
+  PetscCall(PetscCalloc1(L->H + 1, &L->row_run));
+  PetscCall(PetscMalloc1(c->nlocal, &L->run));
+  for (PetscInt q = 0; q < c->nlocal; q++) {
+    const PetscInt l = order[q], r = c->natural[l] / c->Mx - L->j0, p = c->natural[l] % c->Mx - L->i0;
+    LatticeRun    *R = nrun ? &L->run[nrun - 1] : NULL;
+    if (R && q > 0 && c->natural[order[q - 1]] / c->Mx - L->j0 == r && R->l + R->n == l && R->p + R->n == p && (R->l < c->nowned) == (l < c->nowned)) {
+      R->n++;
+      continue;
+    }
+    L->run[nrun].p = p;
+    L->run[nrun].n = 1;
+    L->run[nrun].l = l;
+    nrun++;
+    L->row_run[r + 1]++;
+  }
+  for (PetscInt r = 0; r < L->H; r++) L->row_run[r + 1] += L->row_run[r];
+  PetscCall(PetscRealloc(nrun * sizeof(LatticeRun) + 1, &L->run));
+  PetscCall(PetscFree(order));
   PetscFunctionReturn(0);
 }
 
@@ -334,14 +447,16 @@ PetscErrorCode ClothLatticeGetForces(Cloth c, const PetscInt **slot, const Petsc
  * lists is present in the patch, at its anchor, with its class. */
 PetscErrorCode ClothLatticeSetUp(Cloth c)
 {
-  const char *const  kernels[] = {"lattice", "elements"};
-  PetscInt           kernel = 0, imin = PETSC_MAX_INT, imax = -1, jmin = PETSC_MAX_INT, jmax = -1;
-  ClothLattice      *L;
+  const char *const    kernels[] = {"lattice", "elements"};
+  PetscInt             kernel = 0, imin = PETSC_MAX_INT, imax = -1, jmin = PETSC_MAX_INT, jmax = -1;
+  ClothLattice        *L;
+  PetscInt             nslot;
   const ClothElements *st = &c->stretch_el, *sh = &c->shear_el, *be = &c->bend_el;
 
   PetscFunctionBeginUser;
   PetscOptionsBegin(c->comm, NULL, "Explicit force kernel", "ClothLatticeSetUp");
-  PetscCall(PetscOptionsEList("-cloth_force_kernel", "Force loop of the explicit schemes: lattice (structured, vectorised) or elements (the element lists; always used with -cloth_bend_table or -cloth_bend_hysteresis)", "ClothLatticeSetUp", kernels, 2, kernels[0], &kernel, NULL));
+  PetscCall(PetscOptionsEList("-cloth_force_kernel", "Force loop of the explicit schemes: lattice (structured, vectorised) or elements (the element lists; always used with -cloth_bend_table or -cloth_bend_hysteresis)", "ClothLatticeSetUp", kernels,
+                              2, kernels[0], &kernel, NULL));
   PetscOptionsEnd();
   if (kernel == 1 || be->has_law || c->friction_el.n > 0 || c->nlocal == 0) PetscFunctionReturn(0);
   for (PetscInt l = 0; l < c->nlocal; l++) {
@@ -349,49 +464,53 @@ PetscErrorCode ClothLatticeSetUp(Cloth c)
     imin = PetscMin(imin, i), imax = PetscMax(imax, i), jmin = PetscMin(jmin, j), jmax = PetscMax(jmax, j);
   }
   PetscCall(PetscNew(&L));
-  L->i0    = imin;
-  L->j0    = jmin;
-  L->W     = imax - imin + 1;
-  L->H     = jmax - jmin + 1;
-  L->ld    = L->W + 2;
-  L->nslot = L->ld * (L->H + 2);
-  PetscCall(PetscMalloc1(c->nlocal, &L->slot));
-  for (PetscInt l = 0; l < c->nlocal; l++) L->slot[l] = (c->natural[l] / c->Mx - L->j0 + 1) * L->ld + (c->natural[l] % c->Mx - L->i0 + 1);
+  L->i0     = imin;
+  L->j0     = jmin;
+  L->W      = imax - imin + 1;
+  L->H      = jmax - jmin + 1;
+  L->ld     = L->W + 2;
+  L->nowned = c->nowned;
+  nslot     = L->ld * (L->H + 2);
   for (PetscInt d = 0; d < 3; d++) {
-    PetscCall(PetscCalloc1(L->nslot, &L->x[d]));
-    PetscCall(PetscMalloc1(L->nslot, &L->f[d]));
+    PetscCall(PetscCalloc1(LATTICE_RING * L->ld, &L->x[d]));
+    PetscCall(PetscCalloc1(LATTICE_RING * L->ld, &L->f[d]));
   }
+  PetscCall(LatticeBuildRuns(c, L));
   PetscCall(PetscMalloc1(12 * (L->ld + 2), &L->tmp));
   PetscCall(PetscMalloc1(3 * L->W, &L->krow));
-#define KIND_ALLOC(kind) \
-  do { \
-    if (!L->cls[kind]) PetscCall(PetscCalloc1(L->nslot, &L->cls[kind])); \
+#define KIND_ALLOC(kind)                                                                                                                                                                                                                                 \
+  do {                                                                                                                                                                                                                                                   \
+    if (!L->cls[kind]) PetscCall(PetscCalloc1(nslot, &L->cls[kind]));                                                                                                                                                                                    \
   } while (0)
   /* stretch: (a, b) with b the next particle along the warp or the weft */
   for (PetscInt e = 0; e < st->n; e++) {
     const PetscInt a = st->p[2 * e], bb = st->p[2 * e + 1], kind = c->natural[bb] - c->natural[a] == 1 ? LAT_STRETCH_WARP : LAT_STRETCH_WEFT;
     KIND_ALLOC(kind);
-    L->cls[kind][L->slot[a]]                 = (unsigned char) (st->cls[e] + 1);
-    L->coef[kind][st->cls[e] + 1]            = st->coef_tab[st->cls[e]];
-    L->coef_rest[kind][st->cls[e] + 1]       = st->coef_tab[st->cls[e]] * st->rest_tab[st->cls[e]];
+    L->cls[kind][Slot(c, L, a)]        = (unsigned char) (st->cls[e] + 1);
+    L->coef[kind][st->cls[e] + 1]      = st->coef_tab[st->cls[e]];
+    L->coef_rest[kind][st->cls[e] + 1] = st->coef_tab[st->cls[e]] * st->rest_tab[st->cls[e]];
   }
   /* shear: cells of four corners, the vertex of the first being (i, j) */
   for (PetscInt e = 0; e < sh->n; e += 4) {
     KIND_ALLOC(LAT_SHEAR);
-    L->cls[LAT_SHEAR][L->slot[sh->p[3 * e + 2]]] = (unsigned char) (sh->cls[e] + 1);
-    L->coef[LAT_SHEAR][sh->cls[e] + 1]           = sh->coef_tab[sh->cls[e]];
+    L->cls[LAT_SHEAR][Slot(c, L, sh->p[3 * e + 2])] = (unsigned char) (sh->cls[e] + 1);
+    L->coef[LAT_SHEAR][sh->cls[e] + 1]              = sh->coef_tab[sh->cls[e]];
   }
   /* bending: (a, b, vertex v); the kind from a's place relative to v */
   for (PetscInt e = 0; e < be->n; e++) {
     const PetscInt a = be->p[3 * e], v = be->p[3 * e + 2];
     const PetscInt di = c->natural[a] % c->Mx - c->natural[v] % c->Mx, dj = c->natural[a] / c->Mx - c->natural[v] / c->Mx;
     PetscInt       kind;
-    if (dj == 0) kind = LAT_BEND_WARP;
-    else if (di == 0) kind = LAT_BEND_WEFT;
-    else if (dj == -1) kind = LAT_BEND_DIAG;
-    else kind = LAT_BEND_ANTI;
+    if (dj == 0)
+      kind = LAT_BEND_WARP;
+    else if (di == 0)
+      kind = LAT_BEND_WEFT;
+    else if (dj == -1)
+      kind = LAT_BEND_DIAG;
+    else
+      kind = LAT_BEND_ANTI;
     KIND_ALLOC(kind);
-    L->cls[kind][L->slot[v]]      = (unsigned char) (be->cls[e] + 1);
+    L->cls[kind][Slot(c, L, v)]   = (unsigned char) (be->cls[e] + 1);
     L->coef[kind][be->cls[e] + 1] = be->coef_tab[be->cls[e]];
   }
 #undef KIND_ALLOC
@@ -405,7 +524,8 @@ PetscErrorCode ClothLatticeDestroy(Cloth c)
 
   PetscFunctionBeginUser;
   if (!L) PetscFunctionReturn(0);
-  PetscCall(PetscFree(L->slot));
+  PetscCall(PetscFree(L->row_run));
+  PetscCall(PetscFree(L->run));
   for (PetscInt d = 0; d < 3; d++) {
     PetscCall(PetscFree(L->x[d]));
     PetscCall(PetscFree(L->f[d]));

@@ -57,7 +57,7 @@ struct _p_Simulation {
   PetscBool       baseline;    /* energy0 set              */
   PetscBool       at_rest;     /* stopped by -drape_rest_tol */
   /* monitor state */
-  PetscReal energy0, energy_scale, wall0, wall_last;
+  PetscReal      energy0, energy_scale, wall0, wall_last;
   PetscLogDouble rss0; /* resident memory before the set-up, bytes */
 };
 
@@ -121,10 +121,12 @@ static const struct {
   PetscInt    s;
   PetscReal   c[4], d[4]; /* velocity and position coefficients of each stage */
 } symplectic_schemes[] = {
-  {TSBASICSYMPLECTICSIEULER,   1, {1.0},                        {1.0}                        },
-  {TSBASICSYMPLECTICVELVERLET, 2, {0, 1.0},                     {0.5, 0.5}                   },
-  {TSBASICSYMPLECTIC3,         3, {1, -2.0 / 3.0, 2.0 / 3.0},   {-1.0 / 24.0, 3.0 / 4.0, 7.0 / 24.0}},
-  {TSBASICSYMPLECTIC4,         4, {1.0 / 2.0 / (2.0 - SYMPLECTIC_CBRT2), (1.0 - SYMPLECTIC_CBRT2) / 2.0 / (2.0 - SYMPLECTIC_CBRT2), (1.0 - SYMPLECTIC_CBRT2) / 2.0 / (2.0 - SYMPLECTIC_CBRT2), 1.0 / 2.0 / (2.0 - SYMPLECTIC_CBRT2)},
+  {TSBASICSYMPLECTICSIEULER, 1, {1.0}, {1.0}},
+  {TSBASICSYMPLECTICVELVERLET, 2, {0, 1.0}, {0.5, 0.5}},
+  {TSBASICSYMPLECTIC3, 3, {1, -2.0 / 3.0, 2.0 / 3.0}, {-1.0 / 24.0, 3.0 / 4.0, 7.0 / 24.0}},
+  {TSBASICSYMPLECTIC4,
+   4,
+   {1.0 / 2.0 / (2.0 - SYMPLECTIC_CBRT2), (1.0 - SYMPLECTIC_CBRT2) / 2.0 / (2.0 - SYMPLECTIC_CBRT2), (1.0 - SYMPLECTIC_CBRT2) / 2.0 / (2.0 - SYMPLECTIC_CBRT2), 1.0 / 2.0 / (2.0 - SYMPLECTIC_CBRT2)},
    {1.0 / (2.0 - SYMPLECTIC_CBRT2), -SYMPLECTIC_CBRT2 / (2.0 - SYMPLECTIC_CBRT2), 1.0 / (2.0 - SYMPLECTIC_CBRT2), 0}},
 };
 #define SYMPLECTIC_NSCHEMES ((PetscInt) (sizeof symplectic_schemes / sizeof symplectic_schemes[0]))
@@ -133,28 +135,40 @@ typedef struct {
   PetscInt scheme; /* index into symplectic_schemes */
   IS       is_x, is_v;
   TS       momentum; /* the sub-TS of the "momentum" split: its RHS is the acceleration */
-  Vec      A;        /* acceleration, 3 per owned particle */
+  Vec      A;        /* acceleration, 3 per owned particle: only where the cloth cannot fuse kick and drift (ClothKickDrift) */
 } TS_Symplectic;
 
 static PetscErrorCode TSStep_Symplectic(TS ts)
 {
   TS_Symplectic  *sy = (TS_Symplectic *) ts->data;
   const PetscInt  k  = sy->scheme;
-  const PetscReal h  = ts->time_step;
+  Simulation      sim;
+  const PetscReal h = ts->time_step;
   Vec             x, v;
   PetscBool       ok = PETSC_TRUE;
 
   PetscFunctionBeginUser;
+  PetscCall(TSGetApplicationContext(ts, &sim));
   PetscCall(VecGetSubVector(ts->vec_sol, sy->is_x, &x));
   PetscCall(VecGetSubVector(ts->vec_sol, sy->is_v, &v));
   for (PetscInt i = 0; i < symplectic_schemes[k].s && ok; i++) {
     PetscCall(TSPreStage(ts, ts->ptime));
-    if (symplectic_schemes[k].c[i]) {
-      PetscCall(TSComputeRHSFunction(sy->momentum, ts->ptime, x, sy->A));
-      PetscCall(VecAXPY(v, symplectic_schemes[k].c[i] * h, sy->A));
+    PetscBool fused = PETSC_FALSE;
+    if (symplectic_schemes[k].c[i]) { /* the kick, and the drift with it in one pass where the cloth can (ClothKickDrift) */
+      PetscScalar *xa, *va;
+      PetscCall(VecGetArray(x, &xa));
+      PetscCall(VecGetArray(v, &va));
+      PetscCall(ClothKickDrift(sim->cloth, xa, va, symplectic_schemes[k].c[i] * h, symplectic_schemes[k].d[i] * h, &fused));
+      PetscCall(VecRestoreArray(v, &va));
+      PetscCall(VecRestoreArray(x, &xa));
+      if (!fused) {
+        if (!sy->A) PetscCall(VecDuplicate(v, &sy->A));
+        PetscCall(TSComputeRHSFunction(sy->momentum, ts->ptime, x, sy->A));
+        PetscCall(VecAXPY(v, symplectic_schemes[k].c[i] * h, sy->A));
+      }
     }
     if (symplectic_schemes[k].d[i]) {
-      PetscCall(VecAXPY(x, symplectic_schemes[k].d[i] * h, v));
+      if (!fused) PetscCall(VecAXPY(x, symplectic_schemes[k].d[i] * h, v));
       ts->ptime += symplectic_schemes[k].d[i] * h;
     }
     PetscCall(TSPostStage(ts, ts->ptime, 0, &ts->vec_sol));
@@ -169,16 +183,12 @@ static PetscErrorCode TSStep_Symplectic(TS ts)
 static PetscErrorCode TSSetUp_Symplectic(TS ts)
 {
   TS_Symplectic *sy = (TS_Symplectic *) ts->data;
-  Vec            v;
 
   PetscFunctionBeginUser;
   PetscCall(TSRHSSplitGetIS(ts, "position", &sy->is_x));
   PetscCall(TSRHSSplitGetIS(ts, "momentum", &sy->is_v));
   PetscCall(TSRHSSplitGetSubTS(ts, "momentum", &sy->momentum));
   PetscCheck(sy->is_x && sy->is_v && sy->momentum, PetscObjectComm((PetscObject) ts), PETSC_ERR_ORDER, "-ts_type basicsymplectic needs the position and momentum splits (TSRHSSplitSetIS, TSRHSSplitSetRHSFunction)");
-  PetscCall(VecGetSubVector(ts->vec_sol, sy->is_v, &v));
-  PetscCall(VecDuplicate(v, &sy->A));
-  PetscCall(VecRestoreSubVector(ts->vec_sol, sy->is_v, &v));
   PetscCall(TSGetAdapt(ts, &ts->adapt));
   PetscCall(TSAdaptCandidatesClear(ts->adapt)); /* fixed steps */
   PetscFunctionReturn(0);
@@ -195,7 +205,7 @@ static PetscErrorCode TSReset_Symplectic(TS ts)
 
 static PetscErrorCode TSSymplecticSetType(TS ts, TSBasicSymplecticType type)
 {
-  TS_Symplectic *sy = (TS_Symplectic *) ts->data;
+  TS_Symplectic *sy    = (TS_Symplectic *) ts->data;
   PetscBool      match = PETSC_FALSE;
 
   PetscFunctionBeginUser;

@@ -21,10 +21,10 @@
 #include <drape.h>
 
 #ifndef STABILITY_RTOL
-  #define STABILITY_RTOL 1e-4
+#define STABILITY_RTOL 1e-4
 #endif
 #ifndef STABILITY_WINDOW
-  #define STABILITY_WINDOW 24 /* half-width of a window, particles */
+#define STABILITY_WINDOW 24 /* half-width of a window, particles */
 #endif
 #define STABILITY_WINDOWS 2
 
@@ -40,16 +40,18 @@ static PetscReal TridiagonalMax(PetscInt k, const PetscReal *a, const PetscReal 
     hi                = PetscMax(hi, a[i] + r);
   }
   for (PetscInt it = 0; it < 200 && hi - lo > 1e-15 * PetscMax(PetscAbsReal(lo), PetscAbsReal(hi)); it++) {
-    const PetscReal mid = 0.5 * (lo + hi);
-    PetscReal       q   = 1;
+    const PetscReal mid   = 0.5 * (lo + hi);
+    PetscReal       q     = 1;
     PetscInt        above = 0; /* eigenvalues above mid */
     for (PetscInt i = 0; i < k; i++) {
       q = a[i] - mid - (i > 0 ? b[i - 1] * b[i - 1] / q : 0);
       if (q == 0) q = -1e-300;
       if (q > 0) above++;
     }
-    if (above > 0) lo = mid;
-    else hi = mid;
+    if (above > 0)
+      lo = mid;
+    else
+      hi = mid;
   }
   return hi;
 }
@@ -72,7 +74,7 @@ static void StartVector(PetscInt Mx, PetscInt nrect, const PetscInt rect[], Pets
     }
     for (PetscInt d = 0; d < 3; d++) {
       const PetscReal h = PetscSinReal(12.9898 * (3 * natural[k] + d) + 78.233) * 43758.5453, r = 2 * (h - PetscFloorReal(h)) - 1;
-      z[3 * k + d]      = fixed[k] ? 0 : env * (c[d][0] * si + c[d][1] * sj + c[d][2] * si * sj) + noise * r;
+      z[3 * k + d] = fixed[k] ? 0 : env * (c[d][0] * si + c[d][1] * sj + c[d][2] * si * sj) + noise * r;
     }
   }
 }
@@ -82,7 +84,8 @@ typedef PetscErrorCode (*HessianProduct)(void *, const PetscScalar *, PetscScala
 /* lambda_max(M^-1 H) by Lanczos on np particles (fixed ones take no part): at most
  * maxit steps, fewer once a step raises the estimate by less than STABILITY_RTOL
  * (early) or an invariant subspace is found. Collective on comm. */
-static PetscErrorCode Lanczos(MPI_Comm comm, PetscInt np, const PetscInt *natural, const PetscReal *mass, const PetscBool *fixed, PetscInt Mx, PetscInt nrect, const PetscInt rect[], HessianProduct apply, void *ctx, PetscInt maxit, PetscBool early, PetscReal *lambda, PetscInt *steps)
+static PetscErrorCode Lanczos(MPI_Comm comm, PetscInt np, const PetscInt *natural, const PetscReal *mass, const PetscBool *fixed, PetscInt Mx, PetscInt nrect, const PetscInt rect[], HessianProduct apply, void *ctx, PetscInt maxit, PetscBool early,
+                              PetscReal *lambda, PetscInt *steps)
 {
   const PetscInt n = 3 * np;
   PetscScalar   *work[3], *p, *q, *r, *t;
@@ -145,8 +148,10 @@ static PetscErrorCode ApplyLattice(void *ctx, const PetscScalar *z, PetscScalar 
   LatticeProduct *lp = (LatticeProduct *) ctx;
 
   PetscFunctionBeginUser;
-  if (lp->elementwise) PetscCall(ClothApplyHessianElementwise(lp->cloth, lp->x, z, y));
-  else PetscCall(ClothApplyHessian(lp->cloth, lp->x, z, y));
+  if (lp->elementwise)
+    PetscCall(ClothApplyHessianElementwise(lp->cloth, lp->x, z, y));
+  else
+    PetscCall(ClothApplyHessian(lp->cloth, lp->x, z, y));
   PetscFunctionReturn(0);
 }
 

@@ -1110,6 +1110,28 @@ static PetscErrorCode GroupFriction(PetscRandom rnd)
   PetscFunctionReturn(0);
 }
 
+/* KernelAsin, the force loops' asin, against the C library's: at most 1 ulp apart on
+ * |x| <= 1/2, 2 ulp above, odd, exact at 0 and +-1. */
+static PetscErrorCode GroupAsin(PetscRandom rnd)
+{
+  PetscReal worst[2] = {0, 0};
+
+  PetscFunctionBeginUser;
+  for (PetscInt k = 0; k < 400000; k++) {
+    PetscReal x = 0, ref, ulp;
+    PetscCall(Uniform(rnd, -1, 1, &x));
+    if (k % 2) x *= 0.5;
+    ref = PetscAsinReal(x);
+    ulp = nextafter(PetscAbsReal(ref), PETSC_INFINITY) - PetscAbsReal(ref);
+    if (ref != 0) worst[PetscAbsReal(x) > 0.5] = PetscMax(worst[PetscAbsReal(x) > 0.5], PetscAbsReal(KernelAsin(x) - ref) / ulp);
+    PetscCheck(KernelAsin(-x) == -KernelAsin(x), PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED KernelAsin is not odd at %.17g", (double) x);
+  }
+  PetscCheck(worst[0] <= 1 && worst[1] <= 2, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED KernelAsin: %g ulp from asin on |x| <= 1/2 (at most 1), %g above (at most 2)", (double) worst[0], (double) worst[1]);
+  PetscCheck(KernelAsin(0) == 0 && KernelAsin(1) == PETSC_PI / 2 && KernelAsin(-1) == -PETSC_PI / 2 && KernelAsin(1e-300) == 1e-300, PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED KernelAsin at 0, 1e-300 or +-1");
+  npassed++;
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode Run(void)
 {
   PetscRandom rnd;
@@ -1136,6 +1158,7 @@ static PetscErrorCode Run(void)
     PetscCall(GroupGradientKernels(sets, nset));
   }
   PetscCall(GroupShearCell(rnd));
+  PetscCall(GroupAsin(rnd));
   PetscCall(GroupPSDTest(rnd));
   PetscCall(GroupClosedProjection(rnd));
   PetscCall(GroupKnownStretch(rnd));
