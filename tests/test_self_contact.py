@@ -103,10 +103,12 @@ def test_crease_pairs_enter_the_solve(tmp):
     the cells either side come within the thickness with their closest points inside
     both edges: edge-edge pairs, which backward Euler takes into its solve as
     penalties (-contact_self_solve_edges, on by default; the filter after the step
-    has them too). Frames every step: the largest edge strain stays below 1.5 %
-    (measured 0.91 %, at the crease's free end). With point-triangle pairs alone in
-    the solve the filter stops the diagonals pair by pair on their four particles,
-    and the crease's free-end edge peaks at 2.08 % (the 81^2 sphere landing's
+    has them too). Frames every step: the largest edge strain stays below 1.8 %
+    (at the crease's free end; a contact-driven peak, sensitive to round-off: 0.95,
+    1.26 and 1.69 % with the element lists' and the lattice's force sums and with CG
+    at rtol 1.01e-8). With point-triangle pairs alone in the solve the filter stops
+    the diagonals pair by pair on their four particles, and the crease's free-end
+    edge peaks at 2.00-2.08 % in the same four runs (the 81^2 sphere landing's
     one-step spikes at free edges: 14.9 % with point-triangle pairs alone, 6.5 %
     with edge-edge pairs too). No crossing either way."""
     start = tmp / "crease_start.h5"
@@ -127,7 +129,7 @@ def test_crease_pairs_enter_the_solve(tmp):
         rep = run(f"-restart {start} -output_file {out} -ts_max_steps 100000 -ts_max_time 0.5 -contact_self_solve_edges {edges}").report
         peak[edges] = drape_h5.load(out).strain_max.max()
         assert crossings(out).max() == 0 and rep["self_failsafe"] == 0, rep
-    assert peak[1] < 0.015 < 0.018 < peak[0], peak
+    assert peak[1] < 0.018 < peak[0], peak
 
 
 def test_filter_does_not_move_what_the_sticky_solid_holds(tmp):

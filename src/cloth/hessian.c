@@ -14,6 +14,7 @@ static PetscErrorCode ClothApplyHessian_Private(Cloth c, PetscBool elementwise, 
   PetscReal          H[225];
 
   PetscFunctionBeginUser;
+  PetscCall(ClothSetUpImplicit(c)); /* the ghost scatter, Zl and the ghosts' pins, at the first product */
   Zl = c->Zl;
   PetscCall(VecPlaceArray(c->Xg, z));
   PetscCall(VecScatterBegin(c->ghost, c->Xg, Zl, INSERT_VALUES, SCATTER_FORWARD));

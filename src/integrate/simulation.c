@@ -587,7 +587,7 @@ PetscErrorCode SimulationSetUp(Simulation s)
      * an explicit run without the estimate never makes it */
     PetscBool implicit;
     PetscCall(PetscObjectTypeCompare((PetscObject) s->ts, TSDRAPEBE, &implicit));
-    if (implicit || s->stability_its > 0) PetscCall(ClothSetUpImplicit(s->cloth));
+    if (implicit) PetscCall(ClothSetUpImplicit(s->cloth)); /* else at the first Hessian product, if any (small lattices' stability estimate) */
   }
   PetscCall(TSDrapeBESetCloth(s->ts, s->cloth));
   if (s->contact) PetscCall(TSDrapeBESetContact(s->ts, s->contact));
