@@ -92,6 +92,7 @@ BAD = [
     ("-solid_floor 2", "particles inside the solid"),
     ("-cloth_shape circle -cusick_pedestal_radius 1", "leaves no overhang"),
     ("-cusick_center 0.1", "-cusick_center needs two coordinates"),
+    ("-ts_type basicsymplectic -ts_exact_final_time interpolate", "interpolate is not available with -ts_type basicsymplectic"),
 ]
 
 

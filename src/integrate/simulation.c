@@ -189,6 +189,8 @@ static PetscErrorCode TSSetUp_Symplectic(TS ts)
   PetscCall(TSRHSSplitGetIS(ts, "momentum", &sy->is_v));
   PetscCall(TSRHSSplitGetSubTS(ts, "momentum", &sy->momentum));
   PetscCheck(sy->is_x && sy->is_v && sy->momentum, PetscObjectComm((PetscObject) ts), PETSC_ERR_ORDER, "-ts_type basicsymplectic needs the position and momentum splits (TSRHSSplitSetIS, TSRHSSplitSetRHSFunction)");
+  PetscCheck(ts->exact_final_time != TS_EXACTFINALTIME_INTERPOLATE, PetscObjectComm((PetscObject) ts), PETSC_ERR_USER_INPUT,
+             "-ts_exact_final_time interpolate is not available with -ts_type basicsymplectic (drape's keeps no copy of the previous state to interpolate from); use matchstep (the default) or stepover");
   PetscCall(TSGetAdapt(ts, &ts->adapt));
   PetscCall(TSAdaptCandidatesClear(ts->adapt)); /* fixed steps */
   PetscFunctionReturn(0);
