@@ -1,8 +1,11 @@
-"""The benchmark scripts paper_tables.py, scaling.py, solver_study.py, rtol_accuracy.py, implicit_study.py and bench_assembly.py in --quick mode:
+"""The benchmark scripts paper_tables.py, scaling.py, solver_study.py, rtol_accuracy.py, implicit_study.py, bench_assembly.py and bench_core.py in --quick mode:
 their CSV columns and contents, and the claims they rest on (a dense implicit matrix
 gives the AIJ frames, the Blender shortcut is less accurate than drape's default,
-bytes per particle are plausible); plus -drape_mat_type dense on 1 and 2 ranks."""
+bytes per particle are plausible); plus -drape_mat_type dense on 1 and 2 ranks; the
+report's CPU time; and that README's and BENCHMARKS.md's benchmark figures are those
+of the last `make bench` (docs/bench_core.md). No test here times anything."""
 import csv
+import re
 import subprocess
 import sys
 
@@ -11,6 +14,7 @@ import pytest
 
 from conftest import ROOT, run
 
+import bench_core
 import drape_h5
 
 SCRIPTS = ROOT / "scripts"
@@ -148,7 +152,7 @@ def test_dense_matrix_gives_aij_frames(tmp, np_):
     assert np.max(np.abs(fa.positions - fd.positions)) < 1e-9
 
 
-@pytest.mark.parametrize("script", ["paper_tables.py", "scaling.py", "solver_study.py", "implicit_study.py"])
+@pytest.mark.parametrize("script", ["paper_tables.py", "scaling.py", "solver_study.py", "implicit_study.py", "bench_core.py"])
 def test_missing_build_is_one_sentence(tmp, script):
     proc = subprocess.run([sys.executable, str(SCRIPTS / script), "--quick", "--out", str(tmp), "--build", str(tmp / "nobuild")],
                           capture_output=True, text=True, timeout=60, cwd=ROOT)
@@ -205,3 +209,136 @@ def test_bench_assembly_quick_measures_every_way_into_every_matrix(tmp_path):
         t, h = float(r["ms_per_assembly"]), float(r["ms_handoff"])
         assert t > 0, r
         assert (0 < h < t) if mode == "coo" else np.isnan(h), r
+
+
+# bench_core.py and the generated benchmark table (issue 26)
+NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+HEADER = re.compile(r"^Measured by `make bench` on (\d{4}-\d\d-\d\d \d\d:\d\d UTC) at commit ([0-9a-f]{7,}\+?) \((.+), \d+ cores.*\); "
+                    r".*repeat spread up to (\S+) %\.$")
+
+
+def figures(text):
+    """(header line, the rest with numbers as '#', the numbers) of a bench_core block."""
+    head, _, rest = text.strip().partition("\n")
+    return head, NUMBER.sub("#", rest), [float(x) for x in NUMBER.findall(rest)]
+
+
+def disagreements(quoted, generated, tol):
+    """Where a document's block differs from the generated one: its header (machine,
+    date, commit) word for word, its prose and table layout, and each figure within tol."""
+    (hq, sq, nq), (hg, sg, ng) = figures(quoted), figures(generated)
+    bad = []
+    if hq != hg:
+        bad.append(f"header {hq!r} != {hg!r}")
+    if sq != sg or len(nq) != len(ng):
+        bad.append("text or table layout differs")
+    bad += [f"{a} != {b}" for a, b in zip(nq, ng) if abs(a - b) > tol * max(abs(a), abs(b))]
+    return bad
+
+
+@pytest.fixture(scope="module")
+def bench(tmp_path_factory):
+    out = tmp_path_factory.mktemp("bench_core")
+    return out, quick("bench_core.py", out)
+
+
+def test_bench_core_quick_rows_and_blocks(bench):
+    """bench_core.py --quick: a CSV row per scheme (drape's and the paper's symplectic
+    Euler, explicit and backward Euler) and lattice plus the peer row, with wall and CPU
+    rates, work per particle-step and a status; the generated markdown has the four
+    blocks, each naming the machine, the date and the commit, and the machine limits."""
+    out, _ = bench
+    got = rows(out / "bench_core.csv")
+    assert [(r["scheme"], int(r["N"])) for r in got] == [(s, n) for n in (16, 24) for s in ("symplectic", "symplectic_paper", "explicit", "beuler")] + [("peer", 64)]
+    for r in got:
+        assert r["status"] == "ok", r
+        assert float(r["median_particle_steps_per_s"]) > 0 and float(r["median_particle_steps_per_cpu_s"]) > 0, r
+        if r["scheme"] != "peer":
+            assert 100 < float(r["bytes_per_particle_step"]) and 100 < float(r["flops_per_particle_step"]), r
+        assert (r["cg_its_per_step"] != "" and float(r["cg_its_per_step"]) > 0) == (r["scheme"] == "beuler"), r
+    # the paper's model has fewer bending triples: less work per particle-step
+    work = {(r["scheme"], int(r["N"])): float(r["flops_per_particle_step"]) for r in got if r["scheme"] != "peer"}
+    assert work[("symplectic_paper", 24)] < work[("symplectic", 24)] == work[("explicit", 24)]
+    md = (out / "bench_core.md").read_text()
+    blocks = bench_core.blocks_of(md)
+    assert set(blocks) == {"table", "detail", "floors", "limits"}
+    for name, text in blocks.items():
+        m = HEADER.match(text.splitlines()[0])
+        assert m, (name, text.splitlines()[0])
+    assert re.search(r"memory bandwidth \S+ GB/s .* peak \S+ GFLOP/s .* scalar \S+ GFLOP/s", blocks["table"])
+    assert "simulated s per CPU second" in blocks["table"] and "`-cloth_model paper`" in blocks["table"]
+    assert "| 16² | 24² |" in blocks["table"] and "not run at 512²" in blocks["floors"]
+
+
+def test_bench_core_update_docs_rewrites_only_the_blocks(bench, tmp_path):
+    """--update-docs's rewrite on copies of README.md and BENCHMARKS.md: the blocks become
+    the generated ones, everything outside the markers stays, and a second rewrite
+    changes nothing; a document without the markers is refused with one sentence."""
+    out, _ = bench
+    md = (out / "bench_core.md").read_text()
+    for doc in ("README.md", "BENCHMARKS.md"):
+        (tmp_path / doc).write_text((ROOT / doc).read_text())
+    bench_core.update_docs(md, root=tmp_path)
+    gen = bench_core.blocks_of(md)
+    for doc in ("README.md", "BENCHMARKS.md"):
+        before, after = (ROOT / doc).read_text(), (tmp_path / doc).read_text()
+        mine = bench_core.blocks_of(after)
+        assert set(mine) == {n for n, d in bench_core.DOCS.items() if d == doc}
+        assert all(mine[n] == gen[n] for n in mine)
+        outside = re.compile(r"<!-- bench_core (\w+) begin -->.*?<!-- bench_core \1 end -->", re.S)
+        assert outside.sub("", before) == outside.sub("", after)
+    again = {d: (tmp_path / d).read_text() for d in ("README.md", "BENCHMARKS.md")}
+    bench_core.update_docs(md, root=tmp_path)
+    assert again == {d: (tmp_path / d).read_text() for d in again}
+    (tmp_path / "README.md").write_text("# no markers\n")
+    proc = subprocess.run([sys.executable, "-c", f"import sys; sys.path.insert(0, {str(SCRIPTS)!r}); import bench_core; "
+                           f"bench_core.update_docs(open({str(out / 'bench_core.md')!r}).read(), root={str(tmp_path)!r})"],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode != 0 and "has no '<!-- bench_core table begin -->'" in proc.stderr and proc.stderr.strip().count("\n") == 0, proc.stderr
+
+
+@pytest.mark.parametrize("doc", ["README.md", "BENCHMARKS.md"])
+def test_docs_quote_the_last_make_bench(doc):
+    """README's benchmark table and BENCHMARKS.md's generated figures are those of the
+    committed docs/bench_core.md (the last `make bench`): the same machine, date and
+    commit, the same text, every figure within the largest spread measured between
+    repeats (at least the 3-digit rounding); the README table has all four lattices
+    and names the machine, the date and the commit. Nothing is timed here."""
+    generated = (ROOT / "docs" / "bench_core.md").read_text()
+    gen = bench_core.blocks_of(generated)
+    quoted = bench_core.blocks_of((ROOT / doc).read_text())
+    names = {n for n, d in bench_core.DOCS.items() if d == doc}
+    assert set(quoted) == names, f"{doc} lacks the bench_core blocks {names - set(quoted)}"
+    for name in names:
+        m = HEADER.match(gen[name].splitlines()[0])
+        assert m, f"docs/bench_core.md's {name} block lacks machine, date or commit: {gen[name].splitlines()[0]!r}"
+        assert HEADER.match(quoted[name].splitlines()[0]), f"{doc}'s {name} block lacks machine, date or commit"
+        tol = max(float(m.group(4)) / 100, 0.01)
+        bad = disagreements(quoted[name], gen[name], tol)
+        assert not bad, f"{doc}'s {name} block disagrees with docs/bench_core.md (run 'make bench', or scripts/bench_core.py --update-docs-only): {bad[:5]}"
+    if doc == "README.md":
+        assert "| 64² | 128² | 256² | 512² |" in quoted["table"], "README's table is not of the default sizes: run 'make bench'"
+
+
+def test_disagreement_is_caught():
+    """The comparison itself: a figure moved by more than the tolerance, a changed commit or
+    a changed row label are disagreements; a figure within it is not."""
+    gen = "Measured by `make bench` on 2026-01-01 00:00 UTC at commit abcdef1234 (X, 2 cores); repeat spread up to 2.0 %.\n\n| a | 1.00e7 |"
+    assert disagreements(gen, gen, 0.02) == []
+    assert disagreements(gen.replace("1.00e7", "1.01e7"), gen, 0.02) == []
+    assert disagreements(gen.replace("1.00e7", "1.05e7"), gen, 0.02)
+    assert disagreements(gen.replace("abcdef1234", "abcdef1235"), gen, 0.02)
+    assert disagreements(gen.replace("| a |", "| b |"), gen, 0.02)
+
+
+@pytest.mark.parametrize("np_", [1, 2])
+def test_report_gives_cpu_time(np_):
+    """The report's CPU time of the time loop (getrusage, summed over ranks, and the
+    busiest rank's) and particle_steps_per_cpu_s from the sum; the Summary line prints
+    both. Values are checked for consistency only, not speed."""
+    res = run("-da_grid_x 12 -da_grid_y 12 -cloth_pin edge_corners -ts_type basicsymplectic -ts_dt 1e-4 -ts_max_steps 30", np_)
+    rep = res.report
+    assert 0 < rep["cpu_rank_max"] <= rep["cpu"] <= np_ * rep["cpu_rank_max"] * (1 + 1e-12)
+    assert rep["particle_steps_per_cpu_s"] == pytest.approx(rep["steps"] * rep["particles"] / rep["cpu"])
+    m = re.search(r"; (\S+) s CPU \(all ranks\), (\S+) particle-steps per CPU second", res.stdout)
+    assert m and float(m.group(1)) == pytest.approx(rep["cpu"], abs=1e-3) and float(m.group(2)) == pytest.approx(rep["particle_steps_per_cpu_s"], rel=1e-4)
