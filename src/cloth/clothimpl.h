@@ -221,14 +221,15 @@ PETSC_INTERN PetscErrorCode ClothGetLocalWork(Cloth, Vec *);
 PETSC_INTERN PetscErrorCode ClothScatterPositions(Cloth, const PetscScalar *, const PetscScalar **);
 PETSC_INTERN PetscErrorCode ClothEndScatter(Cloth, const PetscScalar **);
 
-/* lattice.c: the explicit force kernel on the lattice patch, from the local (owned +
- * ghost) positions xl: the internal force f, or the acceleration a = M^-1 F + g - c v
- * (0 on pinned particles), of the owned particles. Not collective. */
+/* lattice.c: the explicit force kernel on the lattice patch, from the owned positions
+ * x (it gathers the ghosts'): the internal force f, or the acceleration a = M^-1 F +
+ * g - c v (0 on pinned particles), of the owned particles; or the symplectic update
+ * in place (ClothKickDrift). Collective (the ghosts). */
 PETSC_INTERN PetscErrorCode ClothLatticeSetUp(Cloth);
 PETSC_INTERN PetscErrorCode ClothLatticeDestroy(Cloth);
-PETSC_INTERN PetscErrorCode ClothLatticeComputeForce(Cloth, const PetscScalar *xl, PetscScalar *f);
-PETSC_INTERN PetscErrorCode ClothLatticeComputeAcceleration(Cloth, const PetscScalar *xl, const PetscScalar *v, PetscScalar *a);
-PETSC_INTERN PetscErrorCode ClothLatticeKickDrift(Cloth, const PetscScalar *xl, PetscScalar *x, PetscScalar *v, PetscReal kick, PetscReal drift);
+PETSC_INTERN PetscErrorCode ClothLatticeComputeForce(Cloth, const PetscScalar *x, PetscScalar *f);
+PETSC_INTERN PetscErrorCode ClothLatticeComputeAcceleration(Cloth, const PetscScalar *x, const PetscScalar *v, PetscScalar *a);
+PETSC_INTERN PetscErrorCode ClothLatticeKickDrift(Cloth, PetscScalar *x, PetscScalar *v, PetscReal kick, PetscReal drift);
 
 /* fabrics.c: the measured fabrics of -cloth_fabric */
 PETSC_INTERN PetscErrorCode ClothSetFabric(Cloth, const char *);

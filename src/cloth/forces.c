@@ -115,8 +115,8 @@ static void AccumulateInternalForce(Cloth c, const PetscReal *restrict xl, Petsc
   AccumulateFrictionForces(c, xl, fl);
 }
 
-/* The internal force on owned particle k, before its scaling: from the lattice
- * kernel's patch or from the element lists' ghosted array fl. */
+/* The internal force on the owned particles: by the lattice kernel, or from the
+ * element lists' ghosted array fl. */
 PetscErrorCode ClothComputeInternalForce(Cloth c, const PetscScalar *x, PetscScalar *f)
 {
   const PetscScalar *xl;
@@ -125,10 +125,10 @@ PetscErrorCode ClothComputeInternalForce(Cloth c, const PetscScalar *x, PetscSca
 
   PetscFunctionBeginUser;
   PetscCall(PetscLogEventBegin(drape_log.forces, 0, 0, 0, 0));
-  PetscCall(ClothScatterPositions(c, x, &xl));
   if (c->lattice)
-    PetscCall(ClothLatticeComputeForce(c, xl, f));
+    PetscCall(ClothLatticeComputeForce(c, x, f));
   else {
+    PetscCall(ClothScatterPositions(c, x, &xl));
     PetscCall(ClothGetLocalWork(c, &Yl));
     PetscCall(VecGetArray(Yl, &fl));
     PetscCall(PetscArrayzero(fl, 3 * c->nlocal));
@@ -136,8 +136,8 @@ PetscErrorCode ClothComputeInternalForce(Cloth c, const PetscScalar *x, PetscSca
     for (PetscInt k = 0; k < c->nowned; k++)
       for (PetscInt d = 0; d < 3; d++) f[3 * k + d] = fl[3 * c->owned_local[k] + d];
     PetscCall(VecRestoreArray(Yl, &fl));
+    PetscCall(ClothEndScatter(c, &xl));
   }
-  PetscCall(ClothEndScatter(c, &xl));
   PetscCall(PetscLogEventEnd(drape_log.forces, 0, 0, 0, 0));
   PetscFunctionReturn(0);
 }
@@ -153,10 +153,10 @@ PetscErrorCode ClothComputeAcceleration(Cloth c, const PetscScalar *x, const Pet
 
   PetscFunctionBeginUser;
   PetscCall(PetscLogEventBegin(drape_log.forces, 0, 0, 0, 0));
-  PetscCall(ClothScatterPositions(c, x, &xl));
   if (c->lattice)
-    PetscCall(ClothLatticeComputeAcceleration(c, xl, v, a));
+    PetscCall(ClothLatticeComputeAcceleration(c, x, v, a));
   else {
+    PetscCall(ClothScatterPositions(c, x, &xl));
     PetscCall(ClothGetLocalWork(c, &Yl));
     PetscCall(VecGetArray(Yl, &fl));
     PetscCall(PetscArrayzero(fl, 3 * c->nlocal));
@@ -169,23 +169,19 @@ PetscErrorCode ClothComputeAcceleration(Cloth c, const PetscScalar *x, const Pet
       for (PetscInt d = 0; d < 3; d++) a[3 * k + d] = fl[3 * c->owned_local[k] + d] / c->mass[k] + c->gravity[d] - cd * v[3 * k + d];
     }
     PetscCall(VecRestoreArray(Yl, &fl));
+    PetscCall(ClothEndScatter(c, &xl));
   }
-  PetscCall(ClothEndScatter(c, &xl));
   PetscCall(PetscLogEventEnd(drape_log.forces, 0, 0, 0, 0));
   PetscFunctionReturn(0);
 }
 
 PetscErrorCode ClothKickDrift(Cloth c, PetscScalar *x, PetscScalar *v, PetscReal kick, PetscReal drift, PetscBool *done)
 {
-  const PetscScalar *xl;
-
   PetscFunctionBeginUser;
   *done = (PetscBool) (c->lattice != NULL);
   if (!*done) PetscFunctionReturn(0);
   PetscCall(PetscLogEventBegin(drape_log.forces, 0, 0, 0, 0));
-  PetscCall(ClothScatterPositions(c, x, &xl));
-  PetscCall(ClothLatticeKickDrift(c, xl, x, v, kick, drift));
-  PetscCall(ClothEndScatter(c, &xl));
+  PetscCall(ClothLatticeKickDrift(c, x, v, kick, drift));
   PetscCall(PetscLogEventEnd(drape_log.forces, 0, 0, 0, 0));
   PetscFunctionReturn(0);
 }

@@ -53,8 +53,10 @@ struct _n_ClothLattice {
   PetscInt      *row_run;          /* runs of patch row r: row_run[r] .. row_run[r + 1] - 1          */
   LatticeRun    *run;              /* local particles by patch row, owned and ghost runs apart       */
   PetscInt       nowned;           /* local particles below nowned are owned                         */
-  PetscReal     *x[3], *f[3];      /* rings of LATTICE_RING padded rows                              */
-  unsigned char *cls[LAT_KINDS];   /* class + 1 of the element anchored at each padded slot, 0: none; NULL: no element of the kind */
+  VecScatter     ghosts;           /* owners -> G: the ghosts' positions, local particles nowned, ... */
+  Vec            G;
+  PetscReal     *x[3], *f[3];    /* rings of LATTICE_RING padded rows                              */
+  unsigned char *cls[LAT_KINDS]; /* class + 1 of the element anchored at each padded slot, 0: none; NULL: no element of the kind */
   PetscReal      coef[LAT_KINDS][CLOTH_ELEMENT_CLASSES + 1];
   PetscReal      coef_rest[2][CLOTH_ELEMENT_CLASSES + 1]; /* stretch: k L */
   PetscReal     *tmp;                                     /* 12 rows of W + 4: one row's element gradients */
@@ -65,7 +67,7 @@ struct _n_ClothLattice {
  * NULL); or the acceleration a = F/m + g - c v, 0 on pinned particles: out = a, or,
  * with kick != 0, the symplectic update in place v += kick a, then x += drift v. */
 typedef struct {
-  const PetscScalar *xl, *v;
+  const PetscScalar *xo, *xg, *v; /* owned positions, ghosts' (local particle nowned + g at xg + 3 g) */
   const PetscReal   *mass, *gravity;
   const PetscBool   *pinned;
   PetscReal          damping, kick, drift;
@@ -287,14 +289,14 @@ static inline void LatticeRingRows(const ClothLattice *L, PetscReal *const ring[
     for (PetscInt d = 0; d < 3; d++) R->r[q][d] = LatticeRingRow(ring[d], L->ld, j - 1 + q);
 }
 
-/* Patch row r's positions into the ring, from the caller's (owned + ghost) array. */
+/* Patch row r's positions into the ring, from the owned and the ghosts' arrays. */
 static inline void LatticeLoadRow(const ClothLattice *L, const LatticeSweep *S, PetscInt r)
 {
   PetscReal *restrict X = LatticeRingRow(L->x[0], L->ld, r), *restrict Y = LatticeRingRow(L->x[1], L->ld, r), *restrict Z = LatticeRingRow(L->x[2], L->ld, r);
 
   for (PetscInt q = L->row_run[r]; q < L->row_run[r + 1]; q++) {
     const LatticeRun R             = L->run[q];
-    const PetscScalar *restrict xl = S->xl + 3 * R.l;
+    const PetscScalar *restrict xl = R.l < L->nowned ? S->xo + 3 * R.l : S->xg + 3 * (R.l - L->nowned);
     for (PetscInt k = 0; k < R.n; k++) {
       X[R.p + k] = xl[3 * k];
       Y[R.p + k] = xl[3 * k + 1];
@@ -357,6 +359,7 @@ LatticeSweepRows(const ClothLattice *L, const LatticeSweep *S)
 {
   LatticeRows X, F;
 
+  if (!L->H) return;
   for (PetscInt d = 0; d < 3; d++) {
     PetscArrayzero(LatticeRingRow(L->f[d], L->ld, -1) - 1, L->ld);
     PetscArrayzero(LatticeRingRow(L->f[d], L->ld, 0) - 1, L->ld);
@@ -373,31 +376,51 @@ LatticeSweepRows(const ClothLattice *L, const LatticeSweep *S)
   LatticeStoreRow(L, S, L->H - 1);
 }
 
-PetscErrorCode ClothLatticeComputeForce(Cloth c, const PetscScalar *xl, PetscScalar *f)
+/* The ghosts' positions, from their owners (collective). */
+static PetscErrorCode LatticeGhosts(Cloth c, const PetscScalar *x, const PetscScalar **xg)
 {
-  const LatticeSweep S = {xl, NULL, NULL, NULL, NULL, 0, 0, 0, f, NULL};
+  ClothLattice *L = c->lattice;
 
   PetscFunctionBeginUser;
-  LatticeSweepRows(c->lattice, &S);
+  PetscCall(VecPlaceArray(c->Xg, x));
+  PetscCall(VecScatterBegin(L->ghosts, c->Xg, L->G, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterEnd(L->ghosts, c->Xg, L->G, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecResetArray(c->Xg));
+  PetscCall(VecGetArrayRead(L->G, xg));
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode ClothLatticeComputeAcceleration(Cloth c, const PetscScalar *xl, const PetscScalar *v, PetscScalar *a)
+PetscErrorCode ClothLatticeComputeForce(Cloth c, const PetscScalar *x, PetscScalar *f)
 {
-  const LatticeSweep S = {xl, v, c->mass, c->gravity, c->pinned, c->damping, 0, 0, a, NULL};
+  LatticeSweep S = {x, NULL, NULL, NULL, NULL, NULL, 0, 0, 0, f, NULL};
 
   PetscFunctionBeginUser;
+  PetscCall(LatticeGhosts(c, x, &S.xg));
   LatticeSweepRows(c->lattice, &S);
+  PetscCall(VecRestoreArrayRead(c->lattice->G, &S.xg));
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode ClothLatticeKickDrift(Cloth c, const PetscScalar *xl, PetscScalar *x, PetscScalar *v, PetscReal kick, PetscReal drift)
+PetscErrorCode ClothLatticeComputeAcceleration(Cloth c, const PetscScalar *x, const PetscScalar *v, PetscScalar *a)
 {
-  const LatticeSweep S = {xl, v, c->mass, c->gravity, c->pinned, c->damping, kick, drift, v, x};
+  LatticeSweep S = {x, NULL, v, c->mass, c->gravity, c->pinned, c->damping, 0, 0, a, NULL};
+
+  PetscFunctionBeginUser;
+  PetscCall(LatticeGhosts(c, x, &S.xg));
+  LatticeSweepRows(c->lattice, &S);
+  PetscCall(VecRestoreArrayRead(c->lattice->G, &S.xg));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ClothLatticeKickDrift(Cloth c, PetscScalar *x, PetscScalar *v, PetscReal kick, PetscReal drift)
+{
+  LatticeSweep S = {x, NULL, v, c->mass, c->gravity, c->pinned, c->damping, kick, drift, v, x};
 
   PetscFunctionBeginUser;
   PetscCheck(kick != 0, PETSC_COMM_SELF, PETSC_ERR_ARG_OUTOFRANGE, "ClothLatticeKickDrift needs a kick");
+  PetscCall(LatticeGhosts(c, x, &S.xg));
   LatticeSweepRows(c->lattice, &S);
+  PetscCall(VecRestoreArrayRead(c->lattice->G, &S.xg));
   PetscFunctionReturn(0);
 }
 
@@ -458,11 +481,13 @@ PetscErrorCode ClothLatticeSetUp(Cloth c)
   PetscCall(PetscOptionsEList("-cloth_force_kernel", "Force loop of the explicit schemes: lattice (structured, vectorised) or elements (the element lists; always used with -cloth_bend_table or -cloth_bend_hysteresis)", "ClothLatticeSetUp", kernels,
                               2, kernels[0], &kernel, NULL));
   PetscOptionsEnd();
-  if (kernel == 1 || be->has_law || c->friction_el.n > 0 || c->nlocal == 0) PetscFunctionReturn(0);
+  /* the same on every rank: the ghosts' scatter is collective */
+  if (kernel == 1 || be->has_law || c->hysteresis[0] > 0 || c->hysteresis[1] > 0) PetscFunctionReturn(0);
   for (PetscInt l = 0; l < c->nlocal; l++) {
     const PetscInt i = c->natural[l] % c->Mx, j = c->natural[l] / c->Mx;
     imin = PetscMin(imin, i), imax = PetscMax(imax, i), jmin = PetscMin(jmin, j), jmax = PetscMax(jmax, j);
   }
+  if (!c->nlocal) imin = jmin = 0; /* an empty patch */
   PetscCall(PetscNew(&L));
   L->i0     = imin;
   L->j0     = jmin;
@@ -476,6 +501,15 @@ PetscErrorCode ClothLatticeSetUp(Cloth c)
     PetscCall(PetscCalloc1(LATTICE_RING * L->ld, &L->f[d]));
   }
   PetscCall(LatticeBuildRuns(c, L));
+  { /* the ghosts' positions alone: the owned ones are read where they are */
+    IS from, to;
+    PetscCall(ISCreateBlock(c->comm, 3, c->nlocal - c->nowned, c->global + c->nowned, PETSC_USE_POINTER, &from));
+    PetscCall(ISCreateStride(PETSC_COMM_SELF, 3 * (c->nlocal - c->nowned), 0, 1, &to));
+    PetscCall(VecCreateSeq(PETSC_COMM_SELF, 3 * (c->nlocal - c->nowned), &L->G));
+    PetscCall(VecScatterCreate(c->Xg, from, L->G, to, &L->ghosts));
+    PetscCall(ISDestroy(&from));
+    PetscCall(ISDestroy(&to));
+  }
   PetscCall(PetscMalloc1(12 * (L->ld + 2), &L->tmp));
   PetscCall(PetscMalloc1(3 * L->W, &L->krow));
 #define KIND_ALLOC(kind)                                                                                                                                                                                                                                 \
@@ -526,6 +560,8 @@ PetscErrorCode ClothLatticeDestroy(Cloth c)
   if (!L) PetscFunctionReturn(0);
   PetscCall(PetscFree(L->row_run));
   PetscCall(PetscFree(L->run));
+  PetscCall(VecScatterDestroy(&L->ghosts));
+  PetscCall(VecDestroy(&L->G));
   for (PetscInt d = 0; d < 3; d++) {
     PetscCall(PetscFree(L->x[d]));
     PetscCall(PetscFree(L->f[d]));
