@@ -20,6 +20,7 @@ OUT     ?= out
 CFLAGS  ?= -O3 -g -fno-math-errno
 CXXFLAGS ?= -O3 -g
 TESTS   ?= tests
+REQUIREMENTS ?= scripts/requirements.txt
 # NATIVE=1 adds -march=native (faster on the build machine, may not run on others)
 ifeq ($(NATIVE),1)
 CFLAGS   += -march=native
@@ -82,6 +83,8 @@ PYTHON  ?= $(if $(wildcard $(VENV)/bin/python),$(VENV)/bin/python,python3)
 PYTHON_MODULES := numpy h5py matplotlib PIL pytest
 
 .PHONY: all deps venv run test check check-deps check-python config bench format clean
+# a compiler or archiver that fails (or is stopped by make) leaves no half-written object
+.DELETE_ON_ERROR:
 all: $(BUILD)/drape $(UNIT)
 
 # what the build takes from PETSc and the system
@@ -130,11 +133,11 @@ $(BUILD)/tests/%: $(BUILD)/tests/unit/%.o $(BUILD)/libdrape.a
 deps:
 	@bash scripts/install-deps.sh $(if $(PETSC_DIR),--without-petsc)
 
-$(VENV)/.installed: scripts/requirements.txt
-	@bash scripts/install-deps.sh --python $(VENV)
-	@touch $@
-
-venv: $(VENV)/.installed
+# The virtual environment is checked at every make venv (pip, the pinned packages and
+# their files: under a second, no network) and made again when an interrupted
+# earlier run left it incomplete, so no stamp file can vouch for a broken one.
+venv:
+	@bash scripts/install-deps.sh --python $(VENV) $(REQUIREMENTS)
 
 check-python:
 	@command -v $(PYTHON) >/dev/null || { echo "drape: the tests need Python 3 ($(PYTHON) not found); install it (Debian: apt-get install python3) or name it with PYTHON=..."; exit 1; }

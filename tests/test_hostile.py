@@ -3,9 +3,13 @@ with one `drape: error:` sentence, a non-zero exit, no traceback, and every file
 was there before (an earlier output, the inputs) unchanged; runs that used to lose data
 or never end now keep the data and end."""
 import hashlib
+import os
 import resource
 import shutil
+import signal
 import subprocess
+import sys
+import time
 
 import h5py
 import numpy as np
@@ -296,3 +300,59 @@ def test_progress_line_stays_out_of_batch_logs():
     assert default.returncode == 0 and forced.returncode == 0
     assert " s left" not in default.stdout  # (text mode reads the line's \r as a newline)
     assert " s left" in forced.stdout
+
+
+# ---- An interrupted set-up (issue 29, item 6) ----
+
+def make_venv(venv, requirements):
+    """make venv into venv with requirements (here only pip, which a venv brings with it:
+    no network); returns the completed process."""
+    env = {k: v for k, v in os.environ.items() if k not in ("MAKEFLAGS", "MFLAGS", "MAKELEVEL", "VENV", "REQUIREMENTS")}
+    return subprocess.run(["make", "--no-print-directory", "venv", f"VENV={venv}", f"REQUIREMENTS={requirements}"], cwd=ROOT, env=env,
+                          capture_output=True, text=True, timeout=300)
+
+
+def has_pip(venv):
+    return subprocess.run([str(venv / "bin/python"), "-c", "import pip"], capture_output=True).returncode == 0
+
+
+@pytest.mark.parametrize("how", ["killed-while-made", "made-without-pip", "pip-files-missing"])
+def test_incomplete_venv_is_made_again(tmp, how):
+    """A first make run stopped while python3 -m venv made .venv left one without pip,
+    and every later make run ended in "No module named pip". Now make venv checks the
+    venv (pip, the pinned packages and their files) and makes it again."""
+    venv, requirements = tmp / ".venv", tmp / "requirements.txt"
+    requirements.write_text("pip\n")
+    if how == "killed-while-made":
+        proc = subprocess.Popen(["bash", str(ROOT / "scripts/install-deps.sh"), "--python", str(venv), str(requirements)],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+        deadline = time.time() + 60
+        while not (venv / "bin/python").exists() and time.time() < deadline and proc.poll() is None:
+            time.sleep(0.005)
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+        assert (venv / "bin/python").exists() and not has_pip(venv)  # the state the kill left
+    elif how == "made-without-pip":
+        subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True)
+    else:
+        assert make_venv(venv, requirements).returncode == 0
+        record = next(venv.glob("lib/python*/site-packages/pip-*.dist-info/RECORD")).read_text().splitlines()
+        victim = next(line.split(",")[0] for line in reversed(record) if line.startswith("pip/_vendor/") and line.split(",")[0].endswith(".py"))
+        next(venv.glob("lib/python*/site-packages")).joinpath(victim).unlink()
+    res = make_venv(venv, requirements)
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert "making it again" in res.stdout and "No module named pip" not in res.stdout + res.stderr
+    assert has_pip(venv)
+    again = make_venv(venv, requirements)  # complete: left alone, nothing said
+    assert again.returncode == 0 and again.stdout == "", again.stdout + again.stderr
+
+
+def test_venv_directory_holding_other_files_is_left_alone(tmp):
+    """VENV naming a directory that is not a virtual environment: one sentence, nothing removed."""
+    venv = tmp / "mine"
+    venv.mkdir()
+    (venv / "notes.txt").write_text("mine")
+    (tmp / "requirements.txt").write_text("pip\n")
+    res = make_venv(venv, tmp / "requirements.txt")
+    assert res.returncode != 0 and "is not a Python virtual environment" in res.stdout, res.stdout + res.stderr
+    assert sorted(p.name for p in venv.iterdir()) == ["notes.txt"]
