@@ -2,7 +2,8 @@
 #   make run    set up what is missing, build, simulate runs/hang.opts, write HDF5 and a PNG
 #   make test   set up what is missing, build, run every test
 #   make check  build and run every test with what is installed (installs nothing)
-#   make all    build only
+#   make all    build only (WERROR=1: a warning in drape's code stops it)
+#   make format apply .clang-format; make format-check: fail if that would change a file
 # PETSc: the one PETSC_DIR (and PETSC_ARCH) names, from the environment or the
 # command line (a cluster's PETSc module); without PETSC_DIR, pkg-config's `petsc`
 # (Debian: petsc-dev). As PETSc's share/petsc/Makefile.user does, its petsc.pc gives
@@ -62,6 +63,11 @@ PETSC_RPATH  := $(call pc,--variable=ldflag_rpath)
 DRAPE_CPPFLAGS := -Iinclude $(call pc,--cflags) $(call petsc_var,MPI_INCLUDE) $(call petsc_var,HDF5_INCLUDE) $(if $(PETSC_METIS),$(call petsc_var,METIS_INCLUDE))
 DRAPE_CFLAGS   := -std=c11 -Wall -Wextra -Wno-unused-parameter -MMD -MP
 DRAPE_CXXFLAGS := -std=c++17 -frounding-math -Wall -Wextra -Wno-unused-parameter -MMD -MP
+# WERROR=1 (CI): a warning in drape's own code (its C, C++ and headers) stops the build
+ifeq ($(WERROR),1)
+DRAPE_CFLAGS   += -Werror
+DRAPE_CXXFLAGS += -Werror
+endif
 DRAPE_LDFLAGS  := $(call pc,--libs-only-L --libs-only-other $(PETSC_STATIC)) \
                   $(if $(PETSC_RPATH),$(patsubst -L%,$(PETSC_RPATH)%,$(call pc,--libs-only-L $(PETSC_STATIC))))
 DRAPE_LDLIBS   := $(call pc,--libs-only-l $(PETSC_STATIC)) $(call petsc_var,HDF5_LIB) $(if $(PETSC_METIS),$(call petsc_var,METIS_LIB),-lmetis) \
@@ -82,7 +88,7 @@ MPIEXEC ?= mpiexec $(if $(filter 0,$(shell id -u)),--allow-run-as-root) --oversu
 PYTHON  ?= $(if $(wildcard $(VENV)/bin/python),$(VENV)/bin/python,python3)
 PYTHON_MODULES := numpy h5py matplotlib PIL pytest
 
-.PHONY: all deps venv run test check check-deps check-python config bench format clean
+.PHONY: all deps venv run test check check-deps check-python config bench format format-check clean
 # a compiler or archiver that fails (or is stopped by make) leaves no half-written object
 .DELETE_ON_ERROR:
 all: $(BUILD)/drape $(UNIT)
@@ -174,8 +180,14 @@ bench: deps venv
 	@$(MAKE) --no-print-directory -j$$(nproc) all
 	DRAPE_BUILD=$(BUILD) $(VENV)/bin/python scripts/bench_core.py --out $(OUT)/bench_core.csv --doc docs/bench_core.md --update-docs
 
+FORMAT_FILES ?= $(wildcard src/*.c src/*/*.c src/*/*.h src/*/*.cxx include/*.h tests/unit/*.c)
 format:
-	clang-format -i $(wildcard src/*.c src/*/*.c src/*/*.h src/*/*.cxx include/*.h tests/unit/*.c)
+	clang-format -i $(FORMAT_FILES)
+
+# CI: fails, naming the lines, when make format would change a file
+format-check:
+	@command -v clang-format >/dev/null || { echo "drape: clang-format is missing; install it (Debian: apt-get install clang-format)"; exit 1; }
+	@clang-format --dry-run --Werror $(FORMAT_FILES) || { echo "drape: these files are not formatted as .clang-format says: run make format"; exit 1; }
 
 clean:
 	rm -rf $(BUILD)

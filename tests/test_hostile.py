@@ -356,3 +356,29 @@ def test_venv_directory_holding_other_files_is_left_alone(tmp):
     res = make_venv(venv, tmp / "requirements.txt")
     assert res.returncode != 0 and "is not a Python virtual environment" in res.stdout, res.stdout + res.stderr
     assert sorted(p.name for p in venv.iterdir()) == ["notes.txt"]
+
+
+# ---- CI fails on a compiler warning and on formatting (issue 29) ----
+
+def make(*args, timeout=120):
+    env = {k: v for k, v in os.environ.items() if k not in ("MAKEFLAGS", "MFLAGS", "MAKELEVEL", "WERROR", "FORMAT_FILES", "BUILD")}
+    return subprocess.run(["make", "--no-print-directory", *args], cwd=ROOT, env=env, capture_output=True, text=True, timeout=timeout)
+
+
+def test_ci_fails_on_a_warning_and_on_formatting(tmp):
+    """WERROR=1 turns a warning in drape's code into an error; make format-check fails
+    on a file make format would change and passes on the tree; .ci/run uses both."""
+    (tmp / "warn.h").write_text("static int drape_unused_in_a_test;\n")  # -Wunused-variable
+    flags = f"CFLAGS=-O0 -include {tmp / 'warn.h'}"
+    loose = make(f"BUILD={tmp / 'loose'}", flags, str(tmp / "loose/src/main.o"))
+    assert loose.returncode == 0 and "drape_unused_in_a_test" in loose.stderr, loose.stdout + loose.stderr
+    strict = make("WERROR=1", f"BUILD={tmp / 'strict'}", flags, str(tmp / "strict/src/main.o"))
+    assert strict.returncode != 0 and "-Werror=unused-variable" in strict.stderr, strict.stdout + strict.stderr
+    assert not (tmp / "strict/src/main.o").exists()
+    tree = make("format-check")
+    assert tree.returncode == 0, tree.stdout + tree.stderr
+    (tmp / "bad.c").write_text("int  f( int x ){return x;}\n")
+    bad = make("format-check", f"FORMAT_FILES={tmp / 'bad.c'}")
+    assert bad.returncode != 0 and "run make format" in bad.stdout and "bad.c" in bad.stderr, bad.stdout + bad.stderr
+    ci = (ROOT / ".ci/run").read_text()
+    assert "make format-check" in ci and "make test WERROR=1" in ci and "make check WERROR=1" in ci
