@@ -115,62 +115,56 @@ static void AccumulateInternalForce(Cloth c, const PetscReal *restrict xl, Petsc
   AccumulateFrictionForces(c, xl, fl);
 }
 
-/* The internal force on the owned particles: by the lattice kernel, or from the
- * element lists' ghosted array fl. */
-PetscErrorCode ClothComputeInternalForce(Cloth c, const PetscScalar *x, PetscScalar *f)
+/* The element lists' loop: the internal force on the owned particles, scaled and
+ * shifted to an acceleration when v is given (a = F/m + g - c v, 0 on pinned
+ * particles), else the force itself. */
+static PetscErrorCode ElementsForce(Cloth c, const PetscScalar *x, const PetscScalar *v, PetscScalar *out)
 {
   const PetscScalar *xl;
   PetscScalar       *fl;
   Vec                Yl;
 
+  PetscFunctionBeginUser;
+  PetscCall(ClothScatterPositions(c, x, &xl));
+  PetscCall(ClothGetLocalWork(c, &Yl));
+  PetscCall(VecGetArray(Yl, &fl));
+  PetscCall(PetscArrayzero(fl, 3 * c->nlocal));
+  AccumulateInternalForce(c, xl, fl);
+  for (PetscInt k = 0; k < c->nowned; k++) {
+    const PetscScalar *F = fl + 3 * c->owned_local[k];
+    for (PetscInt d = 0; d < 3; d++) {
+      if (!v)
+        out[3 * k + d] = F[d];
+      else
+        out[3 * k + d] = c->pinned[k] ? 0 : F[d] / c->mass[k] + c->gravity[d] - c->damping * v[3 * k + d];
+    }
+  }
+  PetscCall(VecRestoreArray(Yl, &fl));
+  PetscCall(ClothEndScatter(c, &xl));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ClothComputeInternalForce(Cloth c, const PetscScalar *x, PetscScalar *f)
+{
   PetscFunctionBeginUser;
   PetscCall(PetscLogEventBegin(drape_log.forces, 0, 0, 0, 0));
   if (c->lattice)
     PetscCall(ClothLatticeComputeForce(c, x, f));
-  else {
-    PetscCall(ClothScatterPositions(c, x, &xl));
-    PetscCall(ClothGetLocalWork(c, &Yl));
-    PetscCall(VecGetArray(Yl, &fl));
-    PetscCall(PetscArrayzero(fl, 3 * c->nlocal));
-    AccumulateInternalForce(c, xl, fl);
-    for (PetscInt k = 0; k < c->nowned; k++)
-      for (PetscInt d = 0; d < 3; d++) f[3 * k + d] = fl[3 * c->owned_local[k] + d];
-    PetscCall(VecRestoreArray(Yl, &fl));
-    PetscCall(ClothEndScatter(c, &xl));
-  }
+  else
+    PetscCall(ElementsForce(c, x, NULL, f));
   PetscCall(PetscLogEventEnd(drape_log.forces, 0, 0, 0, 0));
   PetscFunctionReturn(0);
 }
 
-/* a = M^-1 F_int + g - c v on owned particles (0 on pinned ones); owned particle k is
- * local particle k (owned_local[k] = k). */
+/* owned particle k is local particle k (owned_local[k] = k) */
 PetscErrorCode ClothComputeAcceleration(Cloth c, const PetscScalar *x, const PetscScalar *v, PetscScalar *a)
 {
-  const PetscScalar *xl;
-  PetscScalar       *fl;
-  const PetscReal    cd = c->damping;
-  Vec                Yl;
-
   PetscFunctionBeginUser;
   PetscCall(PetscLogEventBegin(drape_log.forces, 0, 0, 0, 0));
   if (c->lattice)
     PetscCall(ClothLatticeComputeAcceleration(c, x, v, a));
-  else {
-    PetscCall(ClothScatterPositions(c, x, &xl));
-    PetscCall(ClothGetLocalWork(c, &Yl));
-    PetscCall(VecGetArray(Yl, &fl));
-    PetscCall(PetscArrayzero(fl, 3 * c->nlocal));
-    AccumulateInternalForce(c, xl, fl);
-    for (PetscInt k = 0; k < c->nowned; k++) {
-      if (c->pinned[k]) {
-        a[3 * k] = a[3 * k + 1] = a[3 * k + 2] = 0;
-        continue;
-      }
-      for (PetscInt d = 0; d < 3; d++) a[3 * k + d] = fl[3 * c->owned_local[k] + d] / c->mass[k] + c->gravity[d] - cd * v[3 * k + d];
-    }
-    PetscCall(VecRestoreArray(Yl, &fl));
-    PetscCall(ClothEndScatter(c, &xl));
-  }
+  else
+    PetscCall(ElementsForce(c, x, v, a));
   PetscCall(PetscLogEventEnd(drape_log.forces, 0, 0, 0, 0));
   PetscFunctionReturn(0);
 }
