@@ -37,7 +37,7 @@ typedef struct {
   PetscReal   damping;                    /* mass-proportional damping, 1/s       */
   PetscReal   gravity[3];                 /* m/s^2                                */
   PetscReal   size[2], spacing[2];        /* cloth size and lattice spacing, m    */
-  PetscReal   stretch[2], shear, bend[3]; /* continuum rigidities (see README); bend: warp, weft, bias */
+  PetscReal   stretch[2], shear, bend[3]; /* continuum rigidities (see docs/model.md); bend: warp, weft, bias */
   const char *model;                      /* drape or paper                       */
   PetscBool   bend_table;                 /* rigidity varies with curvature (-cloth_bend_table) */
   PetscReal   hysteresis[2];              /* bending hysteresis 2HB warp, weft (N m/m; 0: none)  */

@@ -23,7 +23,7 @@
  * Each rank holds its own particles and a geometric halo (the triangles near its
  * own, moved by a PetscSF) and evaluates the pairs with one of its own particles;
  * groups of contacts across ranks are gathered and taken on every rank in one
- * order: the result is that of one rank, on any partition (README). Collective. */
+ * order: the result is that of one rank, on any partition (docs/contact.md). Collective. */
 #pragma once
 
 #include <cloth.h>

@@ -98,7 +98,7 @@ G = 9.81  # drape's default gravity (m/s^2)
 FLOOR = 0.03  # issue 13: DC within 0.03 between two resolutions
 
 # The ten measured fabrics (-cloth_fabric) and their use and fibre, from the source's README
-# (Wang, Ramamoorthi & O'Brien 2011, as distributed with ARCSim; README.md, "Measured fabrics").
+# (Wang, Ramamoorthi & O'Brien 2011, as distributed with ARCSim; docs/model.md, "Measured fabrics").
 FABRICS = {
     "denim": "jeans, 99% cotton 1% spandex",
     "polyester": "tablecloth, 100% polyester",

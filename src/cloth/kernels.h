@@ -1,5 +1,5 @@
 /* Element kernels of the paper's three energies, each with its exact gradient
- * and Hessian (paper section 3; the derivation is in README "The model").
+ * and Hessian (paper section 3; the model and its coefficients: docs/model.md).
  *
  * These functions know nothing about lattices, ranks or partitions: they take
  * the coordinates of one element's particles and return its energy, gradient
@@ -19,10 +19,10 @@
  * a state.
  *
  * With project = PETSC_TRUE the Hessian is replaced by a positive semi-definite
- * one (design.md): the stretch factor (1 - L/l) is clamped at 0 and the angle
- * Hessian's two parts (a rank-3 part and an isotropic 2x2 (x) I3 part) each get
- * their negative eigenvalues clamped at 0. Sums of PSD element matrices keep the
- * backward-Euler matrix SPD for CG. */
+ * one (docs/model.md, the paragraph on the SPD projection): the stretch factor
+ * (1 - L/l) is clamped at 0 and the angle Hessian's two parts (a rank-3 part and
+ * an isotropic 2x2 (x) I3 part) each get their negative eigenvalues clamped at 0.
+ * Sums of PSD element matrices keep the backward-Euler matrix SPD for CG. */
 #pragma once
 
 #include <petscsys.h>
