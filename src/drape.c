@@ -195,24 +195,60 @@ PetscErrorCode DrapeFinalize(void)
   PetscFunctionReturn(0);
 }
 
+/* Does an option name PETSc left unused belong to drape, as typed or misspelt? PETSc
+ * keeps a name without its leading '-' ("--x" is kept as "-x") and compares names
+ * without regard to case: -outputfile, -output-file, -CLOTH_DENSTY and --cloth_density
+ * are all near-misses of drape's names. Copies a hint on the name's form into hint. */
+static PetscBool DrapeNamespace(const char name[], char hint[], size_t size)
+{
+  static const char *const prefixes[] = {"cloth_", "output_", "drape_", "gravity", "solid_", "contact_", "cusick_", "restart", NULL};
+  char                     canon[256], squeezed[256];
+  size_t                   k = 0, m = 0;
+  PetscBool                dashes = PETSC_FALSE, upper = PETSC_FALSE;
+  const char              *p = name;
+
+  hint[0] = 0;
+  while (*p == '-') {
+    dashes = PETSC_TRUE;
+    p++;
+  }
+  for (; *p && k + 1 < sizeof canon; p++) {
+    char c = (char) tolower((unsigned char) *p);
+    if (c != *p) upper = PETSC_TRUE;
+    if (c == '-') {
+      dashes = PETSC_TRUE;
+      c      = '_';
+    }
+    canon[k++] = c;
+    if (c != '_') squeezed[m++] = c;
+  }
+  canon[k] = squeezed[m] = 0;
+  if (dashes || upper) (void) snprintf(hint, size, " (drape's options are written in lower case with one leading '-' and '_' between words: -%s)", canon);
+  for (const char *const *q = prefixes; *q; q++) {
+    char   word[16];
+    size_t n = 0;
+    for (const char *c = *q; *c; c++)
+      if (*c != '_') word[n++] = *c;
+    word[n] = 0;
+    if (!strncmp(canon, *q, strlen(*q)) || !strncmp(squeezed, word, n)) return PETSC_TRUE;
+  }
+  return PETSC_FALSE;
+}
+
 PetscErrorCode DrapeCheckUnusedOptions(MPI_Comm comm)
 {
-  static const char *const prefixes[] = {"cloth_", "output_", "drape_", "gravity", "solid_", "contact_", "cusick_", NULL};
-  PetscInt                 n;
-  char                   **names, **values;
+  PetscInt n;
+  char   **names, **values;
 
   PetscFunctionBeginUser;
   PetscCall(PetscOptionsLeftGet(NULL, &n, &names, &values));
   for (PetscInt i = 0; i < n; i++) {
-    for (const char *const *p = prefixes; *p; p++) {
-      PetscBool match;
-      PetscCall(PetscStrbeginswith(names[i], *p, &match));
-      if (match) {
-        char name[256];
-        PetscCall(PetscStrncpy(name, names[i], sizeof name));
-        PetscCall(PetscOptionsLeftRestore(NULL, &n, &names, &values));
-        SETERRQ(comm, PETSC_ERR_USER_INPUT, "Unknown option -%s: drape has no such option, or it does not apply to this run (run with -help for the list)", name);
-      }
+    char hint[400];
+    if (DrapeNamespace(names[i], hint, sizeof hint)) {
+      char name[256];
+      PetscCall(PetscStrncpy(name, names[i], sizeof name));
+      PetscCall(PetscOptionsLeftRestore(NULL, &n, &names, &values));
+      SETERRQ(comm, PETSC_ERR_USER_INPUT, "Unknown option -%s: drape has no such option, or it does not apply to this run%s; run with -help for the list", name, hint);
     }
   }
   PetscCall(PetscOptionsLeftRestore(NULL, &n, &names, &values));
@@ -483,12 +519,26 @@ static int CheckSpecialKey(const char *key, const char *value, int depth, const 
   return 1;
 }
 
+/* A word PETSc would skip without a word: neither an option nor the value after one. */
+static int StrayWord(const char *word, const char *from)
+{
+  const unsigned char *u = (const unsigned char *) word;
+
+  if (u[0] == 0xe2 && ((u[1] == 0x80 && u[2] >= 0x90 && u[2] <= 0x95) || (u[1] == 0x88 && u[2] == 0x92))) return Problem("'%s' %s starts with a typographic dash, not '-' (a word processor's en dash?): type the option with '-'", word, from, 0);
+  if (word[0] == '-') return Problem("'%s' %s is not an option name: an option is '-' and a letter, then letters, digits or '_'", word, from, 0);
+  if (!word[0]) return Problem("An empty word%s%s stands where an option should be", " ", from, 0);
+  return Problem("'%s' %s is neither an option nor the value of one: drape takes options, each -name or -name value (an options file is read with -options_file FILE)", word, from, 0);
+}
+
 /* Options as PetscOptionsInsertArgs reads them (command line, PETSC_OPTIONS). */
 static int CheckArgs(int argc, char **argv, const char *from)
 {
+  const char *where = from ? "in PETSC_OPTIONS" : "on the command line";
+
   for (int i = 0; i < argc; i++) {
     const char *value = i + 1 < argc ? argv[i + 1] : NULL;
-    if (!ValidKey(argv[i])) continue;
+    if (!ValidKey(argv[i])) return StrayWord(argv[i], where);
+    if (value && !value[0]) return Problem("%s is given an empty value %s: give it a value, or leave the option out", argv[i], where, 0);
     if (!strcasecmp(argv[i], "-options_file") || !strcasecmp(argv[i], "-prefix_push") || !strcasecmp(argv[i], "-options_file_yaml") || !strcasecmp(argv[i], "-options_string_yaml")) {
       if (!CheckSpecialKey(argv[i], value, 0, from)) return 0;
       i++;
