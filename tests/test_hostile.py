@@ -382,3 +382,30 @@ def test_ci_fails_on_a_warning_and_on_formatting(tmp):
     assert bad.returncode != 0 and "run make format" in bad.stdout and "bad.c" in bad.stderr, bad.stdout + bad.stderr
     ci = (ROOT / ".ci/run").read_text()
     assert "make format-check" in ci and "make test WERROR=1" in ci and "make check WERROR=1" in ci
+
+
+# ---- Class 7 of issue 29: misspellings that passed (exit 0, the option ignored) ----
+
+@pytest.mark.parametrize("args,env,message", [
+    (["-outputfile", "x.h5"], None, "Unknown option -outputfile"),
+    (["-output-file", "x.h5"], None, "Unknown option -output-file: drape has no such option, or it does not apply to this run (drape's options are written in lower case"),
+    (["-solidfile", "x.off"], None, "Unknown option -solidfile"),
+    (["-CLOTH_DENSTY", "5"], None, "Unknown option -CLOTH_DENSTY"),
+    (["--cloth_density", "-1"], None, "Unknown option --cloth_density"),
+    (["-restart_file", "x.h5"], None, "Unknown option -restart_file"),
+    (["\u2013cloth_density", "5"], None, "starts with a typographic dash, not '-'"),
+    (["-output_file", "x.h5", "stray", "words"], None, "'stray' on the command line is neither an option nor the value of one"),
+    (["runs/hang.opts"], None, "an options file is read with -options_file FILE"),
+    (["-ts_max_steps", "2", "3"], None, "'3' on the command line is neither an option nor the value of one"),
+    (["-cloth_density", ""], None, "-cloth_density is given an empty value on the command line"),
+    ([], {"PETSC_OPTIONS": "junk -cloth_density 0.2"}, "'junk' in PETSC_OPTIONS is neither an option nor the value of one"),
+    ([], {"PETSC_OPTIONS": "-cloth_densty 0.2"}, "Unknown option -cloth_densty"),
+], ids=["outputfile", "output-file", "solidfile", "upper-case", "double-dash", "restart_file", "en-dash", "stray-words", "options-file-without-option",
+        "two-values", "empty-value", "junk-in-petsc-options", "misspelt-in-petsc-options"])
+def test_misspelt_or_stray_options_are_refused(tmp, args, env, message):
+    (tmp / "x.h5").write_bytes(b"earlier results")
+    before = snapshot(tmp)
+    res = drape(TINY + args, tmp, timeout=30, env=dict(os.environ, **(env or {})))
+    refused(res, message)
+    assert snapshot(tmp) == before
+    assert "Summary:" not in res.stdout  # refused before the first step
