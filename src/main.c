@@ -5,9 +5,10 @@ static const char help[] = "drape: how a fabric falls, hangs and drapes, by the 
 
 #include <drape.h>
 #include <simulation.h>
+#include <signal.h>
 #include <stdlib.h>
 
-/* Exit status: 0 done, 1 error, 75 (EX_TEMPFAIL) stopped by SIGTERM/SIGINT with a
+/* Exit status: 0 done, 1 error, 75 (EX_TEMPFAIL) stopped by SIGTERM, SIGINT, SIGHUP or SIGPIPE with a
  * checkpoint written: a batch script may requeue with -restart. */
 static PetscErrorCode Run(PetscBool *interrupted)
 {
@@ -44,6 +45,9 @@ int main(int argc, char **argv)
   }
   PetscCall(PetscInitialize(&petsc_argc, &petsc_argv, NULL, help));
   PetscCall(DrapeInitialize());
+  /* a closed stdout (drape | head) makes prints fail quietly instead of killing the
+   * run; in the time loop SIGPIPE stops it like SIGTERM, with a checkpoint */
+  (void) signal(SIGPIPE, SIG_IGN);
   ierr = Run(&interrupted);
   /* a failure only some ranks saw would leave the others waiting: that ends the whole
    * job (MPI_Abort; the frames written so far are on disk) */

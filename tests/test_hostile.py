@@ -15,7 +15,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import DRAPE, ROOT, mpiexec, run
+from conftest import DRAPE, ROOT, mpiexec, run, wait_for_frames
 
 import drape_h5
 
@@ -409,3 +409,31 @@ def test_misspelt_or_stray_options_are_refused(tmp, args, env, message):
     refused(res, message)
     assert snapshot(tmp) == before
     assert "Summary:" not in res.stdout  # refused before the first step
+
+
+# ---- Class 10 of issue 29: SIGHUP and SIGPIPE ended in PETSc's traceback, exit 59 ----
+
+@pytest.mark.parametrize("sig", ["SIGHUP", "SIGPIPE"])
+def test_sighup_and_sigpipe_stop_like_sigterm(tmp, sig):
+    """SIGHUP (a closed terminal or ssh session) and SIGPIPE (stdout's reader gone, here
+    a real closed pipe: every later print raises it again) stop the run as SIGTERM does:
+    the step finished, a checkpoint frame, the summary in the file, exit 75."""
+    out = tmp / "sig.h5"
+    args = [str(DRAPE), "-da_grid_x", "40", "-da_grid_y", "40", "-ts_max_time", "100", "-output_steps", "200", "-output_file", str(out)]
+    if sig == "SIGHUP":
+        proc = subprocess.Popen(args + ["-drape_progress", "0"], cwd=tmp, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        wait_for_frames(out, 3)
+        proc.send_signal(signal.SIGHUP)
+        stdout, stderr = proc.communicate(timeout=60)
+        assert "Stopped by SIGHUP" in stdout and f"-restart {out}" in stdout
+    else:
+        read, write = os.pipe()
+        proc = subprocess.Popen(args + ["-drape_progress", "1"], cwd=tmp, stdout=write, stderr=subprocess.PIPE, text=True)
+        os.close(write)
+        wait_for_frames(out, 3)
+        os.close(read)  # the reader goes away: the next progress line raises SIGPIPE
+        stderr = proc.communicate(timeout=60)[1]
+    assert proc.returncode == 75, stderr
+    assert "PETSC ERROR" not in stderr and stderr.strip() == "", stderr
+    stopped = drape_h5.load(out)
+    assert stopped.attrs["stopped_by"] == sig and stopped.attrs["step"] == int(stopped.step[-1]) and len(stopped.time) >= 3

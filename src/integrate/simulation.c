@@ -1,3 +1,4 @@
+#define _POSIX_C_SOURCE 200809L /* sigaction */
 /* The simulation driver: state vector, TS set-up and the time loop.
  *
  * Data flows one way: options -> cloth (lattice, material, pins) -> state U ->
@@ -19,10 +20,32 @@
 #include <unistd.h>
 #include <signal.h>
 
-/* SIGTERM/SIGINT (a batch system's wall-time limit): finish the step, write a
- * checkpoint frame, stop cleanly. */
+/* SIGTERM/SIGINT (a batch system's wall-time limit, Ctrl-C), SIGHUP (the terminal or
+ * ssh session closed) and SIGPIPE (the reader of stdout gone): finish the step, write
+ * a checkpoint frame, stop cleanly. */
 static volatile sig_atomic_t caught_signal = 0;
 static void                  SignalHandler(int sig) { caught_signal = sig; }
+static const char           *SignalName(int sig) { return sig == SIGTERM ? "SIGTERM" : sig == SIGINT ? "SIGINT" : sig == SIGHUP ? "SIGHUP" : sig == SIGPIPE ? "SIGPIPE" : ""; }
+
+/* During the time loop: the four signals above stop it at the next step. After it,
+ * SIGPIPE stays ignored (a closed stdout must not kill the run before its summary
+ * and last frame are in the file: the prints then fail quietly), the others are
+ * back to their defaults. */
+static void SignalsCatch(PetscBool on)
+{
+  static const int signals[] = {SIGTERM, SIGINT, SIGHUP, SIGPIPE};
+
+  for (size_t i = 0; i < sizeof signals / sizeof signals[0]; i++) {
+    struct sigaction action;
+    memset(&action, 0, sizeof action);
+    (void) sigemptyset(&action.sa_mask);
+    /* a second SIGTERM, SIGINT or SIGHUP ends the run at once (the handler is reset by
+     * the first); every write to a closed stdout raises SIGPIPE again: it stays */
+    action.sa_flags   = SA_RESTART | (signals[i] == SIGPIPE ? 0 : SA_RESETHAND);
+    action.sa_handler = on ? SignalHandler : signals[i] == SIGPIPE ? SIG_IGN : SIG_DFL;
+    (void) sigaction(signals[i], &action, NULL);
+  }
+}
 
 struct _p_Simulation {
   MPI_Comm        comm;
@@ -1027,8 +1050,7 @@ PetscErrorCode SimulationRun(Simulation s)
     PetscCall(OutputWriteReport(s->output, s->report));
   }
   PetscCall(TSMonitorSet(s->ts, Monitor, s, NULL));
-  signal(SIGTERM, SignalHandler);
-  signal(SIGINT, SignalHandler);
+  SignalsCatch(PETSC_TRUE);
   PetscCall(PetscTime(&s->wall0));
   PetscCall(ReportCPUTime(&cpu0));
   s->wall_last = s->wall0;
@@ -1058,15 +1080,14 @@ PetscErrorCode SimulationRun(Simulation s)
     PetscCall(ProgressLine(s, s->ts, steps, t, PETSC_TRUE));
     PetscCall(PetscPrintf(s->comm, "\n"));
   }
-  signal(SIGTERM, SIG_DFL);
-  signal(SIGINT, SIG_DFL);
+  SignalsCatch(PETSC_FALSE);
   if (s->interrupted) {
     char file[PETSC_MAX_PATH_LEN] = "";
     PetscCall(PetscOptionsGetString(NULL, NULL, "-output_file", file, sizeof file, NULL));
     if (enabled)
-      PetscCall(PetscPrintf(s->comm, "Stopped by %s after step %" PetscInt_FMT " at t = %g s; the state is the last frame of %s: continue with -restart %s\n", s->interrupted == SIGTERM ? "SIGTERM" : "SIGINT", steps, (double) t, file, file));
+      PetscCall(PetscPrintf(s->comm, "Stopped by %s after step %" PetscInt_FMT " at t = %g s; the state is the last frame of %s: continue with -restart %s\n", SignalName((int) s->interrupted), steps, (double) t, file, file));
     else
-      PetscCall(PetscPrintf(s->comm, "Stopped by %s after step %" PetscInt_FMT " at t = %g s; without -output_file there is nothing to restart from\n", s->interrupted == SIGTERM ? "SIGTERM" : "SIGINT", steps, (double) t));
+      PetscCall(PetscPrintf(s->comm, "Stopped by %s after step %" PetscInt_FMT " at t = %g s; without -output_file there is nothing to restart from\n", SignalName((int) s->interrupted), steps, (double) t));
   }
   if (s->cusick_radius > 0) {
     PetscReal dc;
@@ -1111,7 +1132,7 @@ PetscErrorCode SimulationRun(Simulation s)
       PetscCall(ClothGetPlasticCount(s->cloth, &np));
       PetscCall(ReportSetInt(r, "hysteresis_plastic_triples", np)); /* triples whose yarns slid and stayed */
     }
-    PetscCall(ReportSetString(r, "stopped_by", s->interrupted == SIGTERM ? "SIGTERM" : s->interrupted ? "SIGINT" : ""));
+    PetscCall(ReportSetString(r, "stopped_by", SignalName((int) s->interrupted)));
     PetscCall(ReportSetBool(r, "self_contact", (PetscBool) !!s->self));
     if (s->self) {
       SelfContactStats st;
