@@ -30,8 +30,8 @@ def frames(tmp, name, args, np_=1):
 
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_lattice_kernel_moves_the_cloth_as_the_element_lists(tmp, case):
-    """Positions and energies of every frame agree with the element lists' to
-    round-off (the sums per particle are taken in another order)."""
+    """Positions, velocities, energies and the largest strain of every frame agree
+    with the element lists' to round-off (the sums are taken in another order)."""
     ref = frames(tmp, "elements", f"{CASES[case]} -cloth_force_kernel elements")
     lat = frames(tmp, "lattice", CASES[case])
     assert len(ref.time) == 6 and np.array_equal(ref.time, lat.time)
@@ -40,6 +40,11 @@ def test_lattice_kernel_moves_the_cloth_as_the_element_lists(tmp, case):
     assert moved > 1e-3, "the test scene must move"
     assert np.abs(lat.positions - ref.positions).max() <= 1e-12 * scale
     assert np.abs(lat.velocities - ref.velocities).max() <= 1e-9 * np.abs(ref.velocities).max()
+    # the energies and the largest strain, from the lattice's patch (ClothLatticeEnergies)
+    for name in ("stretch", "shear", "bend"):
+        e, r = lat.energies[name], ref.energies[name]
+        assert np.abs(e - r).max() <= 1e-9 * np.abs(r).max() + 1e-300, name
+    assert np.abs(lat.strain_max - ref.strain_max).max() <= 1e-9 * np.abs(ref.strain_max).max()
 
 
 @pytest.mark.parametrize("np_,partition", [(2, "dmda"), (3, "metis"), (4, "dmda")])
@@ -51,3 +56,5 @@ def test_lattice_kernel_on_any_partition(tmp, np_, partition):
         one = frames(tmp, f"{case}1", CASES[case])
         many = frames(tmp, f"{case}{np_}", f"{CASES[case]} -cloth_partition {partition}", np_=np_)
         assert np.abs(many.positions - one.positions).max() <= 1e-12 * np.abs(one.positions).max(), case
+        for name in ("stretch", "shear", "bend"):  # each element counted once, on the rank owning its centre
+            assert np.abs(many.energies[name] - one.energies[name]).max() <= 1e-9 * np.abs(one.energies[name]).max(), (case, name)

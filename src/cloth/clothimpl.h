@@ -230,6 +230,7 @@ PETSC_INTERN PetscErrorCode ClothLatticeDestroy(Cloth);
 PETSC_INTERN PetscErrorCode ClothLatticeComputeForce(Cloth, const PetscScalar *x, PetscScalar *f);
 PETSC_INTERN PetscErrorCode ClothLatticeComputeAcceleration(Cloth, const PetscScalar *x, const PetscScalar *v, PetscScalar *a);
 PETSC_INTERN PetscErrorCode ClothLatticeKickDrift(Cloth, PetscScalar *x, PetscScalar *v, PetscReal kick, PetscReal drift);
+PETSC_INTERN PetscErrorCode ClothLatticeEnergies(Cloth, const PetscScalar *x, PetscReal energy[3], PetscReal *strain);
 
 /* fabrics.c: the measured fabrics of -cloth_fabric */
 PETSC_INTERN PetscErrorCode ClothSetFabric(Cloth, const char *);

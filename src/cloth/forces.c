@@ -196,6 +196,10 @@ PetscErrorCode ClothComputeEnergies(Cloth c, const PetscScalar *x, const PetscSc
       local[1] -= c->mass[k] * c->gravity[d] * x[3 * k + d];
     }
   }
+  if (c->lattice) { /* the same elements, from the lattice's patch */
+    PetscCall(ClothLatticeEnergies(c, x, local + 2, &strain));
+    goto reduce;
+  }
   PetscCall(ClothScatterPositions(c, x, &xl));
   for (PetscInt e = 0; e < st->n; e++) {
     const PetscReal *a = xl + 3 * st->p[2 * e], *b = xl + 3 * st->p[2 * e + 1], L = ElemRest(st, e);
@@ -213,6 +217,7 @@ PetscErrorCode ClothComputeEnergies(Cloth c, const PetscScalar *x, const PetscSc
     if (fr->own[e]) local[4] += KernelFrictionEnergy(&f, fr->kp[e], xl + 3 * p[0], xl + 3 * p[1], xl + 3 * p[2], xl + 3 * p[3], xl + 3 * p[4], NULL, NULL);
   }
   PetscCall(ClothEndScatter(c, &xl));
+reduce:
   PetscCall(MPIU_Allreduce(local, sum, 5, MPIU_REAL, MPI_SUM, c->comm));
   PetscCall(MPIU_Allreduce(&strain, &en->strain_max, 1, MPIU_REAL, MPIU_MAX, c->comm));
   if (!c->nstretch) en->strain_max = (PetscReal) NAN; /* no stretch edges: not measured */

@@ -59,6 +59,7 @@ struct _n_ClothLattice {
   unsigned char *cls[LAT_KINDS]; /* class + 1 of the element anchored at each padded slot, 0: none; NULL: no element of the kind */
   PetscReal      coef[LAT_KINDS][CLOTH_ELEMENT_CLASSES + 1];
   PetscReal      coef_rest[2][CLOTH_ELEMENT_CLASSES + 1]; /* stretch: k L */
+  PetscReal      rest[2][CLOTH_ELEMENT_CLASSES + 1];      /* stretch: L */
   PetscReal     *tmp;                                     /* 12 rows of W + 4: one row's element gradients */
   PetscReal     *krow;                                    /* a row's coefficients, mask, k L (3 W)         */
 };
@@ -424,6 +425,63 @@ PetscErrorCode ClothLatticeKickDrift(Cloth c, PetscScalar *x, PetscScalar *v, Pe
   PetscFunctionReturn(0);
 }
 
+/* The elastic energies of the elements this rank counts (those centred on an owned
+ * particle: the element lists' `own`) and the largest strain of its stretch edges,
+ * by a sweep like the forces' with the general kernels (kernels.h) element by
+ * element: energies are wanted every few steps, not every step. */
+PetscErrorCode ClothLatticeEnergies(Cloth c, const PetscScalar *x, PetscReal energy[3], PetscReal *strain)
+{
+  ClothLattice *L  = c->lattice;
+  LatticeSweep  S  = {x, NULL, NULL, NULL, NULL, NULL, 0, 0, 0, NULL, NULL};
+  PetscReal     st = 0, sh = 0, be = 0, smax = -1;
+
+  PetscFunctionBeginUser;
+  PetscCall(LatticeGhosts(c, x, &S.xg));
+  if (L->H) LatticeLoadRow(L, &S, 0);
+  for (PetscInt j = 0; j < L->H; j++) {
+    LatticeRows X;
+    if (j + 1 < L->H) LatticeLoadRow(L, &S, j + 1);
+    LatticeRingRows(L, L->x, j, &X);
+    for (PetscInt q = L->row_run[j]; q < L->row_run[j + 1]; q++) {
+      const LatticeRun R = L->run[q];
+      if (R.l >= L->nowned) continue;
+      for (PetscInt i = R.p; i < R.p + R.n; i++) {
+        const PetscInt b = (j + 1) * L->ld + 1 + i;
+        PetscReal      p[3][3][3]; /* rows j-1, j, j+1; columns i-1, i, i+1 */
+        for (PetscInt r = 0; r < 3; r++)
+          for (PetscInt o = 0; o < 3; o++)
+            for (PetscInt d = 0; d < 3; d++) p[r][o][d] = X.r[r][d][i - 1 + o];
+        for (PetscInt kind = LAT_STRETCH_WARP; kind <= LAT_STRETCH_WEFT; kind++) {
+          const PetscReal *e = kind == LAT_STRETCH_WARP ? p[1][2] : p[2][1];
+          PetscInt         k;
+          if (!L->cls[kind] || !(k = L->cls[kind][b])) continue;
+          st += KernelStretch(p[1][1], e, L->coef[kind][k], L->rest[kind][k], NULL, NULL, PETSC_FALSE);
+          smax = PetscMax(smax, PetscSqrtReal(PetscSqr(e[0] - p[1][1][0]) + PetscSqr(e[1] - p[1][1][1]) + PetscSqr(e[2] - p[1][1][2])) / L->rest[kind][k] - 1);
+        }
+        if (L->cls[LAT_SHEAR] && L->cls[LAT_SHEAR][b]) { /* the cell's corners as the element lists have them (a, b, vertex) */
+          const PetscReal  kappa = L->coef[LAT_SHEAR][L->cls[LAT_SHEAR][b]];
+          const PetscReal *x0 = p[1][1], *x1 = p[1][2], *x2 = p[2][1], *x3 = p[2][2];
+          sh += KernelAngle(KERNEL_SHEAR, x1, x2, x0, kappa, NULL, NULL, NULL, PETSC_FALSE) + KernelAngle(KERNEL_SHEAR, x0, x3, x1, kappa, NULL, NULL, NULL, PETSC_FALSE);
+          sh += KernelAngle(KERNEL_SHEAR, x3, x0, x2, kappa, NULL, NULL, NULL, PETSC_FALSE) + KernelAngle(KERNEL_SHEAR, x2, x1, x3, kappa, NULL, NULL, NULL, PETSC_FALSE);
+        }
+        for (PetscInt kind = LAT_BEND_WARP; kind <= LAT_BEND_ANTI; kind++) {
+          static const PetscInt ab[4][4] = {{1, 0, 1, 2}, {0, 1, 2, 1}, {0, 0, 2, 2}, {2, 0, 0, 2}}; /* row and column of a, of b */
+          const PetscInt       *o        = ab[kind - LAT_BEND_WARP];
+          PetscInt              k;
+          if (!L->cls[kind] || !(k = L->cls[kind][b])) continue;
+          be += KernelAngle(KERNEL_BEND, p[o[0]][o[1]], p[o[2]][o[3]], p[1][1], L->coef[kind][k], NULL, NULL, NULL, PETSC_FALSE);
+        }
+      }
+    }
+  }
+  PetscCall(VecRestoreArrayRead(L->G, &S.xg));
+  energy[0] = st;
+  energy[1] = sh;
+  energy[2] = be;
+  *strain   = smax;
+  PetscFunctionReturn(0);
+}
+
 /* Padded slot of local particle l in the class arrays. */
 static inline PetscInt Slot(Cloth c, const ClothLattice *L, PetscInt l) { return (c->natural[l] / c->Mx - L->j0 + 1) * L->ld + (c->natural[l] % c->Mx - L->i0 + 1); }
 
@@ -523,6 +581,7 @@ PetscErrorCode ClothLatticeSetUp(Cloth c)
     L->cls[kind][Slot(c, L, a)]        = (unsigned char) (st->cls[e] + 1);
     L->coef[kind][st->cls[e] + 1]      = st->coef_tab[st->cls[e]];
     L->coef_rest[kind][st->cls[e] + 1] = st->coef_tab[st->cls[e]] * st->rest_tab[st->cls[e]];
+    L->rest[kind][st->cls[e] + 1]      = st->rest_tab[st->cls[e]];
   }
   /* shear: cells of four corners, the vertex of the first being (i, j) */
   for (PetscInt e = 0; e < sh->n; e += 4) {
