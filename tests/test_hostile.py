@@ -437,3 +437,34 @@ def test_sighup_and_sigpipe_stop_like_sigterm(tmp, sig):
     assert "PETSC ERROR" not in stderr and stderr.strip() == "", stderr
     stopped = drape_h5.load(out)
     assert stopped.attrs["stopped_by"] == sig and stopped.attrs["step"] == int(stopped.step[-1]) and len(stopped.time) >= 3
+
+
+# ---- Class 13 of issue 29: absurd input accepted ----
+
+@pytest.mark.parametrize("args,message", [
+    ("-cloth_shape circle -solid_type cylinder -solid_radius 0.1 -solid_height 0.3 -solid_translate 0,0,-0.15 -cloth_center 0,0,0.003 "
+     "-cusick_pedestal_radius 0.1 -cusick_center 0,0,0.3", "-cusick_center needs two coordinates x,y; got 3"),
+    ("-cloth_shape circle -cusick_pedestal_radius 0.1", "the Cusick analysis needs the pedestal, a solid just under the specimen's centre"),
+    ("-cloth_shape circle -cusick_pedestal_radius 0.1 -solid_floor -1", "the nearest solid is farther than the pedestal radius"),
+    ("-cusick_center 0.1,0.1", "-cusick_center does not apply to this run: there is no Cusick analysis"),
+    ("-contact_thickness 0.01", "-contact_thickness does not apply to this run: there is no solid"),
+    ("-contact_mode friction", "-contact_mode does not apply to this run: there is no solid"),
+    ("-solid_floor -1 -contact_self_thickness 0.01", "-contact_self_thickness does not apply to this run: self-contact is off"),
+    ("-solid_floor -1 -contact_self 0 -contact_self_its 3", "-contact_self_its does not apply to this run: self-contact is off"),
+], ids=["cusick-center-three-values", "cusick-without-pedestal", "cusick-over-a-far-floor", "cusick-center-without-analysis",
+        "contact-thickness-without-solid", "contact-mode-without-solid", "self-thickness-without-self-contact", "self-its-with-self-contact-off"])
+def test_options_that_cannot_mean_anything_are_refused(tmp, args, message):
+    """A third -cusick_center value was dropped; the Cusick analysis of a cloth with no
+    pedestal reported DC = 1.0000; contact options without a solid, and self-contact
+    options without self-contact, passed silently (others were refused)."""
+    (tmp / "x.h5").write_bytes(b"earlier results")
+    before = snapshot(tmp)
+    res = drape(TINY + args.split() + ["-output_file", "x.h5"], tmp, timeout=30)
+    refused(res, message)
+    assert "DC =" not in res.stdout and snapshot(tmp) == before
+
+
+def test_cusick_over_its_pedestal_still_runs():
+    """The refusals above leave the Cusick scene (a pedestal under the specimen) alone."""
+    res = run("-options_file runs/cusick.opts -da_grid_x 15 -da_grid_y 15 -ts_max_steps 2 -contact_self 0 -drape_progress 0")
+    assert "Cusick drape test: drape coefficient DC =" in res.stdout

@@ -69,8 +69,9 @@ struct _p_Simulation {
   PetscReal       max_strain, strain_last;         /* bound, and the largest strain at the last full check */
   PetscReal       rest_tol, rest_time, rest_since; /* stop at rest */
   PetscReal       cusick_radius, cusick_center[2]; /* Cusick analysis      */
-  PetscScalar    *x0;                              /* flat initial state   */
-  PetscBool      *held;                            /* owned particles sticky contact holds after the step (for the self-contact filter) */
+  PetscBool       cusick_center_set;
+  PetscScalar    *x0;   /* flat initial state   */
+  PetscBool      *held; /* owned particles sticky contact holds after the step (for the self-contact filter) */
   PetscBool       progress, summary, help;
   char            restart[PETSC_MAX_PATH_LEN]; /* -restart file         */
   PetscBool       have_restart;
@@ -441,6 +442,36 @@ PetscErrorCode SimulationCreate(MPI_Comm comm, Simulation *sim)
   PetscFunctionReturn(0);
 }
 
+/* Options given for a part the run does not have are refused, as DrapeCheckUnusedOptions
+ * refuses those no component reads: the components read theirs whether or not they
+ * take part, so the run says here which parts it has. */
+static PetscErrorCode RefuseOptions(MPI_Comm comm, const char *const names[], const char why[])
+{
+  PetscFunctionBeginUser;
+  for (const char *const *name = names; *name; name++) {
+    PetscBool set;
+    PetscCall(PetscOptionsHasName(NULL, NULL, *name, &set));
+    PetscCheck(!set, comm, PETSC_ERR_USER_INPUT, "%s does not apply to this run: %s", *name, why);
+  }
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode CheckOptionsApply(Simulation s)
+{
+  static const char *const contact[] = {"-contact_mode", "-contact_thickness", "-contact_friction", "-contact_stick_velocity", NULL};
+  static const char *const self[]    = {"-contact_self_thickness", "-contact_self_friction",    "-contact_self_margin",    "-contact_self_broad_phase", "-contact_self_failsafe",
+                                        "-contact_self_solve",     "-contact_self_solve_edges", "-contact_self_stiffness", "-contact_self_its",         NULL};
+  PetscBool                empty, enabled;
+
+  PetscFunctionBeginUser;
+  PetscCall(SolidIsEmpty(s->solid, &empty));
+  if (empty) PetscCall(RefuseOptions(s->comm, contact, "there is no solid to touch (-solid_type, -solid_file, -solid_floor or -solid_plane)"));
+  PetscCall(SelfContactEnabled(s->self, &enabled));
+  if (!enabled) PetscCall(RefuseOptions(s->comm, self, "self-contact is off (add -contact_self)"));
+  PetscCheck(!s->cusick_center_set || s->cusick_radius > 0, s->comm, PETSC_ERR_USER_INPUT, "-cusick_center does not apply to this run: there is no Cusick analysis (add -cusick_pedestal_radius)");
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode SimulationSetFromOptions(Simulation s)
 {
   PetscFunctionBeginUser;
@@ -470,10 +501,15 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
   PetscCall(PetscOptionsReal("-drape_rest_time", "Simulated time the cloth must stay below -drape_rest_tol to count as at rest (s)", "SimulationRun", s->rest_time, &s->rest_time, NULL));
   PetscCall(PetscOptionsReal("-cusick_pedestal_radius", "Cusick drape test: pedestal radius (m); > 0 reports the drape coefficient and folds at the end", "CusickAnalyse", s->cusick_radius, &s->cusick_radius, NULL));
   {
-    PetscInt  n = 2;
+    /* room for a third value: PETSc reads at most n and drops the rest without a word */
+    PetscReal center[3] = {s->cusick_center[0], s->cusick_center[1], 0};
+    PetscInt  n         = 3;
     PetscBool set;
-    PetscCall(PetscOptionsRealArray("-cusick_center", "Cusick drape test: pedestal centre x,y (m)", "CusickAnalyse", s->cusick_center, &n, &set));
-    PetscCheck(!set || n == 2, s->comm, PETSC_ERR_USER_INPUT, "-cusick_center needs two coordinates x,y");
+    PetscCall(PetscOptionsRealArray("-cusick_center", "Cusick drape test: pedestal centre x,y (m)", "CusickAnalyse", center, &n, &set));
+    PetscCheck(!set || n == 2, s->comm, PETSC_ERR_USER_INPUT, "-cusick_center needs two coordinates x,y; got %" PetscInt_FMT, n);
+    s->cusick_center[0]  = center[0];
+    s->cusick_center[1]  = center[1];
+    s->cusick_center_set = set;
   }
   PetscCall(PetscOptionsBool("-drape_summary", "One-line summary at the end of the run", "SimulationRun", s->summary, &s->summary, NULL));
   PetscCall(PetscOptionsBool("-drape_json", "Print the run's start-up numbers and summary as one JSON line at the end (the HDF5 file has them as attributes of /)", "SimulationRun", s->json, &s->json, NULL));
@@ -492,6 +528,7 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
   PetscCall(ContactSetFromOptions(s->contact));
   PetscCall(SelfContactSetFromOptions(s->self));
   PetscCall(OutputSetFromOptions(s->output));
+  PetscCall(CheckOptionsApply(s));
   PetscFunctionReturn(0);
 }
 
@@ -544,7 +581,7 @@ PetscErrorCode SimulationSetUp(Simulation s)
   PetscCall(VecGetArray(s->U, &u));
   PetscCall(ClothSetInitialState(s->cloth, u, u + s->n));
   if (s->cusick_radius > 0) {
-    PetscReal        box[4] = {-PETSC_MAX_REAL, -PETSC_MAX_REAL, -PETSC_MAX_REAL, -PETSC_MAX_REAL}; /* -xmin, -ymin, xmax, ymax of the flat specimen */
+    PetscReal        box[5] = {-PETSC_MAX_REAL, -PETSC_MAX_REAL, -PETSC_MAX_REAL, -PETSC_MAX_REAL, -PETSC_MAX_REAL}; /* -xmin, -ymin, xmax, ymax, -zmin of the flat specimen */
     const PetscBool *active;
     PetscCheck(2 * s->cusick_radius < PetscMin(info.size[0], info.size[1]), s->comm, PETSC_ERR_USER_INPUT, "-cusick_pedestal_radius %g m leaves no overhang on a %g x %g m specimen: the pedestal must be smaller than the specimen",
                (double) s->cusick_radius, (double) info.size[0], (double) info.size[1]);
@@ -553,11 +590,23 @@ PetscErrorCode SimulationSetUp(Simulation s)
       for (PetscInt d = 0; d < 2 && active[k]; d++) {
         box[d]     = PetscMax(box[d], -PetscRealPart(u[3 * k + d]));
         box[2 + d] = PetscMax(box[2 + d], PetscRealPart(u[3 * k + d]));
+        if (!d) box[4] = PetscMax(box[4], -PetscRealPart(u[3 * k + 2]));
       }
-    PetscCall(MPIU_Allreduce(MPI_IN_PLACE, box, 4, MPIU_REAL, MPIU_MAX, s->comm));
+    PetscCall(MPIU_Allreduce(MPI_IN_PLACE, box, 5, MPIU_REAL, MPIU_MAX, s->comm));
     PetscCheck(s->cusick_center[0] - s->cusick_radius > -box[0] && s->cusick_center[0] + s->cusick_radius < box[2] && s->cusick_center[1] - s->cusick_radius > -box[1] && s->cusick_center[1] + s->cusick_radius < box[3], s->comm, PETSC_ERR_USER_INPUT,
                "The Cusick pedestal (-cusick_center %g,%g, radius %g m) must lie under the flat specimen, which spans [%g, %g] x [%g, %g] m horizontally (the analysis needs a horizontal specimen)", (double) s->cusick_center[0],
                (double) s->cusick_center[1], (double) s->cusick_radius, (double) -box[0], (double) box[2], (double) -box[1], (double) box[3]);
+    {
+      /* the pedestal: a solid whose top is within a pedestal radius under the
+       * specimen's centre (without one the cloth falls flat and DC = 1 means nothing) */
+      PetscReal p[3] = {s->cusick_center[0], s->cusick_center[1], -box[4]}, distance = PETSC_MAX_REAL, normal[3];
+      PetscBool empty;
+      PetscCall(SolidIsEmpty(s->solid, &empty));
+      if (!empty) PetscCall(SolidQuery(s->solid, p, &distance, normal));
+      PetscCheck(distance <= s->cusick_radius, s->comm, PETSC_ERR_USER_INPUT,
+                 "-cusick_pedestal_radius %g: the Cusick analysis needs the pedestal, a solid just under the specimen's centre (%g, %g, %g) m (e.g. -solid_type cylinder -solid_radius %g, as in runs/cusick.opts), and %s", (double) s->cusick_radius,
+                 (double) p[0], (double) p[1], (double) p[2], (double) s->cusick_radius, empty ? "this run has no solid" : "the nearest solid is farther than the pedestal radius");
+    }
     PetscCall(PetscMalloc1(s->n, &s->x0));
     PetscCall(PetscArraycpy(s->x0, u, s->n));
   }
