@@ -44,6 +44,15 @@ PETSC_EXTERN PetscErrorCode DrapeCollectiveRead(MPI_Comm, PetscErrorCode (*)(voi
  * Collective. */
 PETSC_EXTERN PetscErrorCode DrapeCheckUnusedOptions(MPI_Comm);
 
+/* Refuse an input file option (-solid_file, -restart, -cloth_outline) whose file is
+ * not a regular file (a FIFO, /dev/zero, a socket), before anything opens it; what
+ * names it in the sentence. Missing files and directories are left to the reader.
+ * Collective. */
+PETSC_EXTERN PetscErrorCode DrapeCheckInputFile(MPI_Comm, const char option[], const char what[]);
+/* Refuse an output name in /dev or /proc, directly or through symbolic links
+ * (/dev/stdout is the file stdout goes to). Not collective. */
+PETSC_EXTERN PetscErrorCode DrapeCheckOutputPath(const char option[], const char path[]);
+
 /* Before PetscInitialize, after MPI_Init: read, with PETSc's rules, every options
  * file PETSc is about to read (-options_file, the files they name, the petscrc files,
  * PETSC_OPTIONS) on every rank, and record them as inputs. Returns 1 when all are

@@ -1,3 +1,4 @@
+#define _XOPEN_SOURCE 700 /* lstat, readlink, realpath */
 /* Program-wide set-up: log events and stages, the error handler, option checks,
  * options files, and the identity of the files drape reads and writes. */
 #include <drape.h>
@@ -380,6 +381,62 @@ PetscErrorCode DrapeSameFile(const char a[], const char b[], PetscBool *same)
 
   PetscFunctionBeginUser;
   *same = (PetscBool) (!GetFileId(a, &ia) && !GetFileId(b, &ib) && SameFileId(&ia, &ib));
+  PetscFunctionReturn(0);
+}
+
+/* Is path, or a symbolic link it goes through, in /dev or /proc: a device or a
+ * process's descriptor? (/dev/stdout with stdout redirected is, to stat(), the
+ * regular file stdout goes to.) */
+static int InPseudoFileSystem(const char path[])
+{
+  char p[2 * PETSC_MAX_PATH_LEN + 2], dir[sizeof p], real[PETSC_MAX_PATH_LEN + 4096]; /* realpath writes at most PATH_MAX */
+
+  (void) snprintf(p, sizeof p, "%s", path);
+  for (int hop = 0; hop < 40; hop++) {
+    const char *slash = strrchr(p, '/');
+    char        target[PETSC_MAX_PATH_LEN];
+    struct stat st;
+    ssize_t     n;
+    if (!slash)
+      (void) snprintf(dir, sizeof dir, ".");
+    else if (slash == p)
+      (void) snprintf(dir, sizeof dir, "/");
+    else
+      (void) snprintf(dir, sizeof dir, "%.*s", (int) (slash - p), p);
+    if (!realpath(dir, real)) return 0; /* a missing directory: refused elsewhere in its own words */
+    if (!strcmp(real, "/dev") || !strncmp(real, "/dev/", 5) || !strcmp(real, "/proc") || !strncmp(real, "/proc/", 6)) return 1;
+    if (lstat(p, &st) || !S_ISLNK(st.st_mode)) return 0;
+    if ((n = readlink(p, target, sizeof target - 1)) < 0) return 0;
+    target[n] = 0;
+    if (target[0] == '/')
+      (void) snprintf(p, sizeof p, "%s", target);
+    else
+      (void) snprintf(p, sizeof p, "%.4096s/%.4096s", real, target);
+  }
+  return 1; /* a loop of links */
+}
+
+PetscErrorCode DrapeCheckOutputPath(const char option[], const char path[])
+{
+  PetscFunctionBeginUser;
+  PetscCheck(!InPseudoFileSystem(path), PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "Cannot write %s %s: it is a device or a process's file descriptor (in /dev or /proc), not a file in a directory; name a file, e.g. run.h5", option, path);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode DrapeCheckInputFile(MPI_Comm comm, const char option[], const char what[])
+{
+  char        path[PETSC_MAX_PATH_LEN] = "";
+  PetscBool   set;
+  struct stat st;
+  PetscMPIInt bad, any;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscOptionsGetString(NULL, NULL, option, path, sizeof path, &set));
+  if (!set || !path[0]) PetscFunctionReturn(0);
+  /* stat() does not open: a FIFO would block open(), /dev/zero would never end */
+  bad = !stat(path, &st) && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode); /* missing files and directories: the reader's own sentence */
+  PetscCallMPI(MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, comm));
+  PetscCheck(!any, comm, PETSC_ERR_FILE_OPEN, "Cannot read the %s %s (%s): it is not a regular file but a device, pipe or socket%s", what, path, option, bad ? "" : " on another rank");
   PetscFunctionReturn(0);
 }
 

@@ -468,3 +468,57 @@ def test_cusick_over_its_pedestal_still_runs():
     """The refusals above leave the Cusick scene (a pedestal under the specimen) alone."""
     res = run("-options_file runs/cusick.opts -da_grid_x 15 -da_grid_y 15 -ts_max_steps 2 -contact_self 0 -drape_progress 0")
     assert "Cusick drape test: drape coefficient DC =" in res.stdout
+
+
+# ---- Class 12 of issue 29 (second case): a restart with another cloth ----
+
+@pytest.mark.parametrize("args,message", [
+    ("-cloth_size 2", "Cannot restart from r.h5 with -cloth_size 2: its run had -cloth_size's default"),
+    ("-cloth_density 0.3", "Cannot restart from r.h5 with -cloth_density 0.3: its run had -cloth_density 0.2"),
+    ("-cloth_model paper", "Cannot restart from r.h5 with -cloth_model paper"),
+    ("-cloth_bend 1e-4", "Cannot restart from r.h5 with -cloth_bend 1e-4"),
+], ids=["size", "density", "model", "bend"])
+def test_restart_with_another_material_or_geometry_is_refused(tmp, args, message):
+    """-restart good.h5 -cloth_size 2 ran a 1 m cloth's frames as a 2 m cloth (20 %
+    strain): only the lattice was compared with the file. The same values, spelt
+    otherwise, still restart."""
+    subprocess.run([str(DRAPE)] + SCENE.split() + ["-cloth_density", "0.2", "-output_file", "r.h5", "-drape_progress", "0"], check=True, capture_output=True, cwd=tmp)
+    before = snapshot(tmp)
+    res = drape(["-restart", "r.h5", "-ts_max_time", "0.02", "-drape_progress", "0"] + args.split(), tmp, timeout=30)
+    refused(res, message)
+    assert snapshot(tmp) == before
+    res = drape(["-restart", "r.h5", "-ts_max_time", "0.02", "-drape_progress", "0", "-cloth_density", "2e-1"], tmp, timeout=30)
+    assert res.returncode == 0, res.stderr
+
+
+# ---- Classes 5 and 6 of issue 29: special files as inputs and as the output ----
+
+@pytest.mark.parametrize("kind,args,message", [
+    ("fifo", "-solid_file in.off", "Cannot read the solid mesh in.off (-solid_file): it is not a regular file"),
+    ("fifo", "-restart in.h5", "Cannot read the restart file in.h5 (-restart): it is not a regular file"),
+    ("fifo", "-cloth_shape polygon -cloth_outline in.txt", "Cannot read the cloth outline in.txt (-cloth_outline): it is not a regular file"),
+    ("/dev/zero", "-solid_file in.obj", "Cannot read the solid mesh in.obj (-solid_file): it is not a regular file"),
+    ("/dev/zero", "-solid_file in.ply", "it is not a regular file"),
+    ("/dev/urandom", "-solid_file in.stl", "it is not a regular file"),
+    (None, "-output_file /dev/stdout", "Cannot write -output_file /dev/stdout: it is a device or a process's file descriptor"),
+    ("/dev/stdout", "-output_file in.h5", "Cannot write -output_file in.h5: it is a device or a process's file descriptor"),
+    ("/proc/self/fd/1", "-output_file in.h5", "it is a device or a process's file descriptor"),
+], ids=["fifo-solid", "fifo-restart", "fifo-outline", "zero-obj", "zero-ply", "urandom-stl", "dev-stdout", "link-to-dev-stdout", "link-to-proc-fd"])
+def test_special_files_are_refused_before_they_are_opened(tmp, kind, args, message):
+    """A FIFO as an input blocked silently, /dev/zero behind a mesh name was read without
+    end, and -output_file /dev/stdout with stdout redirected overwrote that file with
+    HDF5 (and made /dev/stdout.xmf)."""
+    name = next((w for w in args.split() if w.startswith("in.")), None)
+    if kind == "fifo":
+        os.mkfifo(tmp / name)
+    elif kind:
+        os.symlink(kind, tmp / name)
+    (tmp / "x.h5").write_bytes(b"earlier results")
+    with open(tmp / "stdout.txt", "w") as stdout:
+        stdout.write("earlier log\n")
+        stdout.flush()
+        res = subprocess.run([str(DRAPE)] + TINY + args.split(), cwd=tmp, stdout=stdout, stderr=subprocess.PIPE, text=True, timeout=30)
+    res.stdout = ""
+    refused(res, message)
+    assert (tmp / "stdout.txt").read_text() == "earlier log\n" and (tmp / "x.h5").read_bytes() == b"earlier results"
+    assert not os.path.exists("/dev/stdout.xmf")

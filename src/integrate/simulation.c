@@ -484,6 +484,7 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
     PetscBool output_given;
     PetscCall(DrapeCheckPathLength(s->comm, "-restart", s->restart, sizeof s->restart));
     PetscCheck(s->restart[0], s->comm, PETSC_ERR_USER_INPUT, "-restart needs a file name");
+    PetscCall(DrapeCheckInputFile(s->comm, "-restart", "restart file"));
     PetscCall(PetscOptionsHasName(NULL, NULL, "-output_file", &output_given));
     PetscCall(RestartInsertOptions(s->comm, s->restart));
     /* the frames go on in the file restarted from, not in the file its options name
@@ -522,6 +523,7 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
   PetscCall(DrapeCheckReal(s->comm, "-drape_rest_time", 1, &s->rest_time, 0, 1e6, "s"));
   PetscCall(DrapeCheckReal(s->comm, "-drape_divergence_factor", 1, &s->divergence_factor, 1e-12, 1e15, ""));
   PetscCall(DrapeCheckReal(s->comm, "-drape_max_strain", 1, &s->max_strain, 1e-6, 1e6, ""));
+  PetscCall(DrapeCheckInputFile(s->comm, "-cloth_outline", "cloth outline")); /* before the cloth opens it */
   PetscCall(ClothSetFromOptions(s->cloth));
   PetscCall(SolidSetFromOptions(s->solid));
   PetscCall(ContactCreate(s->comm, s->solid, &s->contact));

@@ -105,6 +105,7 @@ static PetscErrorCode OutputCheckFile(void *ctx)
     (void) remove(probe);
     PetscCheck(!failed, PETSC_COMM_SELF, PETSC_ERR_FILE_WRITE, "Cannot write -output_file %s: the file system of %s takes no data (full?)", o->file, dir);
   }
+  PetscCall(DrapeCheckOutputPath("-output_file", o->file)); /* /dev is writable to root */
   /* nothing the run reads may be overwritten (a restart continues its own file) */
   PetscCall(PetscSNPrintf(tmp, sizeof tmp, "%s.tmp", o->xdmf));
   PetscCall(DrapeSameFile(o->file, o->xdmf, &same));

@@ -80,6 +80,7 @@ PetscErrorCode SolidSetFromOptions(Solid s)
   PetscCheck(s->type != SOLID_MESH || s->file[0], s->comm, PETSC_ERR_USER_INPUT, "-solid_type mesh needs -solid_file FILE (OFF, OBJ, STL or PLY)");
   PetscCheck(!fileset || s->type == SOLID_MESH, s->comm, PETSC_ERR_USER_INPUT, "-solid_file is used only with -solid_type mesh");
   PetscCall(DrapeCheckPathLength(s->comm, "-solid_file", s->file, sizeof s->file));
+  if (s->type == SOLID_MESH) PetscCall(DrapeCheckInputFile(s->comm, "-solid_file", "solid mesh"));
   if (s->type == SOLID_MESH) PetscCall(DrapeRegisterInput(s->file, "solid mesh")); /* read at set-up: no output may be it */
   /* placements and sizes no real scene approaches: CGAL's exact arithmetic traps on overflow */
   PetscCall(DrapeCheckReal(s->comm, "-solid_scale", 1, &s->scale, 1e-6, 1e6, ""));
