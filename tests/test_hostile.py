@@ -522,3 +522,17 @@ def test_special_files_are_refused_before_they_are_opened(tmp, kind, args, messa
     refused(res, message)
     assert (tmp / "stdout.txt").read_text() == "earlier log\n" and (tmp / "x.h5").read_bytes() == b"earlier results"
     assert not os.path.exists("/dev/stdout.xmf")
+
+
+@pytest.mark.parametrize("args,message", [
+    (["stray"], "'stray' on the command line is neither an option nor the value of one"),
+    (["-outputfile", "x.h5"], "Unknown option -outputfile"),
+    (["-solid_file", "in.off"], "Cannot read the solid mesh in.off (-solid_file): it is not a regular file"),
+    (["-contact_thickness", "0.01"], "-contact_thickness does not apply to this run"),
+], ids=["stray-word", "near-miss", "fifo", "does-not-apply"])
+def test_hostile_input_on_two_ranks_is_one_sentence(tmp, args, message):
+    """The checks of classes 5, 7 and 13 on two ranks: one sentence, no abort, no hang."""
+    os.mkfifo(tmp / "in.off")
+    res = subprocess.run(mpiexec(2) + [str(DRAPE)] + TINY + args, capture_output=True, text=True, timeout=60, cwd=tmp)
+    refused(res, message, ranks=2)
+    assert "MPI_ABORT" not in res.stdout + res.stderr
