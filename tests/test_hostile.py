@@ -473,7 +473,7 @@ def test_cusick_over_its_pedestal_still_runs():
 # ---- Class 12 of issue 29 (second case): a restart with another cloth ----
 
 @pytest.mark.parametrize("args,message", [
-    ("-cloth_size 2", "Cannot restart from r.h5 with -cloth_size 2: its run had -cloth_size's default"),
+    ("-cloth_size 2", "Cannot restart from r.h5 with -cloth_size 2: its run had the default, -cloth_size 1,1,"),
     ("-cloth_density 0.3", "Cannot restart from r.h5 with -cloth_density 0.3: its run had -cloth_density 0.2"),
     ("-cloth_model paper", "Cannot restart from r.h5 with -cloth_model paper"),
     ("-cloth_bend 1e-4", "Cannot restart from r.h5 with -cloth_bend 1e-4"),
@@ -481,13 +481,14 @@ def test_cusick_over_its_pedestal_still_runs():
 def test_restart_with_another_material_or_geometry_is_refused(tmp, args, message):
     """-restart good.h5 -cloth_size 2 ran a 1 m cloth's frames as a 2 m cloth (20 %
     strain): only the lattice was compared with the file. The same values, spelt
-    otherwise, still restart."""
+    otherwise, and defaults restated, still restart."""
     subprocess.run([str(DRAPE)] + SCENE.split() + ["-cloth_density", "0.2", "-output_file", "r.h5", "-drape_progress", "0"], check=True, capture_output=True, cwd=tmp)
     before = snapshot(tmp)
     res = drape(["-restart", "r.h5", "-ts_max_time", "0.02", "-drape_progress", "0"] + args.split(), tmp, timeout=30)
     refused(res, message)
     assert snapshot(tmp) == before
-    res = drape(["-restart", "r.h5", "-ts_max_time", "0.02", "-drape_progress", "0", "-cloth_density", "2e-1"], tmp, timeout=30)
+    res = drape(["-restart", "r.h5", "-ts_max_time", "0.02", "-drape_progress", "0", "-cloth_density", "2e-1", "-cloth_size", "1.0,1", "-cloth_model", "drape"],
+                tmp, timeout=30)
     assert res.returncode == 0, res.stderr
 
 

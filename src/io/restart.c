@@ -19,7 +19,13 @@ typedef struct {
   PetscReal  *times; /* of the complete frames (caller frees) */
   char       *options;
   const char *why;
+  /* the cloth the run had, as its start-up numbers in the file say (old files: unset) */
+  double values[6]; /* size_warp, size_weft, density, shear, stretch_warp, stretch_weft */
+  int    has_value[6];
+  char   model[32];
 } RestartInfo;
+
+static const char *const value_names[] = {"size_warp", "size_weft", "density", "shear", "stretch_warp", "stretch_weft"};
 
 /* Rank of dataset `name` and its dimensions (at most 4); -1 if it is missing or not
  * a dataset of floating-point numbers. */
@@ -113,6 +119,18 @@ static PetscErrorCode RestartInspectFile(hid_t fid, RestartInfo *r)
   H5Tclose(tid);
   H5Aclose(aid);
   if (r->why) PetscFunctionReturn(0);
+  for (int k = 0; k < 6; k++) {
+    if (H5Aexists(fid, value_names[k]) <= 0 || (aid = H5Aopen(fid, value_names[k], H5P_DEFAULT)) < 0) continue;
+    r->has_value[k] = H5Aread(aid, H5T_NATIVE_DOUBLE, &r->values[k]) >= 0;
+    H5Aclose(aid);
+  }
+  if (H5Aexists(fid, "model") > 0 && (aid = H5Aopen(fid, "model", H5P_DEFAULT)) >= 0) {
+    if ((tid = H5Aget_type(aid)) >= 0) {
+      if (H5Tget_class(tid) == H5T_STRING && H5Tis_variable_str(tid) == 0 && H5Tget_size(tid) < sizeof r->model && H5Aread(aid, tid, r->model) < 0) r->model[0] = 0;
+      H5Tclose(tid);
+    }
+    H5Aclose(aid);
+  }
   /* times and step of the frames: finite, in order (a restart from t = inf never ends) */
   PetscCall(PetscMalloc1(r->nframes, &r->times));
   if (ReadColumn(fid, "time", 0, (hsize_t) r->nframes, r->times) < 0) {
@@ -266,8 +284,41 @@ static PetscBool SameValue(const char a[], const char b[])
   return PETSC_TRUE;
 }
 
+/* Is a value given now the one the file's run had by default, as its start-up numbers
+ * say? (-cloth_size 1 restates a default 1 m square.) */
+static PetscBool SameAsFileDefault(const char name[], const char now[], const RestartInfo *r)
+{
+  static const struct {
+    const char *name;
+    int         first, count;
+  } numbers[] = {{"-cloth_size", 0, 2}, {"-cloth_density", 2, 1}, {"-cloth_shear", 3, 1}, {"-cloth_stretch", 4, 2}};
+
+  if (!strcmp(name, "-cloth_model")) return (PetscBool) (r->model[0] && !strcasecmp(now, r->model));
+  for (size_t k = 0; k < sizeof numbers / sizeof numbers[0]; k++) {
+    double      given[2];
+    int         n = 0;
+    const char *p = now;
+    char       *end;
+    if (strcmp(name, numbers[k].name)) continue;
+    while (n < 2) {
+      given[n++] = strtod(p, &end);
+      if (end == p || (*end && *end != ',')) return PETSC_FALSE;
+      if (!*end) break;
+      p = end + 1;
+    }
+    if (*end) return PETSC_FALSE; /* more values than the option takes */
+    for (int i = 0; i < numbers[k].count; i++) {
+      const int    j = numbers[k].first + i;
+      const double g = given[n == 1 ? 0 : i];
+      if (!r->has_value[j] || !(PetscAbsReal((PetscReal) (g - r->values[j])) <= 1e-12 * PetscAbsReal((PetscReal) r->values[j]))) return PETSC_FALSE;
+    }
+    return (PetscBool) (n <= numbers[k].count);
+  }
+  return PETSC_FALSE;
+}
+
 /* Refuse a command line that gives the restarted cloth another material or geometry. */
-static PetscErrorCode RestartCheckModel(MPI_Comm comm, const char file[], const char stored_options[])
+static PetscErrorCode RestartCheckModel(MPI_Comm comm, const char file[], const char stored_options[], const RestartInfo *r)
 {
   PetscOptions stored;
 
@@ -279,11 +330,17 @@ static PetscErrorCode RestartCheckModel(MPI_Comm comm, const char file[], const 
     PetscBool was_set, now_set;
     PetscCall(PetscOptionsGetString(stored, NULL, *name, was, sizeof was, &was_set));
     PetscCall(PetscOptionsGetString(NULL, NULL, *name, now, sizeof now, &now_set));
-    if (!now_set || (was_set && SameValue(was, now))) continue;
+    if (!now_set || (was_set && SameValue(was, now)) || (!was_set && SameAsFileDefault(*name, now, r))) continue;
     if (was_set)
       PetscCall(PetscSNPrintf(why, sizeof why, "its run had %s %s", *name, was));
-    else
-      PetscCall(PetscSNPrintf(why, sizeof why, "its run had %s's default", *name));
+    else {
+      char value[128] = "";
+      for (int k = 0; k < 6; k++) /* the default's value, where the file's start-up numbers give it */
+        if (r->has_value[k] && !strncmp(value_names[k], *name + 7, 4)) (void) snprintf(value + strlen(value), sizeof value - strlen(value), "%s%g", value[0] ? "," : " ", r->values[k]);
+      if (!strcmp(*name, "-cloth_model") && r->model[0]) (void) snprintf(value, sizeof value, " %s", r->model);
+      PetscCall(PetscSNPrintf(why, sizeof why, "its run had the default%s%s", value[0] ? ", " : "", value[0] ? *name : ""));
+      if (value[0]) PetscCall(PetscStrlcat(why, value, sizeof why));
+    }
     PetscCall(PetscOptionsDestroy(&stored));
     SETERRQ(comm, PETSC_ERR_USER_INPUT, "Cannot restart from %s with %s %s: %s, and its frames hold that cloth (a restart keeps the cloth's material and geometry: leave %s out, or start a new run)", file, *name, now, why, *name);
   }
@@ -323,7 +380,11 @@ PetscErrorCode RestartInsertOptions(MPI_Comm comm, const char file[])
     PetscCall(PetscOptionsHasName(NULL, NULL, startup_only[k], &given));
   }
   {
-    PetscErrorCode ierr = RestartCheckModel(comm, file, r.options);
+    PetscErrorCode ierr;
+    PetscCallMPI(MPI_Bcast(r.values, 6, MPI_DOUBLE, 0, comm));
+    PetscCallMPI(MPI_Bcast(r.has_value, 6, MPI_INT, 0, comm));
+    PetscCallMPI(MPI_Bcast(r.model, sizeof r.model, MPI_CHAR, 0, comm));
+    ierr = RestartCheckModel(comm, file, r.options, &r);
     if (ierr) PetscCall(RestartInfoDestroy(&r));
     PetscCall(ierr);
   }
