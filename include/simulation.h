@@ -20,9 +20,10 @@ PETSC_EXTERN PetscErrorCode SimulationSetFromOptions(Simulation);
 PETSC_EXTERN PetscErrorCode SimulationSetUp(Simulation);
 PETSC_EXTERN PetscErrorCode SimulationRun(Simulation);
 PETSC_EXTERN PetscErrorCode SimulationDestroy(Simulation *);
-/* Was the run stopped by SIGTERM/SIGINT (after writing its last frame)? Not
- * collective. */
-PETSC_EXTERN PetscErrorCode SimulationInterrupted(Simulation, PetscBool *);
+/* Was the run stopped by SIGTERM, SIGINT, SIGHUP or SIGPIPE (after writing its last
+ * frame), and can -restart continue it from that frame (not with bending friction,
+ * whose plastic state the frames do not hold)? Not collective. */
+PETSC_EXTERN PetscErrorCode SimulationInterrupted(Simulation, PetscBool *interrupted, PetscBool *restartable);
 
 /* drapebe.c: drape's backward Euler in the paper's form (scheme 4: A dv = b, SNES +
  * KSP CG on an assembled matrix, contact as constraints of the step), the TS type

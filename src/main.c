@@ -9,8 +9,9 @@ static const char help[] = "drape: how a fabric falls, hangs and drapes, by the 
 #include <stdlib.h>
 
 /* Exit status: 0 done, 1 error, 75 (EX_TEMPFAIL) stopped by SIGTERM, SIGINT, SIGHUP or SIGPIPE with a
- * checkpoint written: a batch script may requeue with -restart. */
-static PetscErrorCode Run(PetscBool *interrupted)
+ * checkpoint written: a batch script may requeue with -restart; 1 too for such a stop
+ * that -restart cannot continue (bending friction), so that nothing requeues it. */
+static PetscErrorCode Run(PetscBool *interrupted, PetscBool *restartable)
 {
   Simulation sim;
 
@@ -22,7 +23,7 @@ static PetscErrorCode Run(PetscBool *interrupted)
   PetscCall(SimulationSetUp(sim));
   PetscCall(PetscLogStagePop());
   PetscCall(SimulationRun(sim));
-  PetscCall(SimulationInterrupted(sim, interrupted));
+  PetscCall(SimulationInterrupted(sim, interrupted, restartable));
   PetscCall(SimulationDestroy(&sim));
   PetscFunctionReturn(0);
 }
@@ -30,8 +31,8 @@ static PetscErrorCode Run(PetscBool *interrupted)
 int main(int argc, char **argv)
 {
   PetscErrorCode ierr;
-  PetscBool      interrupted = PETSC_FALSE;
-  int            petsc_argc  = argc;
+  PetscBool      interrupted = PETSC_FALSE, restartable = PETSC_TRUE;
+  int            petsc_argc = argc;
   char         **petsc_argv = argv, *without_files[] = {argv[0], (char *) "-skip_petscrc", NULL};
 
   /* MPI first: the options files are checked before PETSc reads them (PETSc's own
@@ -48,12 +49,12 @@ int main(int argc, char **argv)
   /* a closed stdout (drape | head) makes prints fail quietly instead of killing the
    * run; in the time loop SIGPIPE stops it like SIGTERM, with a checkpoint */
   (void) signal(SIGPIPE, SIG_IGN);
-  ierr = Run(&interrupted);
+  ierr = Run(&interrupted, &restartable);
   /* a failure only some ranks saw would leave the others waiting: that ends the whole
    * job (MPI_Abort; the frames written so far are on disk) */
   if (ierr) PetscCall(DrapeEndWithError(ierr));
   PetscCall(DrapeFinalize());
   PetscCall(PetscFinalize());
   if (MPI_Finalize() != MPI_SUCCESS) return 1;
-  return ierr ? 1 : (interrupted ? 75 : 0);
+  return ierr ? 1 : (interrupted ? (restartable ? 75 : 1) : 0);
 }

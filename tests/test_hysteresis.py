@@ -4,12 +4,14 @@ KernelFriction; its kernel is Taylor-tested in tests/unit/test_kernels.c). Here:
 strip it bends rests on the heavy cantilever of its law, the plastic state is the same
 on any number of ranks, and bad values are refused."""
 import hashlib
+import signal
+import subprocess
 import sys
 
 import numpy as np
 import pytest
 
-from conftest import DRAPE, ROOT, ROUNDOFF, refused, run
+from conftest import DRAPE, ROOT, ROUNDOFF, refused, run, wait_for_frames
 
 sys.path.insert(0, str(ROOT / "scripts"))
 import cantilever  # noqa: E402
@@ -97,3 +99,20 @@ def test_restart_of_a_run_with_hysteresis_is_refused(tmp):
     msg = res.stdout + res.stderr
     assert res.returncode != 0 and "-restart cannot continue a run with -cloth_bend_hysteresis" in msg and "PETSC ERROR" not in msg, msg
     assert hashlib.sha256(out.read_bytes()).hexdigest() == before
+
+
+def test_sigterm_of_a_run_with_hysteresis_does_not_promise_a_restart(tmp):
+    """Stopped by SIGTERM, a run with bending friction keeps its frames but says that
+    -restart cannot continue it, and exits 1, not 75: a batch script that requeues on
+    75 (runs/cluster/drape.slurm) would start a job that can only fail."""
+    out = tmp / "h.h5"
+    proc = subprocess.Popen([str(DRAPE), "-da_grid_x", "16", "-da_grid_y", "16", "-cloth_bend_hysteresis", "1e-4", "-ts_type", "basicsymplectic",
+                             "-ts_dt", "1e-4", "-ts_max_time", "100", "-output_steps", "50", "-drape_progress", "0", "-output_file", str(out)],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    wait_for_frames(out, 3)
+    proc.send_signal(signal.SIGTERM)
+    stdout, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 1, stdout + stderr
+    assert "Stopped by SIGTERM" in stdout and "-restart cannot continue a run with -cloth_bend_hysteresis" in stdout, stdout
+    assert "continue with -restart" not in stdout and "PETSC ERROR" not in stdout + stderr
+    assert drape_h5.load(out).nframes >= 3

@@ -714,10 +714,23 @@ PetscErrorCode SimulationSetUp(Simulation s)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode SimulationInterrupted(Simulation s, PetscBool *interrupted)
+/* -restart cannot continue a run with bending friction (its plastic curvatures are
+ * not in the frames: SimulationSetUp refuses it) */
+static PetscErrorCode SimulationRestartable(Simulation s, PetscBool *restartable)
+{
+  ClothInfo info;
+
+  PetscFunctionBeginUser;
+  PetscCall(ClothGetInfo(s->cloth, &info));
+  *restartable = (PetscBool) !(info.hysteresis[0] > 0 || info.hysteresis[1] > 0);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SimulationInterrupted(Simulation s, PetscBool *interrupted, PetscBool *restartable)
 {
   PetscFunctionBeginUser;
   *interrupted = (PetscBool) (s->interrupted != 0);
+  PetscCall(SimulationRestartable(s, restartable));
   PetscFunctionReturn(0);
 }
 
@@ -1133,9 +1146,16 @@ PetscErrorCode SimulationRun(Simulation s)
   }
   SignalsCatch(PETSC_FALSE);
   if (s->interrupted) {
-    char file[PETSC_MAX_PATH_LEN] = "";
+    char      file[PETSC_MAX_PATH_LEN] = "";
+    PetscBool restartable              = PETSC_TRUE;
     PetscCall(PetscOptionsGetString(NULL, NULL, "-output_file", file, sizeof file, NULL));
-    if (enabled)
+    PetscCall(SimulationRestartable(s, &restartable));
+    if (enabled && !restartable)
+      PetscCall(PetscPrintf(s->comm,
+                            "Stopped by %s after step %" PetscInt_FMT
+                            " at t = %g s; the frames so far are in %s, but -restart cannot continue a run with -cloth_bend_hysteresis (the frames do not hold the bending friction's plastic curvature): run it again from the start\n",
+                            SignalName((int) s->interrupted), steps, (double) t, file));
+    else if (enabled)
       PetscCall(PetscPrintf(s->comm, "Stopped by %s after step %" PetscInt_FMT " at t = %g s; the state is the last frame of %s: continue with -restart %s\n", SignalName((int) s->interrupted), steps, (double) t, file, file));
     else
       PetscCall(PetscPrintf(s->comm, "Stopped by %s after step %" PetscInt_FMT " at t = %g s; without -output_file there is nothing to restart from\n", SignalName((int) s->interrupted), steps, (double) t));
