@@ -93,6 +93,7 @@ BAD = [
     ("-cloth_shape circle -cusick_pedestal_radius 1", "leaves no overhang"),
     ("-cusick_center 0.1", "-cusick_center needs two coordinates"),
     ("-ts_type basicsymplectic -ts_exact_final_time interpolate", "interpolate is not available with -ts_type basicsymplectic"),
+    ("-ts_type drapebe -ksp_type preonly -pc_type none", "-pc_type none is not a direct solver"),  # issue 29, class 13: it froze the cloth
 ]
 
 

@@ -883,6 +883,15 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
      * the solve itself, and takes no start (PETSc refuses one) */
     PetscCall(PetscObjectTypeCompare((PetscObject) snes, SNESKSPONLY, &ksponly));
     PetscCall(PetscObjectTypeCompare((PetscObject) ksp, KSPPREONLY, &preonly));
+    if (preonly) { /* one application of the preconditioner is the solve: it must be a direct one */
+      PetscBool direct;
+      PCType    type;
+      PetscCall(PetscObjectTypeCompareAny((PetscObject) pc, &direct, PCLU, PCCHOLESKY, PCREDUNDANT, PCSVD, PCQR, ""));
+      PetscCall(PCGetType(pc, &type));
+      PetscCheck(direct, PetscObjectComm((PetscObject) ts), PETSC_ERR_USER_INPUT,
+                 "-ksp_type preonly applies the preconditioner once instead of solving, and -pc_type %s is not a direct solver: the step would not be solved (the cloth would barely move); use -ksp_type preonly with -pc_type lu or cholesky, or an iterative -ksp_type (cg, the default)",
+                 type ? type : "(none)");
+    }
     be->lag = ksponly && !preonly ? be->pc_lag : 1;
     if (preonly) PetscCall(KSPSetInitialGuessNonzero(ksp, PETSC_FALSE));
     /* CG stops at rtol times the larger of |b| and the step's weight impulse |h M g|
