@@ -889,7 +889,8 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
       PetscCall(PetscObjectTypeCompareAny((PetscObject) pc, &direct, PCLU, PCCHOLESKY, PCREDUNDANT, PCSVD, PCQR, ""));
       PetscCall(PCGetType(pc, &type));
       PetscCheck(direct, PetscObjectComm((PetscObject) ts), PETSC_ERR_USER_INPUT,
-                 "-ksp_type preonly applies the preconditioner once instead of solving, and -pc_type %s is not a direct solver: the step would not be solved (the cloth would barely move); use -ksp_type preonly with -pc_type lu or cholesky, or an iterative -ksp_type (cg, the default)",
+                 "-ksp_type preonly applies the preconditioner once instead of solving, and -pc_type %s is not a direct solver: the step would not be solved (the cloth would barely move); use -ksp_type preonly with -pc_type lu or cholesky, or an "
+                 "iterative -ksp_type (cg, the default)",
                  type ? type : "(none)");
     }
     be->lag = ksponly && !preonly ? be->pc_lag : 1;
