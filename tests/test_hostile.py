@@ -537,3 +537,18 @@ def test_hostile_input_on_two_ranks_is_one_sentence(tmp, args, message):
     res = subprocess.run(mpiexec(2) + [str(DRAPE)] + TINY + args, capture_output=True, text=True, timeout=60, cwd=tmp)
     refused(res, message, ranks=2)
     assert "MPI_ABORT" not in res.stdout + res.stderr
+
+
+def test_default_bias_fits_an_oblong_lattice():
+    """Class 9: -cloth_size 1,0.5 on 32^2 (cells twice as long as wide) was refused with a
+    sentence about -cloth_bend, which the user never gave. The default bias, (warp +
+    weft)/2, is now the nearest the lattice can hold: here its upper bound (warp +
+    weft)/4 + 1.5 min(Bw dy^2/dx^2, Bf dx^2/dy^2); a bias given outside the range is
+    still refused, with what to change."""
+    res = run("-cloth_size 1,0.5 -ts_type basicsymplectic -ts_dt 1e-5 -ts_max_steps 2 -drape_stability_its 0 -drape_json")
+    dx, dy, b = 1 / 31, 0.5 / 31, 5e-6
+    hi = 0.5 * b + 1.5 * min(b * dy**2 / dx**2, b * dx**2 / dy**2)
+    assert abs(res.report["bend_bias"] - hi) <= 1e-12 * hi < 0.5 * (b + b)
+    # a square lattice keeps the default (warp + weft)/2
+    assert run("-ts_type basicsymplectic -ts_dt 1e-5 -ts_max_steps 2 -drape_stability_its 0 -drape_json").report["bend_bias"] == b
+    refused(run("-cloth_size 1,0.5 -cloth_bend 5e-6,5e-6,5e-6 -ts_max_steps 1", check=False), "give a bias in that range, leave it out")

@@ -105,10 +105,16 @@ static PetscErrorCode OptionsBend(PetscOptionItems *PetscOptionsObject, PetscRea
 static PetscErrorCode ClothBendCoefficients(Cloth c)
 {
   const PetscReal dx = c->size[0] / (c->Mx - 1), dy = c->size[1] / (c->My - 1), r2 = dx * dx / (dy * dy);
-  const PetscReal bw = c->bend[0], bf = c->bend[1], bb = c->bend[2], d = (4 * bb - bw - bf) / 6;
+  const PetscReal bw = c->bend[0], bf = c->bend[1];
   const PetscReal lo = 0.25 * (bw + bf), hi = lo + 1.5 * PetscMin(bw / r2, bf * r2);
+  PetscReal       bb, d;
 
   PetscFunctionBeginUser;
+  /* the default bias, (Bw + Bf)/2, is the nearest the lattice can hold where it cannot
+   * hold that (cells far from square: dx/dy beyond about 1.4 for Bw = Bf) */
+  if (c->bias_default && c->model == CLOTH_MODEL_DRAPE) c->bend[2] = PetscMin(PetscMax(c->bend[2], lo), hi);
+  bb = c->bend[2];
+  d  = (4 * bb - bw - bf) / 6;
   if (c->model == CLOTH_MODEL_PAPER) {
     c->bend_coef[0] = bw;
     c->bend_coef[1] = bf;
@@ -117,7 +123,8 @@ static PetscErrorCode ClothBendCoefficients(Cloth c)
     PetscFunctionReturn(0);
   }
   PetscCheck(bb >= lo * (1 - 1e-12) && bb <= hi * (1 + 1e-12), c->comm, PETSC_ERR_USER_INPUT,
-             "-cloth_bend: the bias rigidity %g N m (what a strip cut at 45 degrees measures) must lie from (warp + weft)/4 = %g to %g N m for warp %g and weft %g N m on this lattice (spacing %g x %g m); -cloth_model paper drops the bias term",
+             "-cloth_bend: the bias rigidity %g N m (what a strip cut at 45 degrees measures) must lie from (warp + weft)/4 = %g to %g N m for warp %g and weft %g N m on this lattice (spacing %g x %g m: cells nearer square allow more); give a bias "
+             "in that range, leave it out (drape then takes the nearest to (warp + weft)/2), or use -cloth_model paper, which drops the bias term",
              (double) bb, (double) lo, (double) hi, (double) bw, (double) bf, (double) dx, (double) dy);
   c->bend_coef[2] = PetscMax(d, 0);
   c->bend_coef[0] = PetscMax(bw - c->bend_coef[2] * r2, 0);
@@ -439,6 +446,7 @@ PetscErrorCode ClothSetFromOptions(Cloth c)
   PetscCall(DrapeCheckReal(c->comm, "-cloth_damping", 1, &c->damping, 0, 1e4, "1/s"));
   PetscCall(DrapeCheckReal(c->comm, "-cloth_stretch", 2, c->stretch, 0, 1e7, "N/m"));
   PetscCall(DrapeCheckReal(c->comm, "-cloth_shear", 1, &c->shear, 0, 1e6, "N/m"));
+  c->bias_default = (PetscBool) (c->bend[2] < 0);
   if (c->bend[2] < 0) c->bend[2] = 0.5 * (c->bend[0] + c->bend[1]);
   PetscCheck(c->model == CLOTH_MODEL_DRAPE || !bias_given, c->comm, PETSC_ERR_USER_INPUT, "-cloth_model paper has no bias rigidity: give -cloth_bend warp[,weft], or use -cloth_model drape for a third value");
   PetscCall(DrapeCheckReal(c->comm, "-cloth_bend", 3, c->bend, 0, 1, "N m"));

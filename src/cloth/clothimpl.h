@@ -90,6 +90,7 @@ struct _p_Cloth {
   PetscReal        size[2], density, damping, gravity[3], origin[3];
   PetscReal        stretch[2], shear, bend[3];     /* bend: warp, weft, and the bias (a 45 deg strip) */
   ClothModel       model;                          /* drape (with the bias term) or paper            */
+  PetscBool        bias_default;                   /* the bias rigidity is the default (Bw + Bf)/2, not given: fitted to the lattice */
   PetscReal        bend_coef[3];                   /* per-area rigidities of the warp and weft triples and the diagonal pair (ClothBendCoefficients) */
   char             fabric[256];                    /* named fabric the material came from, or "" */
   PetscInt         bend_nb;                        /* samples of the fabric's bending table (0: none)            */
