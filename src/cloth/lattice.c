@@ -75,24 +75,20 @@ typedef struct {
   PetscScalar       *out, *x;
 } LatticeSweep;
 
-/* Bending coefficients (KernelAngleCoefficients, linear law) of the triple with
- * e1 = x_a - x_c, e2 = x_b - x_c, and its gradient with respect to x_a and x_b
- * (x_c's is minus their sum). m: 1 present, 0 absent. */
+/* A bending triple's gradient with respect to x_a and x_b (x_c's is minus their sum)
+ * from its arms e1 = x_a - x_c, e2 = x_b - x_c, by the general kernels (kernels.h,
+ * linear law). m: 1 present, 0 absent; an absent one gets the arms of a right angle
+ * (no division by zero) and kappa 0. */
 static inline __attribute__((always_inline)) void LatticeBend(PetscReal m, PetscReal kappa, const PetscReal e1[3], const PetscReal e2[3], PetscReal ga[3], PetscReal gb[3])
 {
-  PetscReal u = e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2], v = e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2];
-  PetscReal s = e1[0] * e2[0] + e1[1] * e2[1] + e1[2] * e2[2];
+  const PetscReal o[3] = {0, 0, 0}, a[3] = {m * e1[0] + (1 - m), m * e1[1], m * e1[2]}, bb[3] = {m * e2[0], m * e2[1] + (1 - m), m * e2[2]};
+  PetscReal       w[3], g[9];
 
-  u = m * u + (1 - m);
-  v = m * v + (1 - m);
-  s = m * s;
-  {
-    const PetscReal inv = 1 / (u * v), iP = PetscSqrtReal(u * v) * inv, c = s * iP;
-    const PetscReal w0 = -kappa * c * v * inv, w2 = -kappa * c * u * inv, w1 = kappa * iP;
-    for (PetscInt d = 0; d < 3; d++) {
-      ga[d] = w0 * e1[d] + w1 * e2[d];
-      gb[d] = w2 * e2[d] + w1 * e1[d];
-    }
+  KernelAngleCoefficients(PETSC_TRUE, a, bb, o, kappa, NULL, w);
+  KernelAngleGradientFromCoefficients(w, a, bb, o, g);
+  for (PetscInt d = 0; d < 3; d++) {
+    ga[d] = g[d];
+    gb[d] = g[3 + d];
   }
 }
 
@@ -210,36 +206,15 @@ static inline __attribute__((always_inline)) void LatticeRow(const ClothLattice 
     LatticeCoefficients(L, LAT_SHEAR, b, K, M, NULL);
 #pragma GCC ivdep
     for (PetscInt i = p0; i < p1; i++) {
-      const PetscReal kappa = K[i], m = M[i];
-      const PetscReal Ax = X[i + 1] - X[i], Ay = Y[i + 1] - Y[i], Az = Z[i + 1] - Z[i];                /* x1 - x0 */
-      const PetscReal Bx = XP[i] - X[i], By = YP[i] - Y[i], Bz = ZP[i] - Z[i];                         /* x2 - x0 */
-      const PetscReal Cx = XP[i + 1] - XP[i], Cy = YP[i + 1] - YP[i], Cz = ZP[i + 1] - ZP[i];          /* x3 - x2 */
-      const PetscReal Dx = XP[i + 1] - X[i + 1], Dy = YP[i + 1] - Y[i + 1], Dz = ZP[i + 1] - Z[i + 1]; /* x3 - x1 */
-      const PetscReal uA = m * (Ax * Ax + Ay * Ay + Az * Az) + (1 - m), uB = m * (Bx * Bx + By * By + Bz * Bz) + (1 - m);
-      const PetscReal uC = m * (Cx * Cx + Cy * Cy + Cz * Cz) + (1 - m), uD = m * (Dx * Dx + Dy * Dy + Dz * Dz) + (1 - m);
-      const PetscReal sAB = m * (Ax * Bx + Ay * By + Az * Bz), sAD = m * (Ax * Dx + Ay * Dy + Az * Dz);
-      const PetscReal sCB = m * (Cx * Bx + Cy * By + Cz * Bz), sDC = m * (Dx * Cx + Dy * Cy + Dz * Cz);
-      PetscReal       q0, q1, q2, q3, w4, w5, w6, w7, w0, w1, w2, w3;
-      KernelShearCorner(uA, uB, sAB, kappa, &q0, &w4);
-      KernelShearCorner(uA, uD, -sAD, kappa, &q1, &w5);
-      KernelShearCorner(uC, uB, -sCB, kappa, &q2, &w6);
-      KernelShearCorner(uD, uC, sDC, kappa, &q3, &w7);
-      w0 = q0 * uB + q1 * uD;
-      w1 = q0 * uA + q2 * uC;
-      w2 = q3 * uD + q2 * uB;
-      w3 = q1 * uA + q3 * uC;
-      {
-        const PetscReal gA = w0 * Ax + w4 * Bx - w5 * Dx, gB = w1 * Bx + w4 * Ax - w6 * Cx, gC = w2 * Cx + w7 * Dx - w6 * Bx, gD = w3 * Dx - w5 * Ax + w7 * Cx;
-        g0x[i] = -gA - gB, g1x[i] = gA - gD, g2x[i] = gB - gC, g3x[i] = gC + gD;
-      }
-      {
-        const PetscReal gA = w0 * Ay + w4 * By - w5 * Dy, gB = w1 * By + w4 * Ay - w6 * Cy, gC = w2 * Cy + w7 * Dy - w6 * By, gD = w3 * Dy - w5 * Ay + w7 * Cy;
-        g0y[i] = -gA - gB, g1y[i] = gA - gD, g2y[i] = gB - gC, g3y[i] = gC + gD;
-      }
-      {
-        const PetscReal gA = w0 * Az + w4 * Bz - w5 * Dz, gB = w1 * Bz + w4 * Az - w6 * Cz, gC = w2 * Cz + w7 * Dz - w6 * Bz, gD = w3 * Dz - w5 * Az + w7 * Cz;
-        g0z[i] = -gA - gB, g1z[i] = gA - gD, g2z[i] = gB - gC, g3z[i] = gC + gD;
-      }
+      /* an absent cell computes on the unit square (no division by zero), kappa 0 */
+      const PetscReal m = M[i], n = 1 - m;
+      const PetscReal x0[3] = {m * X[i], m * Y[i], m * Z[i]}, x1[3] = {m * X[i + 1] + n, m * Y[i + 1], m * Z[i + 1]};
+      const PetscReal x2[3] = {m * XP[i], m * YP[i] + n, m * ZP[i]}, x3[3] = {m * XP[i + 1] + n, m * YP[i + 1] + n, m * ZP[i + 1]};
+      PetscReal       w[8], g[12];
+      KernelShearCellCoefficients(x0, x1, x2, x3, K[i], w);
+      KernelShearCellGradient(w, x0, x1, x2, x3, g);
+      g0x[i] = g[0], g0y[i] = g[1], g0z[i] = g[2], g1x[i] = g[3], g1y[i] = g[4], g1z[i] = g[5];
+      g2x[i] = g[6], g2y[i] = g[7], g2z[i] = g[8], g3x[i] = g[9], g3y[i] = g[10], g3z[i] = g[11];
     }
     for (PetscInt k = 0; k < 12; k++) T[k][p0 - 1] = T[k][p1] = 0;
       /* f(i,j) -= g_0(i) + g_1(i-1), f(i,j+1) -= g_2(i) + g_3(i-1) */
@@ -353,7 +328,7 @@ static inline void LatticeStoreRow(const ClothLattice *L, const LatticeSweep *S,
  * multiply-adds), so results agree across machines to round-off; on one machine every
  * rank takes the same version. */
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__INTEL_COMPILER) && !defined(DRAPE_NO_TARGET_CLONES)
-__attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+__attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default"), flatten))
 #endif
 static void
 LatticeSweepRows(const ClothLattice *L, const LatticeSweep *S)
