@@ -35,6 +35,8 @@ typedef struct {
   PetscInt  collisions;      /* collision impulses since the start of the run */
   PetscInt  failsafe;        /* particles put in impact zones (or stopped) by the fail-safe since the start */
   PetscInt  broad_phases;    /* candidate lists built */
+  PetscInt  near_lists;      /* near lists made from them */
+  PetscInt  unfiltered;      /* passes that took every candidate (the motion too fast for a near list) */
   PetscInt  halo;            /* the largest halo of a rank at the last list, particles (0 on one rank) */
   PetscInt  gathered;        /* pairs of contact groups across ranks, gathered on every rank, since the start */
   PetscInt  failsafe_steps;  /* steps in which the fail-safe ran */

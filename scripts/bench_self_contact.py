@@ -21,6 +21,15 @@ filter's seconds (the slowest rank's), the speed-up over the first rank count, t
 largest halo and the pairs gathered across ranks.
 
     .venv/bin/python scripts/bench_self_contact.py --ranks 1,2 --sizes 61,81 --time 0.3
+
+With --scenes it times instead what self-contact adds to a step on the scenes of
+issue 27 (the Cusick drape of denim at 81^2 in backward Euler, the peers' stiff
+sphere drop at 64^2 in symplectic Euler at 0.1 ms), in CPU seconds: without it,
+with it, and with it taking every candidate in every pass
+(-contact_self_near_radius 0: no near list), the three runs interleaved in each
+repeat.
+
+    .venv/bin/python scripts/bench_self_contact.py --scenes --repeat 3
 """
 import argparse
 import re
@@ -79,6 +88,42 @@ def ranks(a, sizes, counts):
                     "pairs gathered", "close pairs at the end"], rows))
 
 
+SCENES = {
+    "Cusick denim, drapebe 1 ms": (["-options_file", "runs/cusick.opts", "-cloth_fabric", "denim", "-drape_rest_tol", "0"], 81, 1.5),
+    "stiff sphere drop, symplectic 0.1 ms": (["-cloth_size", "1", "-cloth_stretch", "1333", "-cloth_shear", "500",
+                                                   "-cloth_bend", "1e-5", "-cloth_density", "0.1", "-cloth_damping", "0", "-solid_type", "sphere",
+                                                   "-solid_radius", "0.25", "-contact_mode", "friction", "-contact_thickness", "0.005",
+                                                   "-cloth_center", "0,0,0.3", "-ts_type", "basicsymplectic", "-ts_dt", "1e-4"], 64, 0.3),
+}
+VARIANTS = (("without", ["-contact_self", "0"]), ("with", ["-contact_self"]), ("every candidate", ["-contact_self", "-contact_self_near_radius", "0"]))
+
+
+def scenes(a):
+    """The --scenes table: CPU seconds without self-contact, with it, and with it on every candidate."""
+    drape = Drape(PROG, a.build)
+    rows = []
+    for name, (args, n, t) in SCENES.items():
+        n, t = (21, a.time) if a.quick else (n, t)
+        lattice = ["-da_grid_x", str(n), "-da_grid_y", str(n)]
+        cpu, reps = {v: [] for v, _ in VARIANTS}, {}
+        for _ in range(a.repeat):
+            for v, extra in VARIANTS:
+                r = drape.run(args + lattice + extra + ["-ts_max_time", str(t), "-output_interval", str(t)])
+                if r.returncode:
+                    fail(PROG, f"the run failed:\n{r.tail()}")
+                cpu[v].append(r.report["cpu"])
+                reps[v] = r.report
+        off = median(cpu["without"])
+        rep = reps["with"]
+        rows.append([name, f"{n}^2", f"{t:g}", str(rep["steps"]), f"{off:.2f}", f"{median(cpu['with']):.2f}", f"{median(cpu['with']) / off:.2f}",
+                     f"{median(cpu['every candidate']):.2f}", f"{median(cpu['every candidate']) / off:.2f}",
+                     f"{rep['self_broad_phases']}", f"{rep['self_near_lists']}", f"{rep['self_unfiltered']}"])
+    print(f"# {machine()}")
+    print(f"# CPU seconds (all ranks), one rank, medians of {a.repeat} interleaved repeats")
+    print(md_table(["scene", "lattice", "simulated s", "steps", "without", "with", "ratio", "every candidate", "ratio",
+                    "candidate lists", "near lists", "passes on every candidate"], rows))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sizes", default="41,61,81", help="lattice sizes n (n x n), comma-separated")
@@ -87,16 +132,20 @@ def main():
     ap.add_argument("--broad-phase", default="cgal,hash", help="broad phases to time, comma-separated (cgal, hash)")
     ap.add_argument("--build", default="build")
     ap.add_argument("--ranks", help="time the filter on these numbers of ranks instead (comma-separated; the pile scene)")
+    ap.add_argument("--scenes", action="store_true", help="time self-contact's share of a step on the scenes of issue 27 instead")
     ap.add_argument("--quick", action="store_true", help="one 21^2 run of 0.4 s each way (a smoke test)")
     a = ap.parse_args()
     if a.quick:
-        a.sizes, a.time, a.repeat = "21", 0.4, 1
+        a.sizes, a.time, a.repeat = "21", 0.4 if not a.scenes else 0.05, 1
     try:
         sizes = [int(s) for s in a.sizes.split(",")]
     except ValueError:
         fail(PROG, f"--sizes takes integers separated by commas; got {a.sizes!r}")
     if any(n < 3 or n > 1025 for n in sizes) or a.repeat < 1 or not 0 < a.time <= 100:
         fail(PROG, "--sizes must lie in 3..1025, --repeat be at least 1 and --time in (0, 100] s")
+    if a.scenes:
+        scenes(a)
+        return
     if a.ranks:
         try:
             counts = [int(r) for r in a.ranks.split(",")]

@@ -1213,6 +1213,8 @@ PetscErrorCode SimulationRun(Simulation s)
       PetscCall(ReportSetInt(r, "self_collisions", st.collisions));
       PetscCall(ReportSetInt(r, "self_failsafe", st.failsafe));
       PetscCall(ReportSetInt(r, "self_broad_phases", st.broad_phases));
+      PetscCall(ReportSetInt(r, "self_near_lists", st.near_lists));
+      PetscCall(ReportSetInt(r, "self_unfiltered", st.unfiltered));
       PetscCall(ReportSetInt(r, "self_halo_max", st.halo));
       PetscCall(ReportSetInt(r, "self_gathered", st.gathered));
       PetscCall(ReportSetInt(r, "self_failsafe_steps", st.failsafe_steps));

@@ -227,7 +227,7 @@ PetscErrorCode SelfContactSolveBegin(SelfContact sc, PetscReal h, const PetscSca
     s->x1[k] = s->x0[k] + h * s->v[k];
   }
   PetscCall(SelfHaloUpdate(sc, s->x0, s->x1, s->v));
-  PetscCall(SelfListUpdate(sc)); /* the list (and the halo) for this step's free motion */
+  PetscCall(SelfListUpdate(sc, SELF_SOLVE_REACH * H, PETSC_TRUE)); /* the list (and the halo) for this step's free motion */
   if (q->ns != s->n) {
     PetscCall(PetscFree3(q->xs, q->S, q->gid));
     PetscCall(PetscMalloc3(3 * s->n + 1, &q->xs, 9 * s->n + 1, &q->S, s->n + 1, &q->gid));

@@ -42,6 +42,11 @@
 /* A candidate list's boxes also cover this many more steps of each particle's
  * motion, so that a cloth moving steadily keeps its list for as many steps. */
 #define SELF_PREDICT_STEPS 2
+/* The near list's radius (-contact_self_near_radius), in thicknesses: past the
+ * implicit solve's reach (2) by half a thickness, and below the 2.83 at which a
+ * flat lattice at the default thickness (a quarter of the spacing) has the
+ * triangles across a cell's diagonal from a particle. */
+#define SELF_NEAR_RADIUS 2.5
 
 PetscErrorCode SelfContactCreate(MPI_Comm comm, Cloth cloth, SelfContact *self)
 {
@@ -54,6 +59,7 @@ PetscErrorCode SelfContactCreate(MPI_Comm comm, Cloth cloth, SelfContact *self)
   sc->mu            = 0.3;
   sc->its           = 8;
   sc->margin        = 1;
+  sc->near          = SELF_NEAR_RADIUS;
   sc->hash          = PETSC_TRUE;
   sc->zones         = PETSC_TRUE;
   sc->unit3         = MPI_DATATYPE_NULL;
@@ -71,6 +77,8 @@ PetscErrorCode SelfContactSetFromOptions(SelfContact sc)
   PetscCall(PetscOptionsReal("-contact_self_thickness", "Distance the cloth keeps from itself (m; 0: a quarter of the lattice spacing)", "SelfContactSetFromOptions", sc->thickness, &sc->thickness, NULL));
   PetscCall(PetscOptionsReal("-contact_self_friction", "Coulomb friction coefficient between layers of the cloth", "SelfContactSetFromOptions", sc->mu, &sc->mu, NULL));
   PetscCall(PetscOptionsReal("-contact_self_margin", "Candidate pairs are kept while no particle moved more than this many thicknesses beyond its sweep when they were found", "SelfContactSetFromOptions", sc->margin, &sc->margin, NULL));
+  PetscCall(PetscOptionsReal("-contact_self_near_radius", "The passes take the candidates closer than this many thicknesses while no particle moved far enough to bring another within reach (0: every candidate, every pass)",
+                             "SelfContactSetFromOptions", sc->near, &sc->near, NULL));
   {
     const char *const kinds[] = {"cgal", "hash"};
     PetscInt          kind    = sc->hash;
@@ -96,6 +104,7 @@ PetscErrorCode SelfContactSetFromOptions(SelfContact sc)
   PetscCall(DrapeCheckReal(sc->comm, "-contact_self_friction", 1, &sc->mu, 0, 10, ""));
   PetscCall(DrapeCheckReal(sc->comm, "-contact_self_stiffness", 1, &sc->solve.k_set, 0, 1e12, "N/m (0: 10 m/h^2)"));
   PetscCall(DrapeCheckReal(sc->comm, "-contact_self_margin", 1, &sc->margin, 0, 100, "thicknesses"));
+  PetscCall(DrapeCheckReal(sc->comm, "-contact_self_near_radius", 1, &sc->near, 0, 100, "thicknesses (0: no near list)"));
   PetscCall(DrapeCheckIntOption(sc->comm, "-contact_self_its"));
   PetscCall(DrapeCheckInt(sc->comm, "-contact_self_its", sc->its, 0, 1000));
   PetscFunctionReturn(0);
@@ -166,10 +175,13 @@ static PetscErrorCode SelfMeshCreate(Cloth cloth, PetscInt Mx, PetscInt My, Self
 static PetscErrorCode SetFreeList(SelfSet *s)
 {
   PetscFunctionBeginUser;
-  PetscCall(PetscFree(s->pt));
-  PetscCall(PetscFree(s->ee));
-  s->npt = s->nee = 0;
-  s->listed       = PETSC_FALSE;
+  PetscCall(PetscFree(s->cpt));
+  PetscCall(PetscFree(s->cee));
+  PetscCall(PetscFree(s->npt_));
+  PetscCall(PetscFree(s->nee_));
+  s->ncpt = s->ncee = s->nnpt = s->nnee = s->npt = s->nee = 0;
+  s->pt = s->ee = NULL;
+  s->listed = s->has_near = PETSC_FALSE;
   PetscFunctionReturn(0);
 }
 
@@ -443,6 +455,7 @@ PetscErrorCode SelfContactDestroy(SelfContact *self)
   PetscCall(PetscFree7(sc->local.nat, sc->local.invm, sc->local.x0, sc->local.x1, sc->local.v, sc->local.lo, sc->local.hi));
   PetscCall(SetFreeMesh(&sc->local.mesh));
   PetscCall(SetFreeList(&sc->local));
+  PetscCall(PetscFree(sc->local.xr));
   PetscCall(PetscSFDestroy(&sc->sf));
   if (sc->unit3 != MPI_DATATYPE_NULL) PetscCallMPI(MPI_Type_free(&sc->unit3));
   if (sc->unit9 != MPI_DATATYPE_NULL) PetscCallMPI(MPI_Type_free(&sc->unit9));
@@ -521,7 +534,7 @@ static PetscErrorCode BroadPhaseRun(void *ctx)
   SelfSet        *s = b->s;
 
   PetscFunctionBeginUser;
-  PetscCall((b->sc->hash ? SelfBroadPhaseHash : SelfBroadPhase)(&s->mesh, s->lo, s->hi, (0.5 + b->sc->margin) * b->sc->thickness, &s->npt, &s->pt, &s->nee, &s->ee));
+  PetscCall((b->sc->hash ? SelfBroadPhaseHash : SelfBroadPhase)(&s->mesh, s->lo, s->hi, (0.5 + b->sc->margin) * b->sc->thickness, &s->ncpt, &s->cpt, &s->ncee, &s->cee));
   PetscFunctionReturn(0);
 }
 
@@ -538,8 +551,9 @@ static PetscErrorCode SetBroadPhase(SelfContact sc, SelfSet *s)
   PetscCall(PetscLogEventEnd(drape_log.self_broad, 0, 0, 0, 0));
   if (s->nown < s->n) {
     for (PetscInt kind = 0; kind < 2; kind++) {
-      PetscInt *list = kind ? s->ee : s->pt, *np = kind ? &s->nee : &s->npt;
-      n = 0;
+      PetscInt *list = kind ? s->cee : s->cpt, *np = kind ? &s->ncee : &s->ncpt;
+      n     = 0;
+      s->pt = s->cpt, s->ee = s->cee; /* for PairParticles */
       for (PetscInt k = 0; k < *np; k++) {
         PetscInt p[4];
         PairParticles(s, kind, k, p);
@@ -550,19 +564,47 @@ static PetscErrorCode SetBroadPhase(SelfContact sc, SelfSet *s)
       *np = n;
     }
   }
-  s->listed = PETSC_TRUE;
+  s->listed   = PETSC_TRUE;
+  s->has_near = PETSC_FALSE;
   PetscFunctionReturn(0);
 }
 
-/* Is every own particle's start and end position within the margin of its box? */
-static PetscBool SetListValid(const SelfContact sc, const SelfSet *s)
+/* Does the list still hold every pair: is there a translation of the start
+ * positions, and one of the end positions, that puts every particle within the
+ * margin of its box? A translation changes no distance and no collision (along the
+ * step the cloth moves by the interpolated translation): the pairs the list must
+ * hold are those of the translated cloth, which it holds; a cloth that falls or
+ * slides as a whole keeps its list. Per direction the translation exists iff the
+ * largest x - hi and the largest lo - x sum to at most twice the margin. Over every
+ * rank; a position that is not finite makes the list invalid (SetBoxes then says
+ * so). */
+static PetscErrorCode SetListValid(SelfContact sc, const SelfSet *s, PetscBool *valid)
 {
   const PetscReal m = sc->margin * sc->thickness;
+  PetscReal       b[12], g[12], zero = 0; /* start and end, per direction: the largest x - hi, and lo - x; 0 * every x */
 
-  if (!s->listed) return PETSC_FALSE;
-  for (PetscInt k = 0; k < 3 * s->nown; k++)
-    if (!(PetscMin(s->x0[k], s->x1[k]) >= s->lo[k] - m && PetscMax(s->x0[k], s->x1[k]) <= s->hi[k] + m)) return PETSC_FALSE;
-  return PETSC_TRUE;
+  PetscFunctionBeginUser;
+  *valid = s->listed; /* the same on every rank */
+  if (!*valid) PetscFunctionReturn(0);
+  for (PetscInt i = 0; i < 12; i++) b[i] = -PETSC_MAX_REAL;
+  for (PetscInt k = 0; k < s->nown; k++)
+    for (PetscInt d = 0; d < 3; d++) {
+      const PetscReal lo = s->lo[3 * k + d], hi = s->hi[3 * k + d], x[2] = {s->x0[3 * k + d], s->x1[3 * k + d]};
+      for (PetscInt j = 0; j < 2; j++) {
+        b[6 * j + d]     = PetscMax(b[6 * j + d], x[j] - hi);
+        b[6 * j + 3 + d] = PetscMax(b[6 * j + 3 + d], lo - x[j]);
+        zero += 0 * x[j]; /* NaN once an x is not finite */
+      }
+    }
+  if (zero != 0) b[0] = PETSC_MAX_REAL;
+  if (sc->size > 1)
+    PetscCallMPI(MPI_Allreduce(b, g, 12, MPIU_REAL, MPIU_MAX, sc->comm));
+  else
+    PetscCall(PetscArraycpy(g, b, 12));
+  for (PetscInt j = 0; j < 2; j++)
+    for (PetscInt d = 0; d < 3; d++)
+      if (!(g[6 * j + d] < PETSC_MAX_REAL && g[6 * j + d] + g[6 * j + 3 + d] <= 2 * m)) *valid = PETSC_FALSE;
+  PetscFunctionReturn(0);
 }
 
 static PetscErrorCode CheckFinite(SelfContact sc, PetscBool finite)
@@ -670,31 +712,145 @@ static PetscErrorCode HaloRebuild(SelfContact sc)
   PetscFunctionReturn(0);
 }
 
-/* The local set's list, rebuilt (with the halo) when a particle of any rank moved
- * beyond the margin. Collective. */
-PetscErrorCode SelfListUpdate(SelfContact sc)
+/* ---- the near list: the candidates that can act, by distance ----
+ * A list made from boxes holds many pairs that are never close: the triangles
+ * across a cell's diagonal from a particle are inside its box but 0.7 spacings
+ * away, and a cloth at rest keeps its list for ever. The near list keeps the
+ * candidates closer than R (-contact_self_near_radius) at the positions xr it
+ * was made at. Let every particle's displacement from xr, less a translation c
+ * common to all, be at most delta (x0 - xr, and x1 - xr), and its motion over the
+ * step x1 - x0 less another common translation at most D. A translation changes no
+ * distance, and a primitive's points are convex combinations of its particles': a
+ * candidate left out (distance at least R at xr) is farther than R - 2 delta from
+ * its partner all along the step, and its gap at x1 along its normal at x0 is at
+ * least R - 2 delta0 - 2 D. While these exceed the reach the passes need (the
+ * thickness; the implicit solve's reach), the near list holds every pair they act
+ * on, in the candidates' order: the same pairs act, the same frames. delta and D
+ * are half-diagonals of the boxes of the displacements over every rank (c their
+ * centres). */
+/* The half-diagonals of the boxes of x0 - xr, x1 - xr (xr NULL: 0, and D) and x1 - x0 over the own particles of every rank. */
+static PetscErrorCode NearDisplacements(SelfContact sc, const SelfSet *s, const PetscReal *xr, PetscReal delta[3])
 {
-  SelfSet    *s = &sc->local;
-  PetscMPIInt ok[2], all[2];
+  PetscReal b[18], g[18]; /* for each box and direction: the largest, and minus the smallest */
 
   PetscFunctionBeginUser;
-  ok[0] = SetListValid(sc, s);
+  for (PetscInt i = 0; i < 18; i++) b[i] = -PETSC_MAX_REAL;
+  for (PetscInt k = 0; k < s->nown; k++)
+    for (PetscInt d = 0; d < 3; d++) {
+      const PetscReal x0 = s->x0[3 * k + d], x1 = s->x1[3 * k + d], r = xr ? xr[3 * k + d] : x0, a[3] = {x0 - r, x1 - r, x1 - x0};
+      for (PetscInt j = 0; j < 3; j++) b[6 * j + d] = PetscMax(b[6 * j + d], a[j]), b[6 * j + 3 + d] = PetscMax(b[6 * j + 3 + d], -a[j]);
+    }
   if (sc->size > 1)
-    PetscCallMPI(MPI_Allreduce(ok, all, 1, MPI_INT, MPI_MIN, sc->comm));
+    PetscCallMPI(MPI_Allreduce(b, g, 18, MPIU_REAL, MPIU_MAX, sc->comm));
   else
-    all[0] = ok[0];
-  if (all[0]) PetscFunctionReturn(0);
-  ok[1] = SetBoxes(s);
-  if (sc->size > 1) {
-    PetscCallMPI(MPI_Allreduce(&ok[1], &all[1], 1, MPI_INT, MPI_MIN, sc->comm));
-    PetscCall(CheckFinite(sc, (PetscBool) all[1]));
-    PetscCall(HaloRebuild(sc));
-    (void) SetBoxes(s);                                          /* the new halo's */
-    if (sc->use_held) PetscCall(SetHeldMasses(sc, PETSC_FALSE)); /* the new halo's 1/m, in a filter */
-  } else
-    PetscCall(CheckFinite(sc, (PetscBool) ok[1]));
-  PetscCall(SetBroadPhase(sc, s));
-  sc->stats.broad_phases++;
+    PetscCall(PetscArraycpy(g, b, 18));
+  for (PetscInt j = 0; j < 3; j++) {
+    PetscReal sq = 0;
+    for (PetscInt d = 0; d < 3; d++) sq += PetscSqr(PetscMax(0, 0.5 * (g[6 * j + d] + g[6 * j + 3 + d])));
+    delta[j] = PetscSqrtReal(sq);
+  }
+  PetscFunctionReturn(0);
+}
+
+/* Does the near list hold every pair the passes need (delta from NearDisplacements)? */
+static PetscBool NearHolds(const SelfContact sc, const PetscReal delta[3], PetscReal reach, PetscBool gap_at_end)
+{
+  const PetscReal R = (1 - 1e-9) * sc->near * sc->thickness; /* less what rounding of the distances may take */
+
+  if (!(R - 2 * PetscMax(delta[0], delta[1]) > reach)) return PETSC_FALSE;
+  return (PetscBool) (!gap_at_end || R - 2 * delta[0] - 2 * delta[2] > reach);
+}
+
+/* The near list at the present x0 (the whole local set's, the halo's included). */
+static PetscErrorCode NearMake(SelfContact sc, SelfSet *s)
+{
+  const PetscReal R = sc->near * sc->thickness;
+
+  PetscFunctionBeginUser;
+  if (s->nxr < 3 * s->n) {
+    PetscCall(PetscFree(s->xr));
+    PetscCall(PetscMalloc1(3 * s->n, &s->xr));
+    s->nxr = 3 * s->n;
+  }
+  PetscCall(PetscArraycpy(s->xr, s->x0, 3 * s->n));
+  PetscCall(PetscFree(s->npt_));
+  PetscCall(PetscFree(s->nee_));
+  PetscCall(PetscMalloc1(2 * s->ncpt + 1, &s->npt_));
+  PetscCall(PetscMalloc1(2 * s->ncee + 1, &s->nee_));
+  s->pt = s->cpt, s->ee = s->cee, s->nnpt = s->nnee = 0;
+  for (PetscInt kind = 0; kind < 2; kind++) {
+    const PetscInt *from = kind ? s->cee : s->cpt;
+    PetscInt       *to = kind ? s->nee_ : s->npt_, *n = kind ? &s->nnee : &s->nnpt;
+    for (PetscInt k = 0; k < (kind ? s->ncee : s->ncpt); k++) {
+      Pair      pr;
+      PetscReal nrm[3];
+      PairParticles(s, kind, k, pr.p);
+      if (PairClosest(kind, s->xr, &pr, nrm) >= R) continue; /* (a NaN distance is kept) */
+      to[2 * *n] = from[2 * k], to[2 * *n + 1] = from[2 * k + 1];
+      (*n)++;
+    }
+  }
+  s->has_near = PETSC_TRUE;
+  PetscFunctionReturn(0);
+}
+
+/* The pairs the passes take: the near list if it holds them (made again at x0 if
+ * it no longer does and a list made there would), else every candidate. */
+static PetscErrorCode NearSelect(SelfContact sc, SelfSet *s, PetscReal reach, PetscBool gap_at_end)
+{
+  PetscReal delta[3];
+  PetscBool use = PETSC_FALSE;
+
+  PetscFunctionBeginUser;
+  if (sc->near == 0) {
+    s->pt = s->cpt, s->npt = s->ncpt, s->ee = s->cee, s->nee = s->ncee;
+    PetscFunctionReturn(0);
+  }
+  if (s->has_near) {
+    PetscCall(NearDisplacements(sc, s, s->xr, delta));
+    use = NearHolds(sc, delta, reach, gap_at_end);
+  }
+  if (!use) {
+    PetscCall(NearDisplacements(sc, s, NULL, delta));
+    if (NearHolds(sc, delta, reach, gap_at_end)) {
+      PetscCall(NearMake(sc, s));
+      sc->stats.near_lists++;
+      use = PETSC_TRUE;
+    }
+  }
+  if (use)
+    s->pt = s->npt_, s->npt = s->nnpt, s->ee = s->nee_, s->nee = s->nnee;
+  else {
+    s->pt = s->cpt, s->npt = s->ncpt, s->ee = s->cee, s->nee = s->ncee;
+    sc->stats.unfiltered++;
+  }
+  PetscFunctionReturn(0);
+}
+
+/* The local set's list, rebuilt (with the halo) when a particle of any rank moved
+ * beyond the margin, and the pairs the passes take. Collective. */
+PetscErrorCode SelfListUpdate(SelfContact sc, PetscReal reach, PetscBool gap_at_end)
+{
+  SelfSet    *s = &sc->local;
+  PetscMPIInt ok, all;
+  PetscBool   valid;
+
+  PetscFunctionBeginUser;
+  PetscCall(SetListValid(sc, s, &valid));
+  if (!valid) {
+    ok = SetBoxes(s);
+    if (sc->size > 1) {
+      PetscCallMPI(MPI_Allreduce(&ok, &all, 1, MPI_INT, MPI_MIN, sc->comm));
+      PetscCall(CheckFinite(sc, (PetscBool) all));
+      PetscCall(HaloRebuild(sc));
+      (void) SetBoxes(s);                                          /* the new halo's */
+      if (sc->use_held) PetscCall(SetHeldMasses(sc, PETSC_FALSE)); /* the new halo's 1/m, in a filter */
+    } else
+      PetscCall(CheckFinite(sc, (PetscBool) ok));
+    PetscCall(SetBroadPhase(sc, s));
+    sc->stats.broad_phases++;
+  }
+  PetscCall(NearSelect(sc, s, reach, gap_at_end));
   PetscFunctionReturn(0);
 }
 
@@ -1225,7 +1381,7 @@ static PetscErrorCode FailSafeZones(SelfContact sc, PetscReal h, PetscInt *count
     PetscReal *packs, *work;
     PetscBool *pinned, merged = PETSC_FALSE;
 
-    PetscCall(SelfListUpdate(sc));
+    PetscCall(SelfListUpdate(sc, sc->thickness, PETSC_FALSE));
     for (PetscInt kind = 0; kind < 2; kind++)
       for (PetscInt k = 0; k < (kind ? s->nee : s->npt); k++) {
         Pair      pr;
@@ -1332,7 +1488,7 @@ static PetscErrorCode FailSafeFreeze(SelfContact sc, PetscInt *count)
   PetscCall(PetscCalloc2(s->nown + 1, &stopped, s->nown + 1, &stop));
   do {
     PetscInt mine = 0;
-    PetscCall(SelfListUpdate(sc));
+    PetscCall(SelfListUpdate(sc, sc->thickness, PETSC_FALSE));
     for (PetscInt kind = 0; kind < 2; kind++)
       for (PetscInt k = 0; k < (kind ? s->nee : s->npt); k++) {
         Pair      pr;
@@ -1368,11 +1524,11 @@ PetscErrorCode SelfContactFilter(SelfContact sc, PetscReal h, PetscScalar *x, Pe
   for (PetscInt k = 0; k < 3 * s->nown; k++) s->x1[k] = PetscRealPart(x[k]), s->v[k] = PetscRealPart(v[k]);
   PetscCall(SelfHaloUpdate(sc, s->x0, s->x1, s->v));
   if (sc->use_held) PetscCall(SetHeldMasses(sc, PETSC_FALSE));
-  PetscCall(SelfListUpdate(sc));
+  PetscCall(SelfListUpdate(sc, sc->thickness, PETSC_FALSE));
   PetscCall(Pass(sc, PETSC_TRUE, h, &sc->stats.pairs, &close));
   if (close) PetscCall(SelfHaloUpdate(sc, NULL, s->x1, s->v)); /* close: pairs that acted, on any rank */
   for (PetscInt it = 0; it < sc->its && active; it++) {
-    PetscCall(SelfListUpdate(sc));
+    PetscCall(SelfListUpdate(sc, sc->thickness, PETSC_FALSE));
     PetscCall(Pass(sc, PETSC_FALSE, h, &active, &ncol));
     if (ncol) PetscCall(SelfHaloUpdate(sc, NULL, s->x1, s->v));
     sc->stats.collisions += ncol;

@@ -24,14 +24,18 @@ PETSC_EXTERN PetscErrorCode SelfBroadPhaseHash(const SelfMesh *, const PetscReal
  * candidate pairs among them: a rank's own particles and its halo; or (only state
  * and 1/m) the particles of the contacts gathered from every rank. */
 typedef struct {
-  PetscInt   n, nown;            /* particles; the first nown are the rank's own (gathered: all) */
-  PetscInt  *nat;                /* natural index of each */
-  PetscReal *invm, *x0, *x1, *v; /* 1/m (0 pinned), start, end, velocity: 3 each */
-  PetscReal *lo, *hi;            /* each particle's box at the last broad phase */
-  SelfMesh   mesh;               /* primitives (indices into this set) in natural order */
-  PetscInt  *vid, *tid, *eid;    /* their indices in the whole cloth's */
-  PetscInt   npt, nee, *pt, *ee; /* candidate pairs with one of the first nown particles */
-  PetscBool  listed;             /* a candidate list exists */
+  PetscInt   n, nown;                  /* particles; the first nown are the rank's own (gathered: all) */
+  PetscInt  *nat;                      /* natural index of each */
+  PetscReal *invm, *x0, *x1, *v;       /* 1/m (0 pinned), start, end, velocity: 3 each */
+  PetscReal *lo, *hi;                  /* each particle's box at the last broad phase */
+  SelfMesh   mesh;                     /* primitives (indices into this set) in natural order */
+  PetscInt  *vid, *tid, *eid;          /* their indices in the whole cloth's */
+  PetscInt   ncpt, ncee, *cpt, *cee;   /* candidate pairs (the broad phase's) with one of the first nown particles */
+  PetscInt   nnpt, nnee, *npt_, *nee_; /* the near list: the candidates closer than SelfNearRadius at xr */
+  PetscReal *xr;                       /* the local set's positions when the near list was made (3 each) */
+  PetscInt   nxr;                      /* entries xr holds */
+  PetscBool  listed, has_near;         /* a candidate list exists; a near list is made from it */
+  PetscInt   npt, nee, *pt, *ee;       /* the pairs the passes take: the near list, or every candidate */
 } SelfSet;
 
 typedef struct {
@@ -73,6 +77,7 @@ struct _p_SelfContact {
   PetscReal        thickness, mu;
   PetscInt         its;
   PetscReal        margin; /* of the Verlet list, in thicknesses */
+  PetscReal        near;   /* radius of the near list, in thicknesses (0: none) */
   PetscBool        hash;   /* broad phase by the spatial hash (else CGAL) */
   PetscBool        zones;  /* fail-safe by rigid impact zones (else stop the particles) */
   SelfMesh         mesh;   /* the whole cloth's primitives, natural indices (topology only) */
@@ -155,7 +160,10 @@ static inline PetscReal PairClosest(PetscInt kind, const PetscReal *X, Pair *pr,
  * from their owners. Collective. */
 PETSC_INTERN PetscErrorCode SelfHaloUpdate(SelfContact, PetscReal *, PetscReal *, PetscReal *);
 /* The local set's candidate list for its present x0 and x1, rebuilt (with the halo)
- * when a particle of any rank moved beyond the margin. Collective. */
-PETSC_INTERN PetscErrorCode SelfListUpdate(SelfContact);
+ * when a particle of any rank moved beyond the margin, and the pairs the passes
+ * take (pt, ee): every candidate that may come within reach (m) at x0 or collide
+ * over the step x0 -> x1, or (gap_at_end) whose gap at x1 along the normal at x0
+ * may be below reach. Collective. */
+PETSC_INTERN PetscErrorCode SelfListUpdate(SelfContact, PetscReal, PetscBool);
 /* Frees the implicit step's arrays (implicit.c). */
 PETSC_INTERN PetscErrorCode SelfSolveDestroy(SelfContact);
