@@ -3,8 +3,10 @@
 
 drape sums the element Hessians into its own row buffer (one block row per owned
 particle); -drape_mat_assembly says how the rows reach the matrix:
-  coo   MatSetPreallocationCOO once, MatSetValuesCOO per assembly (the default for
-        AIJ, whose COO PETSc implements natively)
+  csr   copied into AIJ's own value arrays (the default for AIJ; on one rank the
+        buffer is AIJ's array)
+  coo   MatSetPreallocationCOO once, MatSetValuesCOO per assembly (AIJ's default
+        before; a map of 16 bytes per nonzero)
   rows  one MatSetValuesBlocked per block row (the default for SBAIJ, BAIJ, dense;
         PETSc 3.18 has COO for these only through MatSetValue per entry)
 Every case runs the stiff hang (drapebe, h = 1e-4 s, Jacobi-preconditioned CG so
@@ -29,7 +31,7 @@ from drape_run import Drape, fail  # noqa: E402
 
 PROG = "bench_assembly.py"
 EVENT = re.compile(r"^(DrapeJacobian|MatSetValuesCOO|MatSetPreallCOO)\s+(\d+)\s+\S+\s+(\S+)", re.M)
-CASES = [("aij", "coo"), ("aij", "rows"), ("sbaij", "rows"), ("sbaij", "coo")]
+CASES = [("aij", "csr"), ("aij", "coo"), ("aij", "rows"), ("sbaij", "rows"), ("sbaij", "coo")]
 
 
 def events(stdout):

@@ -200,11 +200,12 @@ def test_implicit_study_quick(tmp_path):
 
 
 def test_bench_assembly_quick_measures_every_way_into_every_matrix(tmp_path):
-    """bench_assembly.py --quick: a positive assembly time for AIJ and SBAIJ by COO and
-    by rows, MatSetValuesCOO's share only where COO was used and below the whole."""
+    """bench_assembly.py --quick: a positive assembly time for AIJ by its own arrays (csr),
+    COO and rows and for SBAIJ by rows and COO, MatSetValuesCOO's share only where COO
+    was used and below the whole."""
     quick("bench_assembly.py", tmp_path)
     got = {(r["mat"], r["assembly"]): r for r in rows(tmp_path / "bench_assembly.csv")}
-    assert set(got) == {("aij", "coo"), ("aij", "rows"), ("sbaij", "rows"), ("sbaij", "coo")}
+    assert set(got) == {("aij", "csr"), ("aij", "coo"), ("aij", "rows"), ("sbaij", "rows"), ("sbaij", "coo")}
     for (mat, mode), r in got.items():
         t, h = float(r["ms_per_assembly"]), float(r["ms_handoff"])
         assert t > 0, r

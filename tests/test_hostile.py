@@ -85,7 +85,8 @@ CASES = [
     ("pin-beyond-petscint", "-cloth_pin list -cloth_pin_list 4294967297,0", "beyond the integers", {}),
     ("lattice-100000-squared", "-da_grid_x 100000 -da_grid_y 100000", "lattice", {}),
     ("rest-tol-nan", "-drape_rest_tol nan", "-drape_rest_tol must be", {}),
-    ("mat-assembly-csr", "-ts_type drapebe -drape_mat_assembly csr", "Unknown option csr for -drape_mat_assembly", {}),
+    ("mat-assembly-csc", "-ts_type drapebe -drape_mat_assembly csc", "Unknown option csc for -drape_mat_assembly", {}),
+    ("mat-assembly-csr-sbaij", "-ts_type drapebe -drape_mat_type sbaij -drape_mat_assembly csr", "the matrix is seqsbaij; use -drape_mat_assembly coo or rows", {}),
     # PETSc tracebacks instead of a sentence
     ("max-time-inf", "-ts_max_time inf -output_file x.h5", "-ts_max_time must be positive and finite", {}),
     ("solid-translate-nan", "-solid_type sphere -solid_translate nan,0,0", "-solid_translate must be finite", {}),

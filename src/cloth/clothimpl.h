@@ -160,7 +160,9 @@ struct _p_Cloth {
    * block pair the position of its (0,0) entry, or -1; rb_coo: the buffer goes to
    * rb_mat by MatSetValuesCOO (in buffer order), else by MatSetValuesBlocked rows */
   Mat        rb_mat;
-  PetscBool  rb_coo, rb_sym;
+  PetscBool  rb_coo, rb_csr, rb_sym; /* rb_csr: copied into AIJ's arrays (RowBufferToAIJ) */
+  PetscBool  rb_alias;               /* rb_val is the one-rank matrix's value array while it is assembled (else NULL) */
+  PetscBool  rb_block;               /* blocks whole, by columns (RowBufferStrides); else scalar rows */
   PetscInt  *rb_start, *rb_ncols, *rb_colstart, *rb_cols, *rb_map, *rb_diag;
   PetscReal *rb_val;
   /* blocks besides the elements' (ClothSetExtraBlocks): owned row, global block

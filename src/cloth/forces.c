@@ -351,18 +351,19 @@ PetscErrorCode ClothGetHessianDiagonal(Cloth c, const PetscReal **hdiag)
 /* The implicit matrix, of type `type` unless -drape_mat_type says otherwise, with
  * the exact nonzero pattern of the element lists. The element blocks are summed
  * into drape's row buffer (below); -drape_mat_assembly says how the rows reach
- * PETSc: coo, MatSetValuesCOO with the pattern given once by
- * MatSetPreallocationCOO (the default where the type implements COO natively: AIJ),
- * or rows, one MatSetValuesBlocked per block row (every other type: SBAIJ, BAIJ,
- * dense). */
+ * PETSc: csr, copied into AIJ's own value arrays (the default for AIJ: the buffer's
+ * rows are its CSR rows; RowBufferToAIJ); coo, MatSetValuesCOO with the pattern
+ * given once by MatSetPreallocationCOO (the default for other types that implement
+ * COO natively; its map costs 16 bytes per nonzero, 2.6 kB per particle); or rows,
+ * one MatSetValuesBlocked per block row (every other type: SBAIJ, BAIJ, dense). */
 static PetscErrorCode ClothBuildRowBuffer(Cloth, Mat);
 
 PetscErrorCode ClothCreateMatrix(Cloth c, MatType type, Mat *J)
 {
   PetscInt  n = 3 * c->nowned;
-  PetscBool native;
+  PetscBool native, aij;
   void (*coo)(void);
-  const char *const modes[] = {"coo", "rows"};
+  const char *const modes[] = {"coo", "rows", "csr"};
   PetscInt          mode;
 
   PetscFunctionBeginUser;
@@ -374,13 +375,22 @@ PetscErrorCode ClothCreateMatrix(Cloth c, MatType type, Mat *J)
   PetscCall(MatSetFromOptions(*J));
   PetscCall(PetscObjectQueryFunction((PetscObject) *J, "MatSetPreallocationCOO_C", &coo));
   native = (PetscBool) (coo != NULL);
-  mode   = native ? 0 : 1;
+  PetscCall(PetscObjectTypeCompareAny((PetscObject) *J, &aij, MATSEQAIJ, MATMPIAIJ, ""));
+  mode = aij ? 2 : native ? 0 : 1;
   PetscOptionsBegin(c->comm, "drape_", "Implicit matrix assembly", "ClothCreateMatrix");
-  PetscCall(
-    PetscOptionsEList("-mat_assembly", "How the summed rows reach the matrix: coo (MatSetValuesCOO; default for AIJ) or rows (MatSetValuesBlocked per block row; default for other types)", "ClothCreateMatrix", modes, 2, modes[mode], &mode, NULL));
+  PetscCall(PetscOptionsEList("-mat_assembly",
+                              "How the summed rows reach the matrix: csr (copied into AIJ's arrays; default for AIJ), coo (MatSetValuesCOO; default for other types that have it) or rows (MatSetValuesBlocked per block row; default for the rest)",
+                              "ClothCreateMatrix", modes, 3, modes[mode], &mode, NULL));
   PetscOptionsEnd();
+  if (mode == 2 && !aij) {
+    MatType t;
+    PetscCall(MatGetType(*J, &t));
+    SETERRQ(c->comm, PETSC_ERR_USER_INPUT, "-drape_mat_assembly csr copies rows into AIJ's arrays, and the matrix is %s; use -drape_mat_assembly coo or rows with it", t);
+  }
+  c->rb_coo   = (PetscBool) (mode == 0);
+  c->rb_csr   = (PetscBool) (mode == 2);
+  c->rb_block = (PetscBool) (mode == 1);
   PetscCall(ClothBuildRowBuffer(c, *J));
-  c->rb_coo = (PetscBool) (mode == 0);
   if (c->rb_coo) {
     /* one COO entry per row-buffer value, in the buffer's order (unique entries:
      * drape sums the element blocks; types without a native COO take PETSc's basic
@@ -413,6 +423,13 @@ PetscErrorCode ClothCreateMatrix(Cloth c, MatType type, Mat *J)
     PetscCall(MatSetOption(*J, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
     PetscCall(MatSetOption(*J, MAT_NO_OFF_PROC_ENTRIES, PETSC_TRUE));
   }
+  { /* one rank, a matrix whose array holds the buffer's layout: the buffer is that array */
+    PetscBool seqaij, seqblock;
+    PetscCall(PetscObjectTypeCompare((PetscObject) *J, MATSEQAIJ, &seqaij));
+    PetscCall(PetscObjectTypeCompareAny((PetscObject) *J, &seqblock, MATSEQBAIJ, MATSEQSBAIJ, ""));
+    c->rb_alias = (PetscBool) ((c->rb_csr && seqaij) || (c->rb_block && seqblock));
+  }
+  if (c->rb_alias) PetscCall(PetscFree(c->rb_val)); /* the buffer is the matrix's own value array (RowBufferToAIJ) */
   PetscCall(MatSetOption(*J, MAT_SYMMETRIC, PETSC_TRUE));
   PetscCall(MatSetOption(*J, MAT_SYMMETRY_ETERNAL, PETSC_TRUE));
   PetscFunctionReturn(0);
@@ -484,7 +501,7 @@ static PetscErrorCode ExtraMap(Cloth c, PetscBool *fits)
       if (fits) *fits = PETSC_FALSE;
       continue;
     }
-    c->ex_map[e] = c->rb_start[k] + 3 * loc;
+    c->ex_map[e] = c->rb_start[k] + (c->rb_block ? 9 : 3) * loc;
   }
   PetscFunctionReturn(0);
 }
@@ -559,7 +576,7 @@ static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
     PetscCall(PetscSortRemoveDupsInt(&c->rb_ncols[k], c->rb_cols + c->rb_colstart[k]));
     c->rb_start[k + 1] = c->rb_start[k] + 9 * c->rb_ncols[k];
     PetscCall(PetscFindInt(c->global[k], c->rb_ncols[k], c->rb_cols + c->rb_colstart[k], &c->rb_diag[k]));
-    c->rb_diag[k] = c->rb_start[k] + 3 * c->rb_diag[k];
+    c->rb_diag[k] = c->rb_start[k] + (c->rb_block ? 9 : 3) * c->rb_diag[k];
   }
   npairs = 0;
   for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) {
@@ -574,7 +591,7 @@ static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
           if (!RowBufferHolds(c, sym, p[a], p[b])) continue;
           PetscCall(PetscFindInt(col, c->rb_ncols[p[a]], c->rb_cols + c->rb_colstart[p[a]], &loc));
           PetscCheck(loc >= 0, PETSC_COMM_SELF, PETSC_ERR_PLIB, "Block column %" PetscInt_FMT " missing from the row buffer", col);
-          c->rb_map[npairs] = c->rb_start[p[a]] + 3 * loc;
+          c->rb_map[npairs] = c->rb_start[p[a]] + (c->rb_block ? 9 : 3) * loc;
         }
       }
     }
@@ -587,12 +604,102 @@ static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
   PetscFunctionReturn(0);
 }
 
+/* The row buffer's layout: per block row, its blocks in column order; a block's
+ * (i, j) entry at si i + sj j from its start. AIJ (csr, coo): the three scalar rows
+ * of the block row one after the other (si = 3 ncols, sj = 1), CSR rows. By rows
+ * (MatSetValuesBlocked, column-oriented) and in (S)BAIJ's own array: each block
+ * whole, by columns (si = 1, sj = 3), as BAIJ and SBAIJ store their blocks. */
+static inline void RowBufferStrides(Cloth c, PetscInt k, PetscInt *si, PetscInt *sj)
+{
+  *si = c->rb_block ? 1 : 3 * c->rb_ncols[k];
+  *sj = c->rb_block ? 3 : 1;
+}
+
+/* One rank, a matrix of the buffer's exact pattern: the buffer is the matrix's own
+ * value array while it is assembled (get), and no array of drape's (restore). */
+static PetscErrorCode RowBufferAlias(Cloth c, Mat J, PetscBool get)
+{
+  PetscBool aij, baij;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectTypeCompare((PetscObject) J, MATSEQAIJ, &aij));
+  PetscCall(PetscObjectTypeCompare((PetscObject) J, MATSEQBAIJ, &baij));
+  if (get) {
+    if (aij)
+      PetscCall(MatSeqAIJGetArrayWrite(J, &c->rb_val));
+    else if (baij)
+      PetscCall(MatSeqBAIJGetArray(J, &c->rb_val));
+    else
+      PetscCall(MatSeqSBAIJGetArray(J, &c->rb_val));
+  } else {
+    if (aij)
+      PetscCall(MatSeqAIJRestoreArrayWrite(J, &c->rb_val));
+    else if (baij)
+      PetscCall(MatSeqBAIJRestoreArray(J, &c->rb_val));
+    else
+      PetscCall(MatSeqSBAIJRestoreArray(J, &c->rb_val));
+    c->rb_val = NULL;
+  }
+  PetscFunctionReturn(0);
+}
+
+/* The row buffer into an AIJ matrix of its exact pattern (ClothCreateMatrix): a
+ * block row's three scalar rows are CSR rows with sorted global columns. On one
+ * rank they are the matrix's value array in order: the buffer is that array
+ * (rb_alias; no copy, no buffer of its own). MPIAIJ keeps each row in a
+ * diagonal block (the owned columns) and an off-diagonal block (the others, in
+ * global order: its column map garray is sorted), so a row goes in three runs:
+ * columns below the owned range, in it, above it. */
+static PetscErrorCode RowBufferToAIJ(Cloth c, Mat J)
+{
+  Mat          A = J, B = NULL;
+  PetscScalar *va, *vb  = NULL;
+  PetscInt     rstart, rend, oa = 0, ob = 0;
+  PetscBool    mpi;
+
+  PetscFunctionBeginUser;
+  if (c->rb_alias) { /* one rank: the buffer was the matrix's value array */
+    PetscCall(RowBufferAlias(c, J, PETSC_FALSE));
+    PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
+    PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
+    PetscFunctionReturn(0);
+  }
+  PetscCall(PetscObjectTypeCompare((PetscObject) J, MATMPIAIJ, &mpi));
+  if (mpi) PetscCall(MatMPIAIJGetSeqAIJ(J, &A, &B, NULL));
+  PetscCall(MatGetOwnershipRange(J, &rstart, &rend));
+  rstart /= 3, rend /= 3; /* block rows */
+  PetscCall(MatSeqAIJGetArrayWrite(A, &va));
+  if (B) PetscCall(MatSeqAIJGetArrayWrite(B, &vb));
+  for (PetscInt k = 0; k < c->nowned; k++) {
+    const PetscInt   n = c->rb_ncols[k], *col = c->rb_cols + c->rb_colstart[k];
+    PetscInt         lo  = 0, hi;
+    const PetscReal *row = c->rb_val + c->rb_start[k];
+    while (lo < n && col[lo] < rstart) lo++;
+    for (hi = lo; hi < n && col[hi] < rend; hi++) {}
+    PetscCheck(B || (lo == 0 && hi == n), PETSC_COMM_SELF, PETSC_ERR_PLIB, "A column of the row buffer is outside the one-rank matrix");
+    for (PetscInt i = 0; i < 3; i++, row += 3 * n) {
+      PetscCall(PetscArraycpy(va + oa, row + 3 * lo, 3 * (hi - lo)));
+      oa += 3 * (hi - lo);
+      if (!B) continue;
+      PetscCall(PetscArraycpy(vb + ob, row, 3 * lo));
+      PetscCall(PetscArraycpy(vb + ob + 3 * lo, row + 3 * hi, 3 * (n - hi)));
+      ob += 3 * (lo + n - hi);
+    }
+  }
+  PetscCall(MatSeqAIJRestoreArrayWrite(A, &va));
+  if (B) PetscCall(MatSeqAIJRestoreArrayWrite(B, &vb));
+  PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY)); /* nothing to move: a new state, which the preconditioner sees */
+  PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode ClothAddToMatrixRows(Cloth c, const PetscReal *xl, PetscReal a, PetscReal b, Mat J)
 {
   PetscReal H[225], D[9];
   PetscInt  pair = 0;
 
   PetscFunctionBeginUser;
+  if (c->rb_alias && J == c->rb_mat) PetscCall(RowBufferAlias(c, J, PETSC_TRUE));
   PetscCall(PetscArrayzero(c->rb_val, c->rb_start[c->nowned]));
   for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) {
     const PetscInt n = KindSize(kind), m = 3 * n;
@@ -602,31 +709,41 @@ static PetscErrorCode ClothAddToMatrixRows(Cloth c, const PetscReal *xl, PetscRe
       for (PetscInt pa = 0; pa < n; pa++) {
         for (PetscInt pb = 0; pb < n; pb++, pair++) {
           const PetscInt pos = c->rb_map[pair];
-          PetscInt       ld;
+          PetscInt       si, sj;
           if (pos < 0) continue;
-          ld = 3 * c->rb_ncols[p[pa]];
+          RowBufferStrides(c, p[pa], &si, &sj);
           for (PetscInt i = 0; i < 3; i++)
-            for (PetscInt j = 0; j < 3; j++) c->rb_val[pos + ld * i + j] += b * H[m * (3 * pa + i) + 3 * pb + j];
+            for (PetscInt j = 0; j < 3; j++) c->rb_val[pos + si * i + sj * j] += b * H[m * (3 * pa + i) + 3 * pb + j];
         }
       }
     }
   }
   for (PetscInt e = 0; e < c->ex_n; e++) {
-    const PetscInt pos = c->ex_map[e], ld = 3 * c->rb_ncols[c->ex_row[e]];
+    const PetscInt pos = c->ex_map[e];
+    PetscInt       si, sj;
     if (pos < 0) continue;
+    RowBufferStrides(c, c->ex_row[e], &si, &sj);
     for (PetscInt i = 0; i < 3; i++)
-      for (PetscInt j = 0; j < 3; j++) c->rb_val[pos + ld * i + j] += b * c->ex_val[9 * e + 3 * i + j];
+      for (PetscInt j = 0; j < 3; j++) c->rb_val[pos + si * i + sj * j] += b * c->ex_val[9 * e + 3 * i + j];
   }
   for (PetscInt k = 0; k < c->nowned; k++) {
-    const PetscInt ld = 3 * c->rb_ncols[k];
+    PetscInt si, sj;
+    RowBufferStrides(c, k, &si, &sj);
     MassBlock(c, k, a, b, D);
     for (PetscInt i = 0; i < 3; i++)
-      for (PetscInt j = 0; j < 3; j++) c->rb_val[c->rb_diag[k] + ld * i + j] += D[3 * i + j];
+      for (PetscInt j = 0; j < 3; j++) c->rb_val[c->rb_diag[k] + si * i + sj * j] += D[3 * i + j];
   }
   if (c->rb_coo && J == c->rb_mat)
     PetscCall(MatSetValuesCOO(J, c->rb_val, INSERT_VALUES)); /* assembled on return */
+  else if (c->rb_csr && J == c->rb_mat)
+    PetscCall(RowBufferToAIJ(c, J));
   else {
-    for (PetscInt k = 0; k < c->nowned; k++) PetscCall(MatSetValuesBlocked(J, 1, &c->global[k], c->rb_ncols[k], c->rb_cols + c->rb_colstart[k], c->rb_val + c->rb_start[k], INSERT_VALUES));
+    if (c->rb_alias)
+      PetscCall(RowBufferAlias(c, J, PETSC_FALSE)); /* the values are in place */
+    else {
+      PetscCall(MatSetOption(J, MAT_ROW_ORIENTED, PETSC_FALSE)); /* block after block, each by columns */
+      for (PetscInt k = 0; k < c->nowned; k++) PetscCall(MatSetValuesBlocked(J, 1, &c->global[k], c->rb_ncols[k], c->rb_cols + c->rb_colstart[k], c->rb_val + c->rb_start[k], INSERT_VALUES));
+    }
     PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
     PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
   }
@@ -642,8 +759,9 @@ PetscErrorCode ClothAssembleMatrix(Cloth c, const PetscScalar *x, PetscReal a, P
   if (!c->hdiag) PetscCall(PetscMalloc1(9 * c->nowned + 1, &c->hdiag));
   PetscCall(PetscArrayzero(c->hdiag, 9 * c->nowned));
   if (c->rb_mat != J) { /* a matrix ClothCreateMatrix did not make: rows into its own pattern */
+    c->rb_coo = c->rb_csr = c->rb_alias = PETSC_FALSE;
+    c->rb_block                         = PETSC_TRUE;
     PetscCall(ClothBuildRowBuffer(c, J));
-    c->rb_coo = PETSC_FALSE;
   }
   PetscCall(ClothScatterPositions(c, x, &xl));
   PetscCall(ClothAddToMatrixRows(c, xl, a, b, J));
