@@ -390,6 +390,12 @@ PetscErrorCode ClothCreateMatrix(Cloth c, MatType type, Mat *J)
   c->rb_coo   = (PetscBool) (mode == 0);
   c->rb_csr   = (PetscBool) (mode == 2);
   c->rb_block = (PetscBool) (mode == 1);
+  { /* one rank, a matrix whose array holds the buffer's layout: the buffer is that array (no buffer of drape's) */
+    PetscBool seqaij, seqblock;
+    PetscCall(PetscObjectTypeCompare((PetscObject) *J, MATSEQAIJ, &seqaij));
+    PetscCall(PetscObjectTypeCompareAny((PetscObject) *J, &seqblock, MATSEQBAIJ, MATSEQSBAIJ, ""));
+    c->rb_alias = (PetscBool) ((c->rb_csr && seqaij) || (c->rb_block && seqblock));
+  }
   PetscCall(ClothBuildRowBuffer(c, *J));
   if (c->rb_coo) {
     /* one COO entry per row-buffer value, in the buffer's order (unique entries:
@@ -414,8 +420,14 @@ PetscErrorCode ClothCreateMatrix(Cloth c, MatType type, Mat *J)
     PetscCall(MatSetBlockSize(P, 3));
     PetscCall(MatSetType(P, MATPREALLOCATOR));
     PetscCall(MatSetUp(P));
-    PetscCall(PetscArrayzero(c->rb_val, c->rb_start[c->nowned]));
-    for (PetscInt k = 0; k < c->nowned; k++) PetscCall(MatSetValuesBlocked(P, 1, &c->global[k], c->rb_ncols[k], c->rb_cols + c->rb_colstart[k], c->rb_val + c->rb_start[k], INSERT_VALUES));
+    { /* the pattern: zeros in every block row */
+      PetscInt     wide = 0;
+      PetscScalar *zero;
+      for (PetscInt k = 0; k < c->nowned; k++) wide = PetscMax(wide, c->rb_ncols[k]);
+      PetscCall(PetscCalloc1(9 * wide + 1, &zero));
+      for (PetscInt k = 0; k < c->nowned; k++) PetscCall(MatSetValuesBlocked(P, 1, &c->global[k], c->rb_ncols[k], c->rb_cols + c->rb_colstart[k], zero, INSERT_VALUES));
+      PetscCall(PetscFree(zero));
+    }
     PetscCall(MatAssemblyBegin(P, MAT_FINAL_ASSEMBLY));
     PetscCall(MatAssemblyEnd(P, MAT_FINAL_ASSEMBLY));
     PetscCall(MatPreallocatorPreallocate(P, PETSC_TRUE, *J));
@@ -423,13 +435,6 @@ PetscErrorCode ClothCreateMatrix(Cloth c, MatType type, Mat *J)
     PetscCall(MatSetOption(*J, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
     PetscCall(MatSetOption(*J, MAT_NO_OFF_PROC_ENTRIES, PETSC_TRUE));
   }
-  { /* one rank, a matrix whose array holds the buffer's layout: the buffer is that array */
-    PetscBool seqaij, seqblock;
-    PetscCall(PetscObjectTypeCompare((PetscObject) *J, MATSEQAIJ, &seqaij));
-    PetscCall(PetscObjectTypeCompareAny((PetscObject) *J, &seqblock, MATSEQBAIJ, MATSEQSBAIJ, ""));
-    c->rb_alias = (PetscBool) ((c->rb_csr && seqaij) || (c->rb_block && seqblock));
-  }
-  if (c->rb_alias) PetscCall(PetscFree(c->rb_val)); /* the buffer is the matrix's own value array (RowBufferToAIJ) */
   PetscCall(MatSetOption(*J, MAT_SYMMETRIC, PETSC_TRUE));
   PetscCall(MatSetOption(*J, MAT_SYMMETRY_ETERNAL, PETSC_TRUE));
   PetscFunctionReturn(0);
@@ -596,7 +601,7 @@ static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
       }
     }
   }
-  PetscCall(PetscMalloc1(c->rb_start[c->nowned] + 1, &c->rb_val));
+  if (!c->rb_alias) PetscCall(PetscMalloc1(c->rb_start[c->nowned] + 1, &c->rb_val));
   PetscCall(PetscFree(count));
   c->rb_mat = J;
   c->rb_sym = sym;
