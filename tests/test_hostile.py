@@ -552,3 +552,26 @@ def test_default_bias_fits_an_oblong_lattice():
     # a square lattice keeps the default (warp + weft)/2
     assert run("-ts_type basicsymplectic -ts_dt 1e-5 -ts_max_steps 2 -drape_stability_its 0 -drape_json").report["bend_bias"] == b
     refused(run("-cloth_size 1,0.5 -cloth_bend 5e-6,5e-6,5e-6 -ts_max_steps 1", check=False), "give a bias in that range, leave it out")
+
+
+# ---- Class 2 of issue 29: frames lost at a file-size limit ----
+
+def test_file_size_limit_keeps_the_frames_written(tmp):
+    """Under ulimit -f, drape printed its sentence, then SIGXFSZ killed it while HDF5
+    closed the file, and every frame already written was unreadable. Now the room for
+    the next frame is checked before it is written: one sentence, and the frames in
+    the file are complete (a restart continues from them)."""
+    (tmp / "x.h5").write_bytes(b"earlier results")
+    before = snapshot(tmp)
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (6 << 20, 6 << 20))  # (MPI's own files need a few MB)
+    res = drape(["-da_grid_x", "64", "-da_grid_y", "64", "-ts_max_time", "1", "-output_steps", "1", "-drape_progress", "0", "-output_file", "run.h5"], tmp,
+                preexec_fn=limit)
+    error = refused(res, "the file would pass this process's file-size limit (ulimit -f: 6291456 bytes;")
+    kept = drape_h5.load(tmp / "run.h5")
+    assert f"the {len(kept.time)} frames written are complete" in error and len(kept.time) >= 5
+    assert np.all(np.isfinite(kept.positions)) and np.all(np.diff(kept.time) > 0)
+    assert {k: v for k, v in snapshot(tmp).items() if not k.startswith("run.")} == before
+    res = drape(["-restart", "run.h5", "-ts_max_time", "0.02", "-drape_progress", "0"], tmp)
+    assert res.returncode == 0, res.stderr

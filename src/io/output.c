@@ -23,7 +23,9 @@
 #include <drape.h>
 #include <petscviewerhdf5.h>
 #include <errno.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 #define NSCALARS 11
@@ -332,6 +334,49 @@ typedef struct {
   PetscReal t, values[NSCALARS][3];
 } OutputFrameContext;
 
+/* Is there room for one more frame? A write that fails half-way leaves HDF5's
+ * metadata in memory ahead of the file: when the library closes the file (at
+ * MPI_Finalize at the latest) it writes them, and every frame is lost. So a frame
+ * that would pass the process's file-size limit (ulimit -f; SIGXFSZ is ignored, so
+ * a write that passes it anyway fails with EFBIG instead of killing drape) or not
+ * fit on the file system is refused before it is written, while the file still
+ * holds only complete, flushed frames. Room asked for: the frame's data twice
+ * (chunks and their index) and 256 KiB for HDF5's metadata. */
+static PetscErrorCode OutputCheckRoom(void *ctx)
+{
+  OutputFrameContext *c    = (OutputFrameContext *) ctx;
+  Output              o    = c->o;
+  const double        need = 2.0 * 48.0 * (double) o->Mx * (double) o->My + 262144.0;
+  struct rlimit       limit;
+  struct stat         st;
+  struct statvfs      fs;
+  char                dir[PETSC_MAX_PATH_LEN];
+  const char         *slash = strrchr(o->file, '/');
+
+  PetscFunctionBeginUser;
+  if (stat(o->file, &st)) PetscFunctionReturn(0); /* the write's own error says why */
+  if (!getrlimit(RLIMIT_FSIZE, &limit) && limit.rlim_cur != RLIM_INFINITY) {
+    const double room = (double) limit.rlim_cur;
+    PetscCheck((double) st.st_size + need <= room, PETSC_COMM_SELF, PETSC_ERR_FILE_WRITE,
+               "the file would pass this process's file-size limit (ulimit -f: %.0f bytes; the file has %.0f and a frame needs up to %.0f more); the %" PetscInt_FMT
+               " frames written are complete; raise the limit (ulimit -f unlimited), or write fewer frames (-output_interval, -output_steps)",
+               room, (double) st.st_size, need, o->nframes);
+    PetscCheck(1024.0 * (double) (o->nframes + 2) <= room, PETSC_COMM_SELF, PETSC_ERR_FILE_WRITE,
+               "its XDMF index %s would pass this process's file-size limit (ulimit -f: %.0f bytes); the %" PetscInt_FMT " frames written are complete; raise the limit", o->xdmf, room, o->nframes);
+  }
+  PetscCall(PetscStrncpy(dir, o->file, sizeof dir));
+  if (!slash)
+    PetscCall(PetscStrcpy(dir, "."));
+  else
+    dir[slash == o->file ? 1 : slash - o->file] = 0;
+  if (!statvfs(dir, &fs)) {
+    const double avail = (double) fs.f_bavail * (double) fs.f_frsize;
+    PetscCheck(avail >= need, PETSC_COMM_SELF, PETSC_ERR_FILE_WRITE,
+               "the disk is full: the file system of %s has %.0f bytes free and a frame needs up to %.0f; the %" PetscInt_FMT " frames written are complete; free some space, or write fewer frames", dir, avail, need, o->nframes);
+  }
+  PetscFunctionReturn(0);
+}
+
 /* One frame into the file, flushed, and the XDMF index that lists it. */
 static PetscErrorCode OutputWriteFrameFile(void *ctx)
 {
@@ -391,6 +436,8 @@ PetscErrorCode OutputWriteFrame(Output o, Cloth cloth, PetscInt step, PetscReal 
   ctx.values[10][0] = t;
   PetscCall(ClothToDMDA(cloth, x, o->X));
   PetscCall(ClothToDMDA(cloth, v, o->V));
+  PetscCall(PetscSNPrintf(what, sizeof what, "Cannot write frame %" PetscInt_FMT " to -output_file %s", o->nframes, o->file));
+  PetscCall(DrapeCollectiveWrite(o->comm, OutputCheckRoom, &ctx, what));
   PetscCall(PetscSNPrintf(what, sizeof what, "Cannot write frame %" PetscInt_FMT " to -output_file %s (is the disk full?)", o->nframes, o->file));
   PetscCall(DrapeCollectiveWrite(o->comm, OutputWriteFrameFile, &ctx, what));
   PetscFunctionReturn(0);
