@@ -49,6 +49,14 @@ PETSC_EXTERN PetscErrorCode DrapeCheckUnusedOptions(MPI_Comm);
  * names it in the sentence. Missing files and directories are left to the reader.
  * Collective. */
 PETSC_EXTERN PetscErrorCode DrapeCheckInputFile(MPI_Comm, const char option[], const char what[]);
+/* The same check on a file name drape has already read from `option` (and, for a
+ * file that PETSc's viewers open, passed through DrapeFileName). Collective. */
+PETSC_EXTERN PetscErrorCode DrapeCheckInputPath(MPI_Comm, const char option[], const char path[], const char what[]);
+/* The file PETSc's viewers open for a name: they replace ${HOSTNAME}, ${USERNAME},
+ * ${PETSC_ARCH}, ... and any ${VAR} of the environment (PetscStrreplace); drape
+ * compares and writes the names so replaced, so that its checks see the file PETSc
+ * writes; a ${VAR} not set is refused naming `option`. Not collective. */
+PETSC_EXTERN PetscErrorCode DrapeFileName(const char option[], const char given[], char actual[], size_t size);
 /* Refuse an output name in /dev or /proc, directly or through symbolic links
  * (/dev/stdout is the file stdout goes to). Not collective. */
 PETSC_EXTERN PetscErrorCode DrapeCheckOutputPath(const char option[], const char path[]);

@@ -425,18 +425,47 @@ PetscErrorCode DrapeCheckOutputPath(const char option[], const char path[])
 
 PetscErrorCode DrapeCheckInputFile(MPI_Comm comm, const char option[], const char what[])
 {
-  char        path[PETSC_MAX_PATH_LEN] = "";
-  PetscBool   set;
+  char      path[PETSC_MAX_PATH_LEN] = "";
+  PetscBool set;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscOptionsGetString(NULL, NULL, option, path, sizeof path, &set));
+  if (!set) path[0] = 0;
+  PetscCall(DrapeCheckInputPath(comm, option, path, what));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode DrapeCheckInputPath(MPI_Comm comm, const char option[], const char path[], const char what[])
+{
   struct stat st;
   PetscMPIInt bad, any;
 
   PetscFunctionBeginUser;
-  PetscCall(PetscOptionsGetString(NULL, NULL, option, path, sizeof path, &set));
-  if (!set || !path[0]) PetscFunctionReturn(0);
+  if (!path[0]) PetscFunctionReturn(0);
   /* stat() does not open: a FIFO would block open(), /dev/zero would never end */
   bad = !stat(path, &st) && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode); /* missing files and directories: the reader's own sentence */
   PetscCallMPI(MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, comm));
   PetscCheck(!any, comm, PETSC_ERR_FILE_OPEN, "Cannot read the %s %s (%s): it is not a regular file but a device, pipe or socket%s", what, path, option, bad ? "" : " on another rank");
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode DrapeFileName(const char option[], const char given[], char actual[], size_t size)
+{
+  static const char *const petsc_names[] = {"PETSC_ARCH", "PETSC_DIR", "PETSC_LIB_DIR", "DISPLAY", "HOMEDIRECTORY", "WORKINGDIRECTORY", "USERNAME", "HOSTNAME", "PETSC_MAKE", NULL};
+
+  PetscFunctionBeginUser;
+  /* PetscStrreplace's own error for an unset variable does not name the option */
+  for (const char *p = strstr(given, "${"); p; p = strstr(p + 2, "${")) {
+    const char *end = strchr(p, '}');
+    char        name[256];
+    PetscBool   known = PETSC_FALSE;
+    if (!end || (size_t) (end - p - 2) >= sizeof name) break;
+    (void) snprintf(name, sizeof name, "%.*s", (int) (end - p - 2), p + 2);
+    for (const char *const *q = petsc_names; *q; q++)
+      if (!strcmp(name, *q)) known = PETSC_TRUE;
+    PetscCheck(known || getenv(name), PETSC_COMM_SELF, PETSC_ERR_USER_INPUT, "%s %s holds ${%s}, which PETSc replaces by the environment variable %s, and it is not set: set it, or name the file without ${...}", option, given, name, name);
+  }
+  PetscCall(PetscStrreplace(PETSC_COMM_SELF, given, actual, size));
   PetscFunctionReturn(0);
 }
 

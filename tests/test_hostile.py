@@ -7,6 +7,7 @@ import os
 import resource
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -575,3 +576,31 @@ def test_file_size_limit_keeps_the_frames_written(tmp):
     assert {k: v for k, v in snapshot(tmp).items() if not k.startswith("run.")} == before
     res = drape(["-restart", "run.h5", "-ts_max_time", "0.02", "-drape_progress", "0"], tmp)
     assert res.returncode == 0, res.stderr
+
+
+# ---- Class 3 of issue 29: an input overwritten through PETSc's file-name substitution ----
+
+@pytest.mark.parametrize("args,env,message,files", [
+    ("-solid_file {host}.off -cloth_center 0,0,2 -output_file ${{HOSTNAME}}.off", None,
+     "-output_file ${{HOSTNAME}}.off, which PETSc writes as {host}.off, would overwrite {host}.off, the solid mesh this run reads", {"{host}.off": TETRA.format(z=1)}),
+    ("-options_file scene.opts -output_file ${{DRAPE_SCENE}}.opts", {"DRAPE_SCENE": "scene"},
+     "which PETSc writes as scene.opts, would overwrite scene.opts, the options file this run reads", {"scene.opts": "-cloth_density 0.2\n"}),
+    ("-cloth_outline {host}.xmf -output_file ${{HOSTNAME}}.h5", None,
+     "The XDMF index of -output_file would overwrite {host}.xmf, the cloth outline this run reads", {"{host}.xmf": PANEL}),
+    ("-output_file ${{DRAPE_UNSET_NAME}}.h5", None,
+     "-output_file ${{DRAPE_UNSET_NAME}}.h5 holds ${{DRAPE_UNSET_NAME}}, which PETSc replaces by the environment variable DRAPE_UNSET_NAME, and it is not set", {}),
+], ids=["hostname-over-mesh", "environment-over-options-file", "hostname-xdmf-over-outline", "unset-variable"])
+def test_output_named_through_petsc_substitution_is_compared_as_written(tmp, args, env, message, files):
+    """PETSc's viewer replaces ${HOSTNAME}, ${USERNAME} and any ${VAR} of the environment
+    in the file name it opens; drape compared the name as typed, and
+    -solid_file $(hostname).off -output_file '${HOSTNAME}.off' replaced the mesh being
+    read. Now every check is on the name PETSc opens."""
+    host = socket.gethostname()
+    (tmp / "x.h5").write_bytes(b"earlier results")
+    for name, text in files.items():
+        (tmp / name.format(host=host)).write_text(text)
+    before = snapshot(tmp)
+    environment = {k: v for k, v in os.environ.items() if k != "DRAPE_UNSET_NAME"}
+    res = drape(TINY + args.format(host=host).split(), tmp, timeout=30, env=dict(environment, **(env or {})))
+    refused(res, message.format(host=host))
+    assert snapshot(tmp) == before

@@ -484,7 +484,8 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
     PetscBool output_given;
     PetscCall(DrapeCheckPathLength(s->comm, "-restart", s->restart, sizeof s->restart));
     PetscCheck(s->restart[0], s->comm, PETSC_ERR_USER_INPUT, "-restart needs a file name");
-    PetscCall(DrapeCheckInputFile(s->comm, "-restart", "restart file"));
+    PetscCall(DrapeFileName("-restart", s->restart, s->restart, sizeof s->restart)); /* the file PETSc's viewer reads */
+    PetscCall(DrapeCheckInputPath(s->comm, "-restart", s->restart, "restart file"));
     PetscCall(PetscOptionsHasName(NULL, NULL, "-output_file", &output_given));
     PetscCall(RestartInsertOptions(s->comm, s->restart));
     /* the frames go on in the file restarted from, not in the file its options name

@@ -34,7 +34,8 @@ static const PetscInt    scalar_sizes[NSCALARS] = {1, 1, 1, 1, 1, 1, 1, 1, 3, 1,
 
 struct _p_Output {
   MPI_Comm    comm;
-  char        file[PETSC_MAX_PATH_LEN], xdmf[PETSC_MAX_PATH_LEN];
+  char        given[PETSC_MAX_PATH_LEN];                          /* -output_file as typed              */
+  char        file[PETSC_MAX_PATH_LEN], xdmf[PETSC_MAX_PATH_LEN]; /* the files written (DrapeFileName) */
   PetscBool   enabled;
   PetscReal   interval, next_time;
   PetscInt    every, nframes, last_step, Mx, My, nalloc;
@@ -114,7 +115,11 @@ static PetscErrorCode OutputCheckFile(void *ctx)
   PetscCheck(!same, PETSC_COMM_SELF, PETSC_ERR_USER_INPUT, "-output_file %s would be overwritten by its own XDMF index %s: give the HDF5 file another extension, e.g. .h5", o->file, o->xdmf);
   PetscCall(DrapeSameFile(o->file, tmp, &same));
   PetscCheck(!same, PETSC_COMM_SELF, PETSC_ERR_USER_INPUT, "-output_file %s would be overwritten by the temporary file of its XDMF index: give the HDF5 file another name, e.g. run.h5", o->file);
-  PetscCall(DrapeCheckNotInput("-output_file", o->file, "restart file"));
+  {
+    char option[2 * PETSC_MAX_PATH_LEN + 64] = "-output_file";
+    if (strcmp(o->given, o->file)) PetscCall(PetscSNPrintf(option, sizeof option, "-output_file %s, which PETSc writes as %s,", o->given, o->file));
+    PetscCall(DrapeCheckNotInput(option, o->file, "restart file"));
+  }
   PetscCall(DrapeCheckNotInput("The XDMF index of -output_file", o->xdmf, NULL));
   PetscCall(DrapeCheckNotInput("The XDMF index of -output_file", tmp, NULL));
   PetscFunctionReturn(0);
@@ -136,6 +141,11 @@ PetscErrorCode OutputSetFromOptions(Output o)
   if (o->enabled) {
     char *slash, *dot;
     PetscCheck(o->file[0], o->comm, PETSC_ERR_USER_INPUT, "-output_file needs a file name, e.g. -output_file run.h5");
+    PetscCall(DrapeCheckPathLength(o->comm, "-output_file", o->file, sizeof o->file - 16));
+    /* PETSc's viewer opens the name with ${HOSTNAME}, ${USERNAME}, ... replaced: every
+     * check below, and the XDMF index, are on the file it opens */
+    PetscCall(PetscStrncpy(o->given, o->file, sizeof o->given));
+    PetscCall(DrapeFileName("-output_file", o->given, o->file, sizeof o->file));
     PetscCall(DrapeCheckPathLength(o->comm, "-output_file", o->file, sizeof o->file - 16));
     PetscCall(PetscStrncpy(o->xdmf, o->file, sizeof o->xdmf));
     dot   = strrchr(o->xdmf, '.');
@@ -307,7 +317,8 @@ static PetscErrorCode OutputWriteXDMF(Output o)
   PetscCallMPI(MPI_Comm_rank(o->comm, &rank));
   if (rank) PetscFunctionReturn(0);
   PetscCall(PetscSNPrintf(tmp, sizeof tmp, "%s.tmp", o->xdmf));
-  PetscCall(PetscFOpen(PETSC_COMM_SELF, tmp, "w", &fp));
+  fp = fopen(tmp, "w"); /* not PetscFOpen: it would replace ${...} and '\\' in the name again */
+  PetscCheck(fp, PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "Cannot open %s: %s", tmp, strerror(errno));
   PetscCall(PetscFPrintf(PETSC_COMM_SELF, fp, "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"2.0\">\n <Domain>\n  <Grid Name=\"cloth\" GridType=\"Collection\" CollectionType=\"Temporal\">\n"));
   for (PetscInt k = 0; k < o->nframes; k++) {
     PetscCall(PetscFPrintf(PETSC_COMM_SELF, fp, "   <Grid Name=\"frame %" PetscInt_FMT "\" GridType=\"Uniform\">\n    <Time Value=\"%.10g\"/>\n", k, (double) o->times[k]));
@@ -323,7 +334,7 @@ static PetscErrorCode OutputWriteXDMF(Output o)
     PetscCall(PetscFPrintf(PETSC_COMM_SELF, fp, "   </Grid>\n"));
   }
   PetscCall(PetscFPrintf(PETSC_COMM_SELF, fp, "  </Grid>\n </Domain>\n</Xdmf>\n"));
-  PetscCall(PetscFClose(PETSC_COMM_SELF, fp));
+  PetscCheck(!fclose(fp), PETSC_COMM_SELF, PETSC_ERR_FILE_WRITE, "Cannot write %s: %s", tmp, strerror(errno));
   PetscCheck(rename(tmp, o->xdmf) == 0, PETSC_COMM_SELF, PETSC_ERR_FILE_WRITE, "Cannot rename %s to %s", tmp, o->xdmf);
   PetscFunctionReturn(0);
 }
