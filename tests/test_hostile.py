@@ -604,3 +604,28 @@ def test_output_named_through_petsc_substitution_is_compared_as_written(tmp, arg
     res = drape(TINY + args.format(host=host).split(), tmp, timeout=30, env=dict(environment, **(env or {})))
     refused(res, message.format(host=host))
     assert snapshot(tmp) == before
+
+
+# ---- Class 4 of issue 29: an output truncated, then refused ----
+
+@pytest.mark.parametrize("obstacle,kind,message", [
+    ("run.xmf", "directory", "Cannot write -output_file run.h5: its XDMF index, run.xmf, is a directory"),
+    ("run.xmf.tmp", "directory", "the temporary file of its XDMF index, run.xmf.tmp, is a directory"),
+    ("run.xmf.tmp", "fifo", "the temporary file of its XDMF index, run.xmf.tmp, exists and is not a regular file"),
+], ids=["xmf-directory", "tmp-directory", "tmp-fifo"])
+def test_every_output_file_is_checked_before_any_is_opened(tmp, obstacle, kind, message):
+    """With run.xmf or run.xmf.tmp a directory, run.h5 was truncated and its first frame
+    written before the run failed with "is the disk full?". Every file drape writes is
+    now checked before the first is opened: the earlier run.h5 keeps its frames."""
+    subprocess.run([str(DRAPE)] + SCENE.split() + ["-output_file", "run.h5", "-drape_progress", "0"], check=True, capture_output=True, cwd=tmp)
+    if (tmp / obstacle).exists():
+        (tmp / obstacle).unlink()
+    if kind == "directory":
+        (tmp / obstacle).mkdir()
+    else:
+        os.mkfifo(tmp / obstacle)
+    before = snapshot(tmp)
+    res = drape(SCENE.split() + ["-output_file", "run.h5", "-drape_progress", "0"], tmp, timeout=30)
+    refused(res, message)
+    assert snapshot(tmp) == before and sorted(p.name for p in tmp.iterdir()) == sorted(["run.h5", "run.xmf", "run.xmf.tmp"][:2 + (obstacle == "run.xmf.tmp")])
+    assert len(drape_h5.load(tmp / "run.h5").time) == 3

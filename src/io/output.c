@@ -109,8 +109,19 @@ static PetscErrorCode OutputCheckFile(void *ctx)
     PetscCheck(!failed, PETSC_COMM_SELF, PETSC_ERR_FILE_WRITE, "Cannot write -output_file %s: the file system of %s takes no data (full?)", o->file, dir);
   }
   PetscCall(DrapeCheckOutputPath("-output_file", o->file)); /* /dev is writable to root */
-  /* nothing the run reads may be overwritten (a restart continues its own file) */
+  /* the XDMF index, written to a temporary file renamed over it after each frame: a
+   * directory (or a device) of either name would fail only after the HDF5 file had
+   * been truncated and its first frame written */
   PetscCall(PetscSNPrintf(tmp, sizeof tmp, "%s.tmp", o->xdmf));
+  for (int k = 0; k < 2; k++) {
+    const char *path = k ? tmp : o->xdmf, *what = k ? "the temporary file of its XDMF index" : "its XDMF index";
+    struct stat st;
+    if (stat(path, &st)) continue;
+    PetscCheck(!S_ISDIR(st.st_mode), PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "Cannot write -output_file %s: %s, %s, is a directory; remove it, or choose another -output_file", o->file, what, path);
+    PetscCheck(S_ISREG(st.st_mode), PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "Cannot write -output_file %s: %s, %s, exists and is not a regular file (a device, pipe or socket); remove it, or choose another -output_file", o->file, what, path);
+    PetscCheck(!k || !access(path, W_OK), PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "Cannot write -output_file %s: %s, %s, exists and is not writable; remove it, or choose another -output_file", o->file, what, path);
+  }
+  /* nothing the run reads may be overwritten (a restart continues its own file) */
   PetscCall(DrapeSameFile(o->file, o->xdmf, &same));
   PetscCheck(!same, PETSC_COMM_SELF, PETSC_ERR_USER_INPUT, "-output_file %s would be overwritten by its own XDMF index %s: give the HDF5 file another extension, e.g. .h5", o->file, o->xdmf);
   PetscCall(DrapeSameFile(o->file, tmp, &same));
