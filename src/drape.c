@@ -49,7 +49,14 @@ static PetscErrorCode DrapeErrorHandler(MPI_Comm comm, int line, const char *fun
      * as the error code and the caller's name as the message: known by where it is raised */
     const PetscBool memory = (PetscBool) (n == PETSC_ERR_MEM || (fun && (!strcmp(fun, "PetscMallocAlign") || !strcmp(fun, "PetscReallocAlign") || !strcmp(fun, "PetscTrMallocDefault") || !strcmp(fun, "PetscTrReallocDefault"))));
     error_is_user          = (PetscBool) (memory || IsUserError(n));
-    if (memory)
+    if (n == PETSC_ERR_MISSING_FACTOR) { /* MatGetFactor: a preconditioner the matrix type does not have */
+      size_t len    = mess ? strlen(mess) : 0;
+      error_is_user = PETSC_TRUE;
+      (void) PetscSNPrintf(error_message, sizeof error_message, "%.*s: the preconditioner (-pc_type, or -sub_pc_type in blocks) needs a factorization that this matrix type (-drape_mat_type) does not have; choose another -pc_type or -drape_mat_type",
+                           (int) (len && mess[len - 1] == '.' ? len - 1 : len), mess ? mess : "");
+    } else if (memory && mess && !strncmp(mess, "Out of memory", 13)) /* drape's own sentence (a C++ std::bad_alloc caught) */
+      (void) PetscStrncpy(error_message, mess, sizeof error_message);
+    else if (memory)
       (void) PetscSNPrintf(error_message, sizeof error_message, "Out of memory (an allocation in %s failed): this run needs more memory than the machine gives it; use a smaller lattice, or more nodes",
                            mess && strncmp(mess, "Memory requested", 16) ? mess : "PETSc");
     else

@@ -629,3 +629,53 @@ def test_every_output_file_is_checked_before_any_is_opened(tmp, obstacle, kind, 
     refused(res, message)
     assert snapshot(tmp) == before and sorted(p.name for p in tmp.iterdir()) == sorted(["run.h5", "run.xmf", "run.xmf.tmp"][:2 + (obstacle == "run.xmf.tmp")])
     assert len(drape_h5.load(tmp / "run.h5").time) == 3
+
+
+# ---- Class 11 of issue 29: PETSc's traceback instead of a sentence ----
+
+@pytest.mark.parametrize("args,message", [
+    ("-ts_type rk -ts_rtol 1e-300", "-ts_rtol 1e-300 is below what a step in double precision can meet"),
+    ("-ts_type rk -ts_atol 1e-300 -ts_rtol 0", "-ts_atol 1e-300 is below what a step in double precision can meet"),
+    ("-ts_type rk -ts_atol 0 -ts_rtol 0", "-ts_atol and -ts_rtol are both 0"),
+    ("-ts_type drapebe -drape_mat_type dense -pc_type icc",
+     "Could not locate a solver type for factorization type ICC and matrix type seqdense: the preconditioner (-pc_type, or -sub_pc_type in blocks) needs a factorization that this matrix type (-drape_mat_type) does not have"),
+], ids=["rtol-1e-300", "atol-1e-300", "tolerances-zero", "dense-icc"])
+def test_solver_options_that_fail_inside_petsc_are_one_sentence(tmp, args, message):
+    """-ts_rtol 1e-300 overflowed the adaptive error norm (PETSc's floating-point
+    traceback); ICC on a dense matrix ended in MatGetFactor's traceback."""
+    (tmp / "x.h5").write_bytes(b"earlier results")
+    before = snapshot(tmp)
+    res = drape(TINY + args.split() + ["-ts_max_time", "0.01"], tmp, timeout=30)
+    refused(res, message)
+    assert snapshot(tmp) == before
+
+
+def torus_off(path, n):
+    """A closed torus of n x n vertices and 2 n^2 triangles, under the cloth."""
+    u = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    U, V = np.meshgrid(u, u, indexing="ij")
+    xyz = np.stack([(0.3 + 0.1 * np.cos(V)) * np.cos(U), (0.3 + 0.1 * np.cos(V)) * np.sin(U), 0.1 * np.sin(V) - 0.5], -1).reshape(-1, 3)
+    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    a, b, c, d = i * n + j, (i + 1) % n * n + j, (i + 1) % n * n + (j + 1) % n, i * n + (j + 1) % n
+    faces = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
+    with open(path, "w") as f:
+        f.write(f"OFF\n{len(xyz)} {len(faces)} 0\n")
+        np.savetxt(f, xyz, fmt="%.6f")
+        np.savetxt(f, np.hstack([np.full((len(faces), 1), 3), faces]), fmt="%d")
+
+
+def test_out_of_memory_inside_cgal_is_one_sentence(tmp):
+    """std::bad_alloc in CGAL's AABB tree build (or its mesh reader) became PETSc's
+    traceback (or "not a valid mesh"). Under growing address-space limits every run
+    either works or ends in one out-of-memory sentence, and one of them in the tree."""
+    torus_off(tmp / "torus.off", 500)
+    seen = []
+    for mb in range(400, 800, 25):
+        def limit():
+            resource.setrlimit(resource.RLIMIT_AS, (mb << 20, mb << 20))
+        res = drape(TINY + ["-ts_max_steps", "0", "-solid_file", "torus.off", "-cloth_center", "0,0,1"], tmp, preexec_fn=limit)
+        if res.returncode == 0:
+            break
+        seen.append(refused(res, "Out of memory"))
+    assert res.returncode == 0, "no limit up to 800 MB let the run through"
+    assert any("Out of memory building the AABB tree of the solid torus.off (500000 triangles)" in e for e in seen), seen

@@ -689,6 +689,18 @@ PetscErrorCode SimulationSetUp(Simulation s)
     PetscCall(DrapeCheckReal(s->comm, "-ts_dt", 1, &dt, 1e-15, 1e3, "s"));
     PetscCall(DrapeCheckReal(s->comm, "-ts_max_time", 1, &tmax, 1e-15, 1e30, "s (1e30: no limit but -ts_max_steps)"));
     PetscCall(DrapeCheckInt(s->comm, "-ts_max_steps", max_steps, 0, PETSC_MAX_INT));
+    {
+      /* the adaptive schemes' error norm divides by atol + rtol |x|: a tolerance far
+       * below double precision's 2.2e-16 overflowed it (PETSc's traceback), and no
+       * step can meet it */
+      PetscReal atol, rtol;
+      PetscCall(TSGetTolerances(s->ts, &atol, NULL, &rtol, NULL));
+      PetscCall(DrapeCheckReal(s->comm, "-ts_atol", 1, &atol, 0, 1e3, "(m, m/s)"));
+      PetscCall(DrapeCheckReal(s->comm, "-ts_rtol", 1, &rtol, 0, 1, ""));
+      PetscCheck(atol == 0 || atol >= 1e-14, s->comm, PETSC_ERR_USER_INPUT, "-ts_atol %g is below what a step in double precision can meet: give 0 or at least 1e-14 (m, m/s)", (double) atol);
+      PetscCheck(rtol == 0 || rtol >= 1e-14, s->comm, PETSC_ERR_USER_INPUT, "-ts_rtol %g is below what a step in double precision can meet (its relative rounding error is 2.2e-16): give 0 or at least 1e-14", (double) rtol);
+      PetscCheck(atol > 0 || rtol > 0, s->comm, PETSC_ERR_USER_INPUT, "-ts_atol and -ts_rtol are both 0: the adaptive step's error norm divides by atol + rtol |x|; give one of them at least 1e-14");
+    }
     PetscCheck(tmax > t0, s->comm, PETSC_ERR_USER_INPUT, "-ts_max_time %g s is not after the %s time %g s: nothing to do", (double) tmax, s->have_restart ? "restart" : "start", (double) t0);
     {
       const PetscReal tend = PetscMin(tmax, t0 + (PetscReal) max_steps * dt); /* where the run can get to */

@@ -54,6 +54,8 @@ static PetscErrorCode SolidMeshFinish(SolidMesh m, const char *what)
     m->hi[0]       = b.xmax();
     m->hi[1]       = b.ymax();
     m->hi[2]       = b.zmax();
+  } catch (const std::bad_alloc &) {
+    SETERRQ(PETSC_COMM_SELF, PETSC_ERR_MEM, "Out of memory building the AABB tree of the solid %s (%zu triangles): this run needs more memory than the machine gives it; use a coarser mesh, or more memory", what, (size_t) m->mesh.number_of_faces());
   } catch (const std::exception &e) {
     SETERRQ(PETSC_COMM_SELF, PETSC_ERR_LIB, "CGAL failed to build the AABB tree of the solid %s: %s", what, e.what());
   }
@@ -62,18 +64,22 @@ static PetscErrorCode SolidMeshFinish(SolidMesh m, const char *what)
 
 PetscErrorCode SolidMeshCreateFromFile(const char path[], const PetscReal A[9], const PetscReal b[3], SolidMesh *mesh)
 {
-  std::unique_ptr<_p_SolidMesh> m(new _p_SolidMesh);
-  bool                          ok = false;
+  std::unique_ptr<_p_SolidMesh> m;
+  bool                          ok = false, memory = false;
   FILE                         *fp = fopen(path, "r");
 
   PetscFunctionBeginUser;
   PetscCheck(fp, PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "Cannot open the solid mesh file %s", path);
   fclose(fp);
   try {
+    m.reset(new _p_SolidMesh);
     ok = CGAL::IO::read_polygon_mesh(std::string(path), m->mesh);
+  } catch (const std::bad_alloc &) {
+    memory = true;
   } catch (const std::exception &e) {
     ok = false;
   }
+  PetscCheck(!memory, PETSC_COMM_SELF, PETSC_ERR_MEM, "Out of memory reading the solid mesh file %s: this run needs more memory than the machine gives it; use a coarser mesh, or more memory", path);
   PetscCheck(ok, PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED, "Cannot read the solid mesh file %s: not a valid OFF, OBJ, STL or PLY polygon mesh", path);
   for (auto v : m->mesh.vertices()) {
     const Point &p = m->mesh.point(v);
@@ -130,6 +136,8 @@ PetscErrorCode SolidMeshQuery(SolidMesh m, const PetscReal p[3], PetscReal close
     closest[1] = c.y();
     closest[2] = c.z();
     *inside    = (*m->side)(q) == CGAL::ON_BOUNDED_SIDE ? PETSC_TRUE : PETSC_FALSE;
+  } catch (const std::bad_alloc &) {
+    SETERRQ(PETSC_COMM_SELF, PETSC_ERR_MEM, "Out of memory in a distance query to the solid mesh: this run needs more memory than the machine gives it; use a coarser mesh, or more memory");
   } catch (const std::exception &e) {
     SETERRQ(PETSC_COMM_SELF, PETSC_ERR_LIB, "CGAL query failed: %s", e.what());
   }
