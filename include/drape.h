@@ -78,6 +78,9 @@ PETSC_EXTERN PetscErrorCode DrapeReportOptionsFiles(MPI_Comm);
  * 4294967302 becomes 6). DrapeCheckInt: both, and v in [lo, hi].
  * DrapeCheckPathLength: a file name option read into a buffer of `size` bytes was not
  * cut short. Each ends with one sentence naming the option. Collective. */
+/* v in the fewest digits (6 to 17, C's %g) that read back as v: a refused value
+ * printed as given. Returns buf. Not collective. */
+PETSC_EXTERN const char    *DrapeFormatReal(PetscReal v, char buf[], size_t size);
 PETSC_EXTERN PetscErrorCode DrapeCheckReal(MPI_Comm, const char name[], PetscInt n, const PetscReal v[], PetscReal lo, PetscReal hi, const char unit[]);
 PETSC_EXTERN PetscErrorCode DrapeCheckIntOption(MPI_Comm, const char name[]);
 PETSC_EXTERN PetscErrorCode DrapeCheckInt(MPI_Comm, const char name[], PetscInt v, PetscInt lo, PetscInt hi);

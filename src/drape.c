@@ -265,16 +265,26 @@ PetscErrorCode DrapeCheckUnusedOptions(MPI_Comm comm)
 
 /* ---- Values of options ---- */
 
+const char *DrapeFormatReal(PetscReal v, char buf[], size_t size)
+{
+  /* C's %g: PETSc's printf turns 100 into "100." and inf into "inf."; the fewest
+   * digits that read back as v, so that 1.000001e6 is not printed as 1e+06 */
+  for (int digits = 6; digits <= 17; digits++) {
+    (void) snprintf(buf, size, "%.*g", digits, (double) v);
+    if (strtod(buf, NULL) == (double) v || v != v) break;
+  }
+  return buf;
+}
+
 PetscErrorCode DrapeCheckReal(MPI_Comm comm, const char name[], PetscInt n, const PetscReal v[], PetscReal lo, PetscReal hi, const char unit[])
 {
   PetscFunctionBeginUser;
   for (PetscInt i = 0; i < n; i++) {
     char slo[32], shi[32], got[32];
     if (v[i] >= lo && v[i] <= hi) continue; /* false for NaN */
-    /* C's %g: PETSc's printf turns 100 into "100." and inf into "inf." */
-    (void) snprintf(slo, sizeof slo, "%g", (double) lo);
-    (void) snprintf(shi, sizeof shi, "%g", (double) hi);
-    (void) snprintf(got, sizeof got, "%g", (double) v[i]);
+    (void) DrapeFormatReal(lo, slo, sizeof slo);
+    (void) DrapeFormatReal(hi, shi, sizeof shi);
+    (void) DrapeFormatReal(v[i], got, sizeof got);
     if (lo > 0) SETERRQ(comm, PETSC_ERR_USER_INPUT, "%s must be positive and finite, from %s to %s%s%s; got %s", name, slo, shi, unit[0] ? " " : "", unit, got);
     if (lo == 0) SETERRQ(comm, PETSC_ERR_USER_INPUT, "%s must be zero or positive and finite, at most %s%s%s; got %s", name, shi, unit[0] ? " " : "", unit, got);
     SETERRQ(comm, PETSC_ERR_USER_INPUT, "%s must be finite, from %s to %s%s%s; got %s", name, slo, shi, unit[0] ? " " : "", unit, got);

@@ -679,3 +679,51 @@ def test_out_of_memory_inside_cgal_is_one_sentence(tmp):
         seen.append(refused(res, "Out of memory"))
     assert res.returncode == 0, "no limit up to 800 MB let the run through"
     assert any("Out of memory building the AABB tree of the solid torus.off (500000 triangles)" in e for e in seen), seen
+
+
+# ---- Class 14 of issue 29: sentences that did not say what was wrong ----
+
+TETRA_OBJ = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\nf 1 4 3\n"
+BOM = "\ufeff"
+
+
+@pytest.mark.parametrize("name,text", [
+    ("bom.off", BOM + TETRA.format(z=1)),
+    ("bom.obj", BOM + TETRA_OBJ),
+    ("flipped.off", TETRA.format(z=1).replace("3 1 2 3\n", "3 1 3 2\n")),
+    ("flipped.obj", TETRA_OBJ.replace("f 2 3 4\n", "f 2 4 3\n").replace("f 1 4 3\n", "f 1 3 4\n")),
+], ids=["bom-off", "bom-obj", "one-face-flipped", "two-faces-flipped"])
+def test_valid_mesh_with_a_bom_or_flipped_faces_is_read(tmp, name, text):
+    """A UTF-8 byte-order mark, or faces flipped against their neighbours, made a valid
+    mesh "not a valid mesh". The cloth now lands on it as on the plain tetrahedron."""
+    (tmp / "plain.off").write_text(TETRA.format(z=1))
+    (tmp / name).write_text(text, encoding="utf-8")
+    frames = []
+    for mesh in ("plain.off", name):
+        res = drape(["-da_grid_x", "6", "-da_grid_y", "6", "-cloth_size", "0.5", "-cloth_center", "0.2,0.2,1.1", "-ts_max_time", "0.35", "-drape_progress", "0",
+                     "-solid_file", mesh, "-output_file", mesh + ".h5"], tmp)
+        assert res.returncode == 0, res.stderr
+        with h5py.File(tmp / (mesh + ".h5"), "r") as f:
+            frames.append((f["position"][-1], f["contact_count"][:].max()))
+    assert frames[0][1] > 0 and np.allclose(frames[0][0], frames[1][0], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("args,message,files", [
+    ("-solid_file pinched.off -cloth_center 0,0,3", "Cannot read the solid mesh file pinched.off: an edge is shared by more than two faces, or a vertex joins surfaces",
+     {"pinched.off": "OFF\n7 8 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n-1 0 0\n0 -1 0\n0 0 -1\n3 0 2 1\n3 0 1 3\n3 1 2 3\n3 0 3 2\n3 0 4 5\n3 0 6 4\n3 4 6 5\n3 0 5 6\n"}),
+    ("-solid_floor -1 -contact_self -contact_self_thickness 1",
+     "-contact_self_thickness 1 m is more than this lattice holds: it must be below 0.2357 m, the distance at rest from a particle to the diagonal of its cell (spacing 0.3333 x 0.3333 m)", {}),
+    ("-cloth_density 1.000001e6", "-cloth_density must be positive and finite, from 0.0001 to 100 kg/m^2; got 1000001", {}),
+    ("-cloth_density 1.0000000001e-5", "got 1.0000000001e-05", {}),
+], ids=["non-manifold-mesh", "self-thickness-beyond-lattice", "value-with-seven-digits", "value-with-eleven-digits"])
+def test_refusals_say_what_is_wrong(tmp, args, message, files):
+    """A non-manifold mesh is refused saying so; -contact_self_thickness 1 (within its
+    documented range) ended in "Reduce -ts_dt": the sentence now says the maximum this
+    lattice holds and why; a refused 1.000001e6 was printed as 1e+06."""
+    for name, text in files.items():
+        (tmp / name).write_text(text)
+    (tmp / "x.h5").write_bytes(b"earlier results")
+    before = snapshot(tmp)
+    res = drape(TINY + args.split() + ["-output_file", "x.h5"], tmp, timeout=30)
+    refused(res, message)
+    assert snapshot(tmp) == before
