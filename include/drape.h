@@ -44,6 +44,12 @@ PETSC_EXTERN PetscErrorCode DrapeCollectiveRead(MPI_Comm, PetscErrorCode (*)(voi
  * Collective. */
 PETSC_EXTERN PetscErrorCode DrapeCheckUnusedOptions(MPI_Comm);
 
+/* Refuse a job whose ranks disagree (an MPMD launch with different options, node-local
+ * input files that differ): a digest of the options database, of the files of
+ * -solid_file, -cloth_outline and -restart, and of the name -output_file has once
+ * PETSc replaced its ${...}, is compared with rank 0's, at start-up, before any rank
+ * builds its model. Collective. */
+PETSC_EXTERN PetscErrorCode DrapeCheckRanksAgree(MPI_Comm);
 /* Refuse an input file option (-solid_file, -restart, -cloth_outline) whose file is
  * not a regular file (a FIFO, /dev/zero, a socket), before anything opens it; what
  * names it in the sentence. Missing files and directories are left to the reader.

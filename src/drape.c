@@ -528,6 +528,94 @@ PetscErrorCode DrapeCheckNotInput(const char option[], const char path[], const 
   PetscFunctionReturn(0);
 }
 
+/* ---- Ranks that agree ---- */
+
+/* FNV-1a, 64 bits: enough to tell two files or option sets apart (not a defence
+ * against a forger) */
+static unsigned long long Fnv1a(unsigned long long h, const void *data, size_t n)
+{
+  const unsigned char *p = (const unsigned char *) data;
+  for (size_t i = 0; i < n; i++) h = (h ^ p[i]) * 1099511628211ULL;
+  return h;
+}
+
+/* The digest of a file's contents (its size and first 64 MiB: a restart file may be
+ * large), 1 for a file that does not exist, 2 for one that is not a regular file
+ * (never opened: a FIFO would block). */
+static unsigned long long FileDigest(const char path[])
+{
+  unsigned long long h = 14695981039346656037ULL;
+  struct stat        st;
+  FILE              *fp;
+  char               buf[65536];
+  size_t             n, total = 0;
+
+  if (stat(path, &st)) return 1;
+  if (!S_ISREG(st.st_mode)) return 2;
+  if (!(fp = fopen(path, "rb"))) return 1;
+  h = Fnv1a(h, &st.st_size, sizeof st.st_size);
+  while (total < ((size_t) 64 << 20) && (n = fread(buf, 1, sizeof buf, fp)) > 0) {
+    h = Fnv1a(h, buf, n);
+    total += n;
+  }
+  (void) fclose(fp);
+  return h;
+}
+
+PetscErrorCode DrapeCheckRanksAgree(MPI_Comm comm)
+{
+  static const char *const options[] = {NULL, "-solid_file", "-cloth_outline", "-restart", "-output_file"};
+  static const char *const whats[]   = {"options", "solid mesh", "cloth outline", "restart file", "output file"};
+  enum {
+    N = 5
+  };
+  unsigned long long mine[N], first[N];
+  char               names[N][PETSC_MAX_PATH_LEN];
+  PetscMPIInt        rank, size, bad, worst;
+  char              *all;
+
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  if (size == 1) PetscFunctionReturn(0);
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  PetscCall(PetscOptionsGetAll(NULL, &all));
+  mine[0] = Fnv1a(14695981039346656037ULL, all, strlen(all));
+  PetscCall(PetscFree(all));
+  for (int k = 1; k < N; k++) {
+    PetscBool set;
+    names[k][0] = 0;
+    PetscCall(PetscOptionsGetString(NULL, NULL, options[k], names[k], sizeof names[k], &set));
+    if (set && names[k][0] && k >= 3) PetscCall(DrapeFileName(options[k], names[k], names[k], sizeof names[k])); /* as PETSc's viewer opens them */
+    if (k == 4)                                                                                                  /* the name, which may differ by node through ${HOSTNAME} */
+      mine[k] = set ? Fnv1a(14695981039346656037ULL, names[k], strlen(names[k])) : 0;
+    else
+      mine[k] = set && names[k][0] ? FileDigest(names[k]) : 0;
+  }
+  PetscCall(PetscArraycpy(first, mine, N));
+  PetscCallMPI(MPI_Bcast(first, N, MPI_UNSIGNED_LONG_LONG, 0, comm));
+  bad = size * N; /* the first (rank, item) that differs from rank 0 */
+  for (int k = N - 1; k >= 0; k--)
+    if (mine[k] != first[k]) bad = rank * N + k;
+  PetscCallMPI(MPI_Allreduce(&bad, &worst, 1, MPI_INT, MPI_MIN, comm));
+  if (worst == size * N) PetscFunctionReturn(0);
+  PetscCheck(worst % N != 0, comm, PETSC_ERR_USER_INPUT,
+             "Rank %d was started with other options than rank 0 (an MPMD launch with different options, or another PETSC_OPTIONS, petscrc or options file on its node): every rank must run the same model; give them all the same options", worst / N);
+  {
+    char theirs[PETSC_MAX_PATH_LEN];
+    PetscCall(PetscArraycpy(theirs, names[worst % N], sizeof theirs));
+    PetscCallMPI(MPI_Bcast(theirs, sizeof theirs, MPI_CHAR, worst / N, comm));
+    PetscCheck(worst % N != 4, comm, PETSC_ERR_USER_INPUT,
+               "Rank %d writes -output_file %s, another file than rank 0's %s (PETSc replaces ${HOSTNAME}, ${USERNAME} and ${VAR} of the environment on each node): every rank must write the same file; name it without them", worst / N, theirs,
+               names[4]);
+  }
+  {
+    const int k = worst % N;
+    SETERRQ(comm, PETSC_ERR_USER_INPUT,
+            "Rank %d reads another %s %s (%s) than rank 0 (node-local files that differ, or one that is missing on some nodes): every rank must read the same file; copy the same file to every node, or put it on a shared file system", worst / N,
+            whats[k], names[k], options[k]);
+  }
+}
+
 /* ---- Options files, checked before PETSc reads them ----
  *
  * PETSc reads the options files (-options_file on the command line, the files they

@@ -132,14 +132,16 @@ def test_rank_local_missing_directory_is_one_sentence_not_a_hang(tmp):
 
 
 def test_failure_only_one_rank_sees_aborts_the_job(tmp):
-    """A failure only rank 0 sees (its own bad option): rank 1 waits in a collective
-    operation; rank 0 says why and ends the job with MPI_Abort instead of a hang."""
+    """A failure only rank 0 sees (its environment lacks the variable its output name
+    uses; a rank's own bad option is now refused by every rank, class 8): rank 1 waits
+    in a collective operation; rank 0 says why and ends the job with MPI_Abort instead
+    of a hang."""
     (tmp / "x.h5").write_bytes(b"earlier results")
     before = snapshot(tmp)
-    good = [str(DRAPE)] + TINY + ["-output_file", "x.h5"]
-    cmd = mpiexec(1) + good + ["-cloth_density", "0"] + [":", "-np", "1"] + good
+    args = [str(DRAPE)] + TINY + ["-output_file", "${DRAPE_RANK_NAME}.h5"]
+    cmd = mpiexec(1) + ["env", "-u", "DRAPE_RANK_NAME"] + args + [":", "-np", "1", "env", "DRAPE_RANK_NAME=x"] + args
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=60, cwd=tmp)
-    refused(res, "-cloth_density must be positive", ranks=2)
+    refused(res, "which PETSc replaces by the environment variable DRAPE_RANK_NAME, and it is not set", ranks=2)
     assert snapshot(tmp) == before
 
 
@@ -727,3 +729,32 @@ def test_refusals_say_what_is_wrong(tmp, args, message, files):
     res = drape(TINY + args.split() + ["-output_file", "x.h5"], tmp, timeout=30)
     refused(res, message)
     assert snapshot(tmp) == before
+
+
+# ---- Class 8 of issue 29: ranks that disagree ----
+
+@pytest.mark.parametrize("case,message", [
+    ("options", "Rank 1 was started with other options than rank 0 (an MPMD launch with different options"),
+    ("mesh", "Rank 1 reads another solid mesh t.off (-solid_file) than rank 0 (node-local files that differ"),
+    ("outline", "Rank 1 reads another cloth outline o.txt (-cloth_outline) than rank 0"),
+    ("output-name", "Rank 1 writes -output_file B.h5, another file than rank 0's A.h5"),
+], ids=["mpmd-options", "node-local-mesh", "node-local-outline", "output-name-by-node"])
+def test_ranks_that_disagree_are_refused(tmp, case, message):
+    """An MPMD launch with different options, or node-local input files that differ
+    (here two working directories), ran silently, each rank with its own model. The
+    options database and the input files are compared across ranks at start-up."""
+    for d, z in (("A", 1), ("B", 1.5)):
+        (tmp / d).mkdir()
+        (tmp / d / "t.off").write_text(TETRA.format(z=z))
+        (tmp / d / "o.txt").write_text(PANEL if d == "A" else PANEL.replace("0.1", "0.11", 1))
+        (tmp / d / "x.h5").write_bytes(b"earlier results")
+    assert (tmp / "A" / "o.txt").read_text() != (tmp / "B" / "o.txt").read_text()
+    before = snapshot(tmp)
+    args = [str(DRAPE)] + TINY + ["-output_file", "x.h5"]
+    extra = {"options": ([], ["-cloth_density", "0.2"]), "mesh": (["-solid_file", "t.off", "-cloth_center", "0,0,3"],) * 2,
+             "outline": (["-cloth_outline", "o.txt"],) * 2, "output-name": (["-output_file", "${DRAPE_NODE}.h5"],) * 2}[case]
+    cmd = (mpiexec(1) + ["-wdir", str(tmp / "A"), "env", "DRAPE_NODE=A"] + args + extra[0]
+           + [":", "-np", "1", "-wdir", str(tmp / "B"), "env", "DRAPE_NODE=B"] + args + extra[1])
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
+    refused(res, message, ranks=2)
+    assert "MPI_ABORT" not in res.stdout + res.stderr and snapshot(tmp) == before
