@@ -44,11 +44,25 @@ PETSC_EXTERN PetscErrorCode DrapeCollectiveRead(MPI_Comm, PetscErrorCode (*)(voi
  * Collective. */
 PETSC_EXTERN PetscErrorCode DrapeCheckUnusedOptions(MPI_Comm);
 
+/* Refuse a job whose ranks disagree (an MPMD launch with different options, node-local
+ * input files that differ): a digest of the options database, of the files of
+ * -solid_file, -cloth_outline and -restart, and of the name -output_file has once
+ * PETSc replaced its ${...}, is compared with rank 0's, at start-up, before any rank
+ * builds its model. Collective. */
+PETSC_EXTERN PetscErrorCode DrapeCheckRanksAgree(MPI_Comm);
 /* Refuse an input file option (-solid_file, -restart, -cloth_outline) whose file is
  * not a regular file (a FIFO, /dev/zero, a socket), before anything opens it; what
  * names it in the sentence. Missing files and directories are left to the reader.
  * Collective. */
 PETSC_EXTERN PetscErrorCode DrapeCheckInputFile(MPI_Comm, const char option[], const char what[]);
+/* The same check on a file name drape has already read from `option` (and, for a
+ * file that PETSc's viewers open, passed through DrapeFileName). Collective. */
+PETSC_EXTERN PetscErrorCode DrapeCheckInputPath(MPI_Comm, const char option[], const char path[], const char what[]);
+/* The file PETSc's viewers open for a name: they replace ${HOSTNAME}, ${USERNAME},
+ * ${PETSC_ARCH}, ... and any ${VAR} of the environment (PetscStrreplace); drape
+ * compares and writes the names so replaced, so that its checks see the file PETSc
+ * writes; a ${VAR} not set is refused naming `option`. Not collective. */
+PETSC_EXTERN PetscErrorCode DrapeFileName(const char option[], const char given[], char actual[], size_t size);
 /* Refuse an output name in /dev or /proc, directly or through symbolic links
  * (/dev/stdout is the file stdout goes to). Not collective. */
 PETSC_EXTERN PetscErrorCode DrapeCheckOutputPath(const char option[], const char path[]);
@@ -70,6 +84,9 @@ PETSC_EXTERN PetscErrorCode DrapeReportOptionsFiles(MPI_Comm);
  * 4294967302 becomes 6). DrapeCheckInt: both, and v in [lo, hi].
  * DrapeCheckPathLength: a file name option read into a buffer of `size` bytes was not
  * cut short. Each ends with one sentence naming the option. Collective. */
+/* v in the fewest digits (6 to 17, C's %g) that read back as v: a refused value
+ * printed as given. Returns buf. Not collective. */
+PETSC_EXTERN const char    *DrapeFormatReal(PetscReal v, char buf[], size_t size);
 PETSC_EXTERN PetscErrorCode DrapeCheckReal(MPI_Comm, const char name[], PetscInt n, const PetscReal v[], PetscReal lo, PetscReal hi, const char unit[]);
 PETSC_EXTERN PetscErrorCode DrapeCheckIntOption(MPI_Comm, const char name[]);
 PETSC_EXTERN PetscErrorCode DrapeCheckInt(MPI_Comm, const char name[], PetscInt v, PetscInt lo, PetscInt hi);

@@ -49,7 +49,14 @@ static PetscErrorCode DrapeErrorHandler(MPI_Comm comm, int line, const char *fun
      * as the error code and the caller's name as the message: known by where it is raised */
     const PetscBool memory = (PetscBool) (n == PETSC_ERR_MEM || (fun && (!strcmp(fun, "PetscMallocAlign") || !strcmp(fun, "PetscReallocAlign") || !strcmp(fun, "PetscTrMallocDefault") || !strcmp(fun, "PetscTrReallocDefault"))));
     error_is_user          = (PetscBool) (memory || IsUserError(n));
-    if (memory)
+    if (n == PETSC_ERR_MISSING_FACTOR) { /* MatGetFactor: a preconditioner the matrix type does not have */
+      size_t len    = mess ? strlen(mess) : 0;
+      error_is_user = PETSC_TRUE;
+      (void) PetscSNPrintf(error_message, sizeof error_message, "%.*s: the preconditioner (-pc_type, or -sub_pc_type in blocks) needs a factorization that this matrix type (-drape_mat_type) does not have; choose another -pc_type or -drape_mat_type",
+                           (int) (len && mess[len - 1] == '.' ? len - 1 : len), mess ? mess : "");
+    } else if (memory && mess && !strncmp(mess, "Out of memory", 13)) /* drape's own sentence (a C++ std::bad_alloc caught) */
+      (void) PetscStrncpy(error_message, mess, sizeof error_message);
+    else if (memory)
       (void) PetscSNPrintf(error_message, sizeof error_message, "Out of memory (an allocation in %s failed): this run needs more memory than the machine gives it; use a smaller lattice, or more nodes",
                            mess && strncmp(mess, "Memory requested", 16) ? mess : "PETSc");
     else
@@ -258,16 +265,26 @@ PetscErrorCode DrapeCheckUnusedOptions(MPI_Comm comm)
 
 /* ---- Values of options ---- */
 
+const char *DrapeFormatReal(PetscReal v, char buf[], size_t size)
+{
+  /* C's %g: PETSc's printf turns 100 into "100." and inf into "inf."; the fewest
+   * digits that read back as v, so that 1.000001e6 is not printed as 1e+06 */
+  for (int digits = 6; digits <= 17; digits++) {
+    (void) snprintf(buf, size, "%.*g", digits, (double) v);
+    if (strtod(buf, NULL) == (double) v || v != v) break;
+  }
+  return buf;
+}
+
 PetscErrorCode DrapeCheckReal(MPI_Comm comm, const char name[], PetscInt n, const PetscReal v[], PetscReal lo, PetscReal hi, const char unit[])
 {
   PetscFunctionBeginUser;
   for (PetscInt i = 0; i < n; i++) {
     char slo[32], shi[32], got[32];
     if (v[i] >= lo && v[i] <= hi) continue; /* false for NaN */
-    /* C's %g: PETSc's printf turns 100 into "100." and inf into "inf." */
-    (void) snprintf(slo, sizeof slo, "%g", (double) lo);
-    (void) snprintf(shi, sizeof shi, "%g", (double) hi);
-    (void) snprintf(got, sizeof got, "%g", (double) v[i]);
+    (void) DrapeFormatReal(lo, slo, sizeof slo);
+    (void) DrapeFormatReal(hi, shi, sizeof shi);
+    (void) DrapeFormatReal(v[i], got, sizeof got);
     if (lo > 0) SETERRQ(comm, PETSC_ERR_USER_INPUT, "%s must be positive and finite, from %s to %s%s%s; got %s", name, slo, shi, unit[0] ? " " : "", unit, got);
     if (lo == 0) SETERRQ(comm, PETSC_ERR_USER_INPUT, "%s must be zero or positive and finite, at most %s%s%s; got %s", name, shi, unit[0] ? " " : "", unit, got);
     SETERRQ(comm, PETSC_ERR_USER_INPUT, "%s must be finite, from %s to %s%s%s; got %s", name, slo, shi, unit[0] ? " " : "", unit, got);
@@ -425,18 +442,47 @@ PetscErrorCode DrapeCheckOutputPath(const char option[], const char path[])
 
 PetscErrorCode DrapeCheckInputFile(MPI_Comm comm, const char option[], const char what[])
 {
-  char        path[PETSC_MAX_PATH_LEN] = "";
-  PetscBool   set;
+  char      path[PETSC_MAX_PATH_LEN] = "";
+  PetscBool set;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscOptionsGetString(NULL, NULL, option, path, sizeof path, &set));
+  if (!set) path[0] = 0;
+  PetscCall(DrapeCheckInputPath(comm, option, path, what));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode DrapeCheckInputPath(MPI_Comm comm, const char option[], const char path[], const char what[])
+{
   struct stat st;
   PetscMPIInt bad, any;
 
   PetscFunctionBeginUser;
-  PetscCall(PetscOptionsGetString(NULL, NULL, option, path, sizeof path, &set));
-  if (!set || !path[0]) PetscFunctionReturn(0);
+  if (!path[0]) PetscFunctionReturn(0);
   /* stat() does not open: a FIFO would block open(), /dev/zero would never end */
   bad = !stat(path, &st) && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode); /* missing files and directories: the reader's own sentence */
   PetscCallMPI(MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, comm));
   PetscCheck(!any, comm, PETSC_ERR_FILE_OPEN, "Cannot read the %s %s (%s): it is not a regular file but a device, pipe or socket%s", what, path, option, bad ? "" : " on another rank");
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode DrapeFileName(const char option[], const char given[], char actual[], size_t size)
+{
+  static const char *const petsc_names[] = {"PETSC_ARCH", "PETSC_DIR", "PETSC_LIB_DIR", "DISPLAY", "HOMEDIRECTORY", "WORKINGDIRECTORY", "USERNAME", "HOSTNAME", "PETSC_MAKE", NULL};
+
+  PetscFunctionBeginUser;
+  /* PetscStrreplace's own error for an unset variable does not name the option */
+  for (const char *p = strstr(given, "${"); p; p = strstr(p + 2, "${")) {
+    const char *end = strchr(p, '}');
+    char        name[256];
+    PetscBool   known = PETSC_FALSE;
+    if (!end || (size_t) (end - p - 2) >= sizeof name) break;
+    (void) snprintf(name, sizeof name, "%.*s", (int) (end - p - 2), p + 2);
+    for (const char *const *q = petsc_names; *q; q++)
+      if (!strcmp(name, *q)) known = PETSC_TRUE;
+    PetscCheck(known || getenv(name), PETSC_COMM_SELF, PETSC_ERR_USER_INPUT, "%s %s holds ${%s}, which PETSc replaces by the environment variable %s, and it is not set: set it, or name the file without ${...}", option, given, name, name);
+  }
+  PetscCall(PetscStrreplace(PETSC_COMM_SELF, given, actual, size));
   PetscFunctionReturn(0);
 }
 
@@ -480,6 +526,94 @@ PetscErrorCode DrapeCheckNotInput(const char option[], const char path[], const 
     PetscCheck(!SameFileId(&inputs[i].id, &id), PETSC_COMM_SELF, PETSC_ERR_USER_INPUT, "%s would overwrite %s, the %s this run reads: choose another output name", option, path, inputs[i].what);
   }
   PetscFunctionReturn(0);
+}
+
+/* ---- Ranks that agree ---- */
+
+/* FNV-1a, 64 bits: enough to tell two files or option sets apart (not a defence
+ * against a forger) */
+static unsigned long long Fnv1a(unsigned long long h, const void *data, size_t n)
+{
+  const unsigned char *p = (const unsigned char *) data;
+  for (size_t i = 0; i < n; i++) h = (h ^ p[i]) * 1099511628211ULL;
+  return h;
+}
+
+/* The digest of a file's contents (its size and first 64 MiB: a restart file may be
+ * large), 1 for a file that does not exist, 2 for one that is not a regular file
+ * (never opened: a FIFO would block). */
+static unsigned long long FileDigest(const char path[])
+{
+  unsigned long long h = 14695981039346656037ULL;
+  struct stat        st;
+  FILE              *fp;
+  char               buf[65536];
+  size_t             n, total = 0;
+
+  if (stat(path, &st)) return 1;
+  if (!S_ISREG(st.st_mode)) return 2;
+  if (!(fp = fopen(path, "rb"))) return 1;
+  h = Fnv1a(h, &st.st_size, sizeof st.st_size);
+  while (total < ((size_t) 64 << 20) && (n = fread(buf, 1, sizeof buf, fp)) > 0) {
+    h = Fnv1a(h, buf, n);
+    total += n;
+  }
+  (void) fclose(fp);
+  return h;
+}
+
+PetscErrorCode DrapeCheckRanksAgree(MPI_Comm comm)
+{
+  static const char *const options[] = {NULL, "-solid_file", "-cloth_outline", "-restart", "-output_file"};
+  static const char *const whats[]   = {"options", "solid mesh", "cloth outline", "restart file", "output file"};
+  enum {
+    N = 5
+  };
+  unsigned long long mine[N], first[N];
+  char               names[N][PETSC_MAX_PATH_LEN];
+  PetscMPIInt        rank, size, bad, worst;
+  char              *all;
+
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  if (size == 1) PetscFunctionReturn(0);
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  PetscCall(PetscOptionsGetAll(NULL, &all));
+  mine[0] = Fnv1a(14695981039346656037ULL, all, strlen(all));
+  PetscCall(PetscFree(all));
+  for (int k = 1; k < N; k++) {
+    PetscBool set;
+    names[k][0] = 0;
+    PetscCall(PetscOptionsGetString(NULL, NULL, options[k], names[k], sizeof names[k], &set));
+    if (set && names[k][0] && k >= 3) PetscCall(DrapeFileName(options[k], names[k], names[k], sizeof names[k])); /* as PETSc's viewer opens them */
+    if (k == 4)                                                                                                  /* the name, which may differ by node through ${HOSTNAME} */
+      mine[k] = set ? Fnv1a(14695981039346656037ULL, names[k], strlen(names[k])) : 0;
+    else
+      mine[k] = set && names[k][0] ? FileDigest(names[k]) : 0;
+  }
+  PetscCall(PetscArraycpy(first, mine, N));
+  PetscCallMPI(MPI_Bcast(first, N, MPI_UNSIGNED_LONG_LONG, 0, comm));
+  bad = size * N; /* the first (rank, item) that differs from rank 0 */
+  for (int k = N - 1; k >= 0; k--)
+    if (mine[k] != first[k]) bad = rank * N + k;
+  PetscCallMPI(MPI_Allreduce(&bad, &worst, 1, MPI_INT, MPI_MIN, comm));
+  if (worst == size * N) PetscFunctionReturn(0);
+  PetscCheck(worst % N != 0, comm, PETSC_ERR_USER_INPUT,
+             "Rank %d was started with other options than rank 0 (an MPMD launch with different options, or another PETSC_OPTIONS, petscrc or options file on its node): every rank must run the same model; give them all the same options", worst / N);
+  {
+    char theirs[PETSC_MAX_PATH_LEN];
+    PetscCall(PetscArraycpy(theirs, names[worst % N], sizeof theirs));
+    PetscCallMPI(MPI_Bcast(theirs, sizeof theirs, MPI_CHAR, worst / N, comm));
+    PetscCheck(worst % N != 4, comm, PETSC_ERR_USER_INPUT,
+               "Rank %d writes -output_file %s, another file than rank 0's %s (PETSc replaces ${HOSTNAME}, ${USERNAME} and ${VAR} of the environment on each node): every rank must write the same file; name it without them", worst / N, theirs,
+               names[4]);
+  }
+  {
+    const int k = worst % N;
+    SETERRQ(comm, PETSC_ERR_USER_INPUT,
+            "Rank %d reads another %s %s (%s) than rank 0 (node-local files that differ, or one that is missing on some nodes): every rank must read the same file; copy the same file to every node, or put it on a shared file system", worst / N,
+            whats[k], names[k], options[k]);
+  }
 }
 
 /* ---- Options files, checked before PETSc reads them ----

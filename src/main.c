@@ -17,6 +17,7 @@ static PetscErrorCode Run(PetscBool *interrupted, PetscBool *restartable)
 
   PetscFunctionBeginUser;
   PetscCall(DrapeReportOptionsFiles(PETSC_COMM_WORLD));
+  PetscCall(DrapeCheckRanksAgree(PETSC_COMM_WORLD));
   PetscCall(PetscLogStagePush(drape_log.setup));
   PetscCall(SimulationCreate(PETSC_COMM_WORLD, &sim));
   PetscCall(SimulationSetFromOptions(sim));
@@ -35,6 +36,10 @@ int main(int argc, char **argv)
   int            petsc_argc = argc;
   char         **petsc_argv = argv, *without_files[] = {argv[0], (char *) "-skip_petscrc", NULL};
 
+  /* a write past the file-size limit (ulimit -f) fails with EFBIG, and a sentence,
+   * instead of killing drape with SIGXFSZ (the output checks the limit before each
+   * frame, so that the frames written stay readable) */
+  (void) signal(SIGXFSZ, SIG_IGN);
   /* MPI first: the options files are checked before PETSc reads them (PETSc's own
    * reader cannot report a bad one in a sentence), and a bad one keeps them away from
    * PetscInitialize, so that Run() can say what is wrong */

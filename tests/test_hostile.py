@@ -7,6 +7,7 @@ import os
 import resource
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -132,14 +133,16 @@ def test_rank_local_missing_directory_is_one_sentence_not_a_hang(tmp):
 
 
 def test_failure_only_one_rank_sees_aborts_the_job(tmp):
-    """A failure only rank 0 sees (its own bad option): rank 1 waits in a collective
-    operation; rank 0 says why and ends the job with MPI_Abort instead of a hang."""
+    """A failure only rank 0 sees (its environment lacks the variable its output name
+    uses; a rank's own bad option is now refused by every rank, class 8): rank 1 waits
+    in a collective operation; rank 0 says why and ends the job with MPI_Abort instead
+    of a hang."""
     (tmp / "x.h5").write_bytes(b"earlier results")
     before = snapshot(tmp)
-    good = [str(DRAPE)] + TINY + ["-output_file", "x.h5"]
-    cmd = mpiexec(1) + good + ["-cloth_density", "0"] + [":", "-np", "1"] + good
+    args = [str(DRAPE)] + TINY + ["-output_file", "${DRAPE_RANK_NAME}.h5"]
+    cmd = mpiexec(1) + ["env", "-u", "DRAPE_RANK_NAME"] + args + [":", "-np", "1", "env", "DRAPE_RANK_NAME=x"] + args
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=60, cwd=tmp)
-    refused(res, "-cloth_density must be positive", ranks=2)
+    refused(res, "which PETSc replaces by the environment variable DRAPE_RANK_NAME, and it is not set", ranks=2)
     assert snapshot(tmp) == before
 
 
@@ -553,3 +556,206 @@ def test_default_bias_fits_an_oblong_lattice():
     # a square lattice keeps the default (warp + weft)/2
     assert run("-ts_type basicsymplectic -ts_dt 1e-5 -ts_max_steps 2 -drape_stability_its 0 -drape_json").report["bend_bias"] == b
     refused(run("-cloth_size 1,0.5 -cloth_bend 5e-6,5e-6,5e-6 -ts_max_steps 1", check=False), "give a bias in that range, leave it out")
+
+
+# ---- Class 2 of issue 29: frames lost at a file-size limit ----
+
+def test_file_size_limit_keeps_the_frames_written(tmp):
+    """Under ulimit -f, drape printed its sentence, then SIGXFSZ killed it while HDF5
+    closed the file, and every frame already written was unreadable. Now the room for
+    the next frame is checked before it is written: one sentence, and the frames in
+    the file are complete (a restart continues from them)."""
+    (tmp / "x.h5").write_bytes(b"earlier results")
+    before = snapshot(tmp)
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (6 << 20, 6 << 20))  # (MPI's own files need a few MB)
+    res = drape(["-da_grid_x", "64", "-da_grid_y", "64", "-ts_max_time", "1", "-output_steps", "1", "-drape_progress", "0", "-output_file", "run.h5"], tmp,
+                preexec_fn=limit)
+    error = refused(res, "the file would pass this process's file-size limit (ulimit -f: 6291456 bytes;")
+    kept = drape_h5.load(tmp / "run.h5")
+    assert f"the {len(kept.time)} frames written are complete" in error and len(kept.time) >= 5
+    assert np.all(np.isfinite(kept.positions)) and np.all(np.diff(kept.time) > 0)
+    assert {k: v for k, v in snapshot(tmp).items() if not k.startswith("run.")} == before
+    res = drape(["-restart", "run.h5", "-ts_max_time", "0.02", "-drape_progress", "0"], tmp)
+    assert res.returncode == 0, res.stderr
+
+
+# ---- Class 3 of issue 29: an input overwritten through PETSc's file-name substitution ----
+
+@pytest.mark.parametrize("args,env,message,files", [
+    ("-solid_file {host}.off -cloth_center 0,0,2 -output_file ${{HOSTNAME}}.off", None,
+     "-output_file ${{HOSTNAME}}.off, which PETSc writes as {host}.off, would overwrite {host}.off, the solid mesh this run reads", {"{host}.off": TETRA.format(z=1)}),
+    ("-options_file scene.opts -output_file ${{DRAPE_SCENE}}.opts", {"DRAPE_SCENE": "scene"},
+     "which PETSc writes as scene.opts, would overwrite scene.opts, the options file this run reads", {"scene.opts": "-cloth_density 0.2\n"}),
+    ("-cloth_outline {host}.xmf -output_file ${{HOSTNAME}}.h5", None,
+     "The XDMF index of -output_file would overwrite {host}.xmf, the cloth outline this run reads", {"{host}.xmf": PANEL}),
+    ("-output_file ${{DRAPE_UNSET_NAME}}.h5", None,
+     "-output_file ${{DRAPE_UNSET_NAME}}.h5 holds ${{DRAPE_UNSET_NAME}}, which PETSc replaces by the environment variable DRAPE_UNSET_NAME, and it is not set", {}),
+], ids=["hostname-over-mesh", "environment-over-options-file", "hostname-xdmf-over-outline", "unset-variable"])
+def test_output_named_through_petsc_substitution_is_compared_as_written(tmp, args, env, message, files):
+    """PETSc's viewer replaces ${HOSTNAME}, ${USERNAME} and any ${VAR} of the environment
+    in the file name it opens; drape compared the name as typed, and
+    -solid_file $(hostname).off -output_file '${HOSTNAME}.off' replaced the mesh being
+    read. Now every check is on the name PETSc opens."""
+    host = socket.gethostname()
+    (tmp / "x.h5").write_bytes(b"earlier results")
+    for name, text in files.items():
+        (tmp / name.format(host=host)).write_text(text)
+    before = snapshot(tmp)
+    environment = {k: v for k, v in os.environ.items() if k != "DRAPE_UNSET_NAME"}
+    res = drape(TINY + args.format(host=host).split(), tmp, timeout=30, env=dict(environment, **(env or {})))
+    refused(res, message.format(host=host))
+    assert snapshot(tmp) == before
+
+
+# ---- Class 4 of issue 29: an output truncated, then refused ----
+
+@pytest.mark.parametrize("obstacle,kind,message", [
+    ("run.xmf", "directory", "Cannot write -output_file run.h5: its XDMF index, run.xmf, is a directory"),
+    ("run.xmf.tmp", "directory", "the temporary file of its XDMF index, run.xmf.tmp, is a directory"),
+    ("run.xmf.tmp", "fifo", "the temporary file of its XDMF index, run.xmf.tmp, exists and is not a regular file"),
+], ids=["xmf-directory", "tmp-directory", "tmp-fifo"])
+def test_every_output_file_is_checked_before_any_is_opened(tmp, obstacle, kind, message):
+    """With run.xmf or run.xmf.tmp a directory, run.h5 was truncated and its first frame
+    written before the run failed with "is the disk full?". Every file drape writes is
+    now checked before the first is opened: the earlier run.h5 keeps its frames."""
+    subprocess.run([str(DRAPE)] + SCENE.split() + ["-output_file", "run.h5", "-drape_progress", "0"], check=True, capture_output=True, cwd=tmp)
+    if (tmp / obstacle).exists():
+        (tmp / obstacle).unlink()
+    if kind == "directory":
+        (tmp / obstacle).mkdir()
+    else:
+        os.mkfifo(tmp / obstacle)
+    before = snapshot(tmp)
+    res = drape(SCENE.split() + ["-output_file", "run.h5", "-drape_progress", "0"], tmp, timeout=30)
+    refused(res, message)
+    assert snapshot(tmp) == before and sorted(p.name for p in tmp.iterdir()) == sorted(["run.h5", "run.xmf", "run.xmf.tmp"][:2 + (obstacle == "run.xmf.tmp")])
+    assert len(drape_h5.load(tmp / "run.h5").time) == 3
+
+
+# ---- Class 11 of issue 29: PETSc's traceback instead of a sentence ----
+
+@pytest.mark.parametrize("args,message", [
+    ("-ts_type rk -ts_rtol 1e-300", "-ts_rtol 1e-300 is below what a step in double precision can meet"),
+    ("-ts_type rk -ts_atol 1e-300 -ts_rtol 0", "-ts_atol 1e-300 is below what a step in double precision can meet"),
+    ("-ts_type rk -ts_atol 0 -ts_rtol 0", "-ts_atol and -ts_rtol are both 0"),
+    ("-ts_type drapebe -drape_mat_type dense -pc_type icc",
+     "Could not locate a solver type for factorization type ICC and matrix type seqdense: the preconditioner (-pc_type, or -sub_pc_type in blocks) needs a factorization that this matrix type (-drape_mat_type) does not have"),
+], ids=["rtol-1e-300", "atol-1e-300", "tolerances-zero", "dense-icc"])
+def test_solver_options_that_fail_inside_petsc_are_one_sentence(tmp, args, message):
+    """-ts_rtol 1e-300 overflowed the adaptive error norm (PETSc's floating-point
+    traceback); ICC on a dense matrix ended in MatGetFactor's traceback."""
+    (tmp / "x.h5").write_bytes(b"earlier results")
+    before = snapshot(tmp)
+    res = drape(TINY + args.split() + ["-ts_max_time", "0.01"], tmp, timeout=30)
+    refused(res, message)
+    assert snapshot(tmp) == before
+
+
+def torus_off(path, n):
+    """A closed torus of n x n vertices and 2 n^2 triangles, under the cloth."""
+    u = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    U, V = np.meshgrid(u, u, indexing="ij")
+    xyz = np.stack([(0.3 + 0.1 * np.cos(V)) * np.cos(U), (0.3 + 0.1 * np.cos(V)) * np.sin(U), 0.1 * np.sin(V) - 0.5], -1).reshape(-1, 3)
+    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    a, b, c, d = i * n + j, (i + 1) % n * n + j, (i + 1) % n * n + (j + 1) % n, i * n + (j + 1) % n
+    faces = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
+    with open(path, "w") as f:
+        f.write(f"OFF\n{len(xyz)} {len(faces)} 0\n")
+        np.savetxt(f, xyz, fmt="%.6f")
+        np.savetxt(f, np.hstack([np.full((len(faces), 1), 3), faces]), fmt="%d")
+
+
+def test_out_of_memory_inside_cgal_is_one_sentence(tmp):
+    """std::bad_alloc in CGAL's AABB tree build (or its mesh reader) became PETSc's
+    traceback (or "not a valid mesh"). Under growing address-space limits every run
+    either works or ends in one out-of-memory sentence, and one of them in the tree."""
+    torus_off(tmp / "torus.off", 500)
+    seen = []
+    for mb in range(400, 800, 25):
+        def limit():
+            resource.setrlimit(resource.RLIMIT_AS, (mb << 20, mb << 20))
+        res = drape(TINY + ["-ts_max_steps", "0", "-solid_file", "torus.off", "-cloth_center", "0,0,1"], tmp, preexec_fn=limit)
+        if res.returncode == 0:
+            break
+        seen.append(refused(res, "Out of memory"))
+    assert res.returncode == 0, "no limit up to 800 MB let the run through"
+    assert any("Out of memory building the AABB tree of the solid torus.off (500000 triangles)" in e for e in seen), seen
+
+
+# ---- Class 14 of issue 29: sentences that did not say what was wrong ----
+
+TETRA_OBJ = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\nf 1 4 3\n"
+BOM = "\ufeff"
+
+
+@pytest.mark.parametrize("name,text", [
+    ("bom.off", BOM + TETRA.format(z=1)),
+    ("bom.obj", BOM + TETRA_OBJ),
+    ("flipped.off", TETRA.format(z=1).replace("3 1 2 3\n", "3 1 3 2\n")),
+    ("flipped.obj", TETRA_OBJ.replace("f 2 3 4\n", "f 2 4 3\n").replace("f 1 4 3\n", "f 1 3 4\n")),
+], ids=["bom-off", "bom-obj", "one-face-flipped", "two-faces-flipped"])
+def test_valid_mesh_with_a_bom_or_flipped_faces_is_read(tmp, name, text):
+    """A UTF-8 byte-order mark, or faces flipped against their neighbours, made a valid
+    mesh "not a valid mesh". The cloth now lands on it as on the plain tetrahedron."""
+    (tmp / "plain.off").write_text(TETRA.format(z=1))
+    (tmp / name).write_text(text, encoding="utf-8")
+    frames = []
+    for mesh in ("plain.off", name):
+        res = drape(["-da_grid_x", "6", "-da_grid_y", "6", "-cloth_size", "0.5", "-cloth_center", "0.2,0.2,1.1", "-ts_max_time", "0.35", "-drape_progress", "0",
+                     "-solid_file", mesh, "-output_file", mesh + ".h5"], tmp)
+        assert res.returncode == 0, res.stderr
+        with h5py.File(tmp / (mesh + ".h5"), "r") as f:
+            frames.append((f["position"][-1], f["contact_count"][:].max()))
+    assert frames[0][1] > 0 and np.allclose(frames[0][0], frames[1][0], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("args,message,files", [
+    ("-solid_file pinched.off -cloth_center 0,0,3", "Cannot read the solid mesh file pinched.off: an edge is shared by more than two faces, or a vertex joins surfaces",
+     {"pinched.off": "OFF\n7 8 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n-1 0 0\n0 -1 0\n0 0 -1\n3 0 2 1\n3 0 1 3\n3 1 2 3\n3 0 3 2\n3 0 4 5\n3 0 6 4\n3 4 6 5\n3 0 5 6\n"}),
+    ("-solid_floor -1 -contact_self -contact_self_thickness 1",
+     "-contact_self_thickness 1 m is more than this lattice holds: it must be below 0.2357 m, the distance at rest from a particle to the diagonal of its cell (spacing 0.3333 x 0.3333 m)", {}),
+    ("-cloth_density 1.000001e6", "-cloth_density must be positive and finite, from 0.0001 to 100 kg/m^2; got 1000001", {}),
+    ("-cloth_density 1.0000000001e-5", "got 1.0000000001e-05", {}),
+], ids=["non-manifold-mesh", "self-thickness-beyond-lattice", "value-with-seven-digits", "value-with-eleven-digits"])
+def test_refusals_say_what_is_wrong(tmp, args, message, files):
+    """A non-manifold mesh is refused saying so; -contact_self_thickness 1 (within its
+    documented range) ended in "Reduce -ts_dt": the sentence now says the maximum this
+    lattice holds and why; a refused 1.000001e6 was printed as 1e+06."""
+    for name, text in files.items():
+        (tmp / name).write_text(text)
+    (tmp / "x.h5").write_bytes(b"earlier results")
+    before = snapshot(tmp)
+    res = drape(TINY + args.split() + ["-output_file", "x.h5"], tmp, timeout=30)
+    refused(res, message)
+    assert snapshot(tmp) == before
+
+
+# ---- Class 8 of issue 29: ranks that disagree ----
+
+@pytest.mark.parametrize("case,message", [
+    ("options", "Rank 1 was started with other options than rank 0 (an MPMD launch with different options"),
+    ("mesh", "Rank 1 reads another solid mesh t.off (-solid_file) than rank 0 (node-local files that differ"),
+    ("outline", "Rank 1 reads another cloth outline o.txt (-cloth_outline) than rank 0"),
+    ("output-name", "Rank 1 writes -output_file B.h5, another file than rank 0's A.h5"),
+], ids=["mpmd-options", "node-local-mesh", "node-local-outline", "output-name-by-node"])
+def test_ranks_that_disagree_are_refused(tmp, case, message):
+    """An MPMD launch with different options, or node-local input files that differ
+    (here two working directories), ran silently, each rank with its own model. The
+    options database and the input files are compared across ranks at start-up."""
+    for d, z in (("A", 1), ("B", 1.5)):
+        (tmp / d).mkdir()
+        (tmp / d / "t.off").write_text(TETRA.format(z=z))
+        (tmp / d / "o.txt").write_text(PANEL if d == "A" else PANEL.replace("0.1", "0.11", 1))
+        (tmp / d / "x.h5").write_bytes(b"earlier results")
+    assert (tmp / "A" / "o.txt").read_text() != (tmp / "B" / "o.txt").read_text()
+    before = snapshot(tmp)
+    args = [str(DRAPE)] + TINY + ["-output_file", "x.h5"]
+    extra = {"options": ([], ["-cloth_density", "0.2"]), "mesh": (["-solid_file", "t.off", "-cloth_center", "0,0,3"],) * 2,
+             "outline": (["-cloth_outline", "o.txt"],) * 2, "output-name": (["-output_file", "${DRAPE_NODE}.h5"],) * 2}[case]
+    cmd = (mpiexec(1) + ["-wdir", str(tmp / "A"), "env", "DRAPE_NODE=A"] + args + extra[0]
+           + [":", "-np", "1", "-wdir", str(tmp / "B"), "env", "DRAPE_NODE=B"] + args + extra[1])
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
+    refused(res, message, ranks=2)
+    assert "MPI_ABORT" not in res.stdout + res.stderr and snapshot(tmp) == before

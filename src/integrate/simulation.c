@@ -484,7 +484,8 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
     PetscBool output_given;
     PetscCall(DrapeCheckPathLength(s->comm, "-restart", s->restart, sizeof s->restart));
     PetscCheck(s->restart[0], s->comm, PETSC_ERR_USER_INPUT, "-restart needs a file name");
-    PetscCall(DrapeCheckInputFile(s->comm, "-restart", "restart file"));
+    PetscCall(DrapeFileName("-restart", s->restart, s->restart, sizeof s->restart)); /* the file PETSc's viewer reads */
+    PetscCall(DrapeCheckInputPath(s->comm, "-restart", s->restart, "restart file"));
     PetscCall(PetscOptionsHasName(NULL, NULL, "-output_file", &output_given));
     PetscCall(RestartInsertOptions(s->comm, s->restart));
     /* the frames go on in the file restarted from, not in the file its options name
@@ -517,7 +518,10 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
   PetscOptionsEnd();
   PetscCall(DrapeCheckInt(s->comm, "-drape_stability_its", s->stability_its, 0, 100000));
   PetscCall(DrapeCheckReal(s->comm, "-cusick_pedestal_radius", 1, &s->cusick_radius, 0, 1e3, "m (0: no analysis)"));
-  PetscCheck(s->cusick_radius == 0 || s->cusick_radius >= 1e-3, s->comm, PETSC_ERR_USER_INPUT, "-cusick_pedestal_radius must be 0 (no analysis) or from 0.001 to 1000 m; got %g", (double) s->cusick_radius);
+  {
+    char got[32];
+    PetscCheck(s->cusick_radius == 0 || s->cusick_radius >= 1e-3, s->comm, PETSC_ERR_USER_INPUT, "-cusick_pedestal_radius must be 0 (no analysis) or from 0.001 to 1000 m; got %s", DrapeFormatReal(s->cusick_radius, got, sizeof got));
+  }
   PetscCall(DrapeCheckReal(s->comm, "-cusick_center", 2, s->cusick_center, -1e4, 1e4, "m"));
   PetscCall(DrapeCheckReal(s->comm, "-drape_rest_tol", 1, &s->rest_tol, 0, 1e6, "J/kg"));
   PetscCall(DrapeCheckReal(s->comm, "-drape_rest_time", 1, &s->rest_time, 0, 1e6, "s"));
@@ -564,9 +568,23 @@ PetscErrorCode SimulationSetUp(Simulation s)
   {
     PetscBool self;
     PetscCall(SelfContactEnabled(s->self, &self));
-    if (self)
+    if (self) {
+      /* a flat cloth's particle lies dx dy / sqrt(dx^2 + dy^2) from its cell's
+       * diagonal, a triangle it is no corner of: a thickness beyond that has the
+       * cloth at rest inside its own layer, and the filter blows it apart */
+      SelfContactStats st;
+      const PetscReal  dx = info.spacing[0], dy = info.spacing[1], most = dx * dy / PetscSqrtReal(dx * dx + dy * dy);
+      char             got[32], max[32], sx[32], sy[32];
       PetscCall(SelfContactSetUp(s->self));
-    else
+      PetscCall(SelfContactGetStats(s->self, &st));
+      (void) snprintf(max, sizeof max, "%.4g", (double) most); /* C's %g: PETSc's turns 1 into "1." */
+      (void) snprintf(sx, sizeof sx, "%.4g", (double) dx);
+      (void) snprintf(sy, sizeof sy, "%.4g", (double) dy);
+      PetscCheck(st.thickness < most, s->comm, PETSC_ERR_USER_INPUT,
+                 "-contact_self_thickness %s m is more than this lattice holds: it must be below %s m, the distance at rest from a particle to the diagonal of its cell (spacing %s x %s m), or the flat cloth starts inside its own contact layer and "
+                 "is blown apart; give less, or 0 (a quarter of the spacing)",
+                 DrapeFormatReal(st.thickness, got, sizeof got), max, sx, sy);
+    } else
       PetscCall(SelfContactDestroy(&s->self)); /* no -contact_self, no self-contact code */
   }
   s->n = 3 * info.nowned;
@@ -681,6 +699,7 @@ PetscErrorCode SimulationSetUp(Simulation s)
     /* finite, in range, consistent: a run that starts must be able to end */
     PetscReal dt, t0, tmax;
     PetscInt  max_steps;
+    char      got[32], at[32]; /* values as given (DrapeFormatReal) */
     PetscCall(TSGetTimeStep(s->ts, &dt));
     PetscCall(TSGetTime(s->ts, &t0));
     PetscCall(TSGetMaxTime(s->ts, &tmax));
@@ -688,10 +707,23 @@ PetscErrorCode SimulationSetUp(Simulation s)
     PetscCall(DrapeCheckReal(s->comm, "-ts_dt", 1, &dt, 1e-15, 1e3, "s"));
     PetscCall(DrapeCheckReal(s->comm, "-ts_max_time", 1, &tmax, 1e-15, 1e30, "s (1e30: no limit but -ts_max_steps)"));
     PetscCall(DrapeCheckInt(s->comm, "-ts_max_steps", max_steps, 0, PETSC_MAX_INT));
-    PetscCheck(tmax > t0, s->comm, PETSC_ERR_USER_INPUT, "-ts_max_time %g s is not after the %s time %g s: nothing to do", (double) tmax, s->have_restart ? "restart" : "start", (double) t0);
+    {
+      /* the adaptive schemes' error norm divides by atol + rtol |x|: a tolerance far
+       * below double precision's 2.2e-16 overflowed it (PETSc's traceback), and no
+       * step can meet it */
+      PetscReal atol, rtol;
+      PetscCall(TSGetTolerances(s->ts, &atol, NULL, &rtol, NULL));
+      PetscCall(DrapeCheckReal(s->comm, "-ts_atol", 1, &atol, 0, 1e3, "(m, m/s)"));
+      PetscCall(DrapeCheckReal(s->comm, "-ts_rtol", 1, &rtol, 0, 1, ""));
+      PetscCheck(atol == 0 || atol >= 1e-14, s->comm, PETSC_ERR_USER_INPUT, "-ts_atol %s is below what a step in double precision can meet: give 0 or at least 1e-14 (m, m/s)", DrapeFormatReal(atol, got, sizeof got));
+      PetscCheck(rtol == 0 || rtol >= 1e-14, s->comm, PETSC_ERR_USER_INPUT, "-ts_rtol %s is below what a step in double precision can meet (its relative rounding error is 2.2e-16): give 0 or at least 1e-14", DrapeFormatReal(rtol, got, sizeof got));
+      PetscCheck(atol > 0 || rtol > 0, s->comm, PETSC_ERR_USER_INPUT, "-ts_atol and -ts_rtol are both 0: the adaptive step's error norm divides by atol + rtol |x|; give one of them at least 1e-14");
+    }
+    PetscCheck(tmax > t0, s->comm, PETSC_ERR_USER_INPUT, "-ts_max_time %s s is not after the %s time %s s: nothing to do", DrapeFormatReal(tmax, got, sizeof got), s->have_restart ? "restart" : "start", DrapeFormatReal(t0, at, sizeof at));
     {
       const PetscReal tend = PetscMin(tmax, t0 + (PetscReal) max_steps * dt); /* where the run can get to */
-      PetscCheck(t0 + dt > t0 && tend + dt > tend, s->comm, PETSC_ERR_USER_INPUT, "-ts_dt %g s is too small to advance the time near t = %g s, where this run ends: time would stand still", (double) dt, (double) tend);
+      PetscCheck(t0 + dt > t0 && tend + dt > tend, s->comm, PETSC_ERR_USER_INPUT, "-ts_dt %s s is too small to advance the time near t = %s s, where this run ends: time would stand still", DrapeFormatReal(dt, got, sizeof got),
+                 DrapeFormatReal(tend, at, sizeof at));
     }
   }
   if (s->contact) {

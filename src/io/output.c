@@ -23,7 +23,9 @@
 #include <drape.h>
 #include <petscviewerhdf5.h>
 #include <errno.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 #define NSCALARS 11
@@ -32,7 +34,8 @@ static const PetscInt    scalar_sizes[NSCALARS] = {1, 1, 1, 1, 1, 1, 1, 1, 3, 1,
 
 struct _p_Output {
   MPI_Comm    comm;
-  char        file[PETSC_MAX_PATH_LEN], xdmf[PETSC_MAX_PATH_LEN];
+  char        given[PETSC_MAX_PATH_LEN];                          /* -output_file as typed              */
+  char        file[PETSC_MAX_PATH_LEN], xdmf[PETSC_MAX_PATH_LEN]; /* the files written (DrapeFileName) */
   PetscBool   enabled;
   PetscReal   interval, next_time;
   PetscInt    every, nframes, last_step, Mx, My, nalloc;
@@ -106,13 +109,28 @@ static PetscErrorCode OutputCheckFile(void *ctx)
     PetscCheck(!failed, PETSC_COMM_SELF, PETSC_ERR_FILE_WRITE, "Cannot write -output_file %s: the file system of %s takes no data (full?)", o->file, dir);
   }
   PetscCall(DrapeCheckOutputPath("-output_file", o->file)); /* /dev is writable to root */
-  /* nothing the run reads may be overwritten (a restart continues its own file) */
+  /* the XDMF index, written to a temporary file renamed over it after each frame: a
+   * directory (or a device) of either name would fail only after the HDF5 file had
+   * been truncated and its first frame written */
   PetscCall(PetscSNPrintf(tmp, sizeof tmp, "%s.tmp", o->xdmf));
+  for (int k = 0; k < 2; k++) {
+    const char *path = k ? tmp : o->xdmf, *what = k ? "the temporary file of its XDMF index" : "its XDMF index";
+    struct stat st;
+    if (stat(path, &st)) continue;
+    PetscCheck(!S_ISDIR(st.st_mode), PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "Cannot write -output_file %s: %s, %s, is a directory; remove it, or choose another -output_file", o->file, what, path);
+    PetscCheck(S_ISREG(st.st_mode), PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "Cannot write -output_file %s: %s, %s, exists and is not a regular file (a device, pipe or socket); remove it, or choose another -output_file", o->file, what, path);
+    PetscCheck(!k || !access(path, W_OK), PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "Cannot write -output_file %s: %s, %s, exists and is not writable; remove it, or choose another -output_file", o->file, what, path);
+  }
+  /* nothing the run reads may be overwritten (a restart continues its own file) */
   PetscCall(DrapeSameFile(o->file, o->xdmf, &same));
   PetscCheck(!same, PETSC_COMM_SELF, PETSC_ERR_USER_INPUT, "-output_file %s would be overwritten by its own XDMF index %s: give the HDF5 file another extension, e.g. .h5", o->file, o->xdmf);
   PetscCall(DrapeSameFile(o->file, tmp, &same));
   PetscCheck(!same, PETSC_COMM_SELF, PETSC_ERR_USER_INPUT, "-output_file %s would be overwritten by the temporary file of its XDMF index: give the HDF5 file another name, e.g. run.h5", o->file);
-  PetscCall(DrapeCheckNotInput("-output_file", o->file, "restart file"));
+  {
+    char option[2 * PETSC_MAX_PATH_LEN + 64] = "-output_file";
+    if (strcmp(o->given, o->file)) PetscCall(PetscSNPrintf(option, sizeof option, "-output_file %s, which PETSc writes as %s,", o->given, o->file));
+    PetscCall(DrapeCheckNotInput(option, o->file, "restart file"));
+  }
   PetscCall(DrapeCheckNotInput("The XDMF index of -output_file", o->xdmf, NULL));
   PetscCall(DrapeCheckNotInput("The XDMF index of -output_file", tmp, NULL));
   PetscFunctionReturn(0);
@@ -134,6 +152,11 @@ PetscErrorCode OutputSetFromOptions(Output o)
   if (o->enabled) {
     char *slash, *dot;
     PetscCheck(o->file[0], o->comm, PETSC_ERR_USER_INPUT, "-output_file needs a file name, e.g. -output_file run.h5");
+    PetscCall(DrapeCheckPathLength(o->comm, "-output_file", o->file, sizeof o->file - 16));
+    /* PETSc's viewer opens the name with ${HOSTNAME}, ${USERNAME}, ... replaced: every
+     * check below, and the XDMF index, are on the file it opens */
+    PetscCall(PetscStrncpy(o->given, o->file, sizeof o->given));
+    PetscCall(DrapeFileName("-output_file", o->given, o->file, sizeof o->file));
     PetscCall(DrapeCheckPathLength(o->comm, "-output_file", o->file, sizeof o->file - 16));
     PetscCall(PetscStrncpy(o->xdmf, o->file, sizeof o->xdmf));
     dot   = strrchr(o->xdmf, '.');
@@ -305,7 +328,8 @@ static PetscErrorCode OutputWriteXDMF(Output o)
   PetscCallMPI(MPI_Comm_rank(o->comm, &rank));
   if (rank) PetscFunctionReturn(0);
   PetscCall(PetscSNPrintf(tmp, sizeof tmp, "%s.tmp", o->xdmf));
-  PetscCall(PetscFOpen(PETSC_COMM_SELF, tmp, "w", &fp));
+  fp = fopen(tmp, "w"); /* not PetscFOpen: it would replace ${...} and '\\' in the name again */
+  PetscCheck(fp, PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "Cannot open %s: %s", tmp, strerror(errno));
   PetscCall(PetscFPrintf(PETSC_COMM_SELF, fp, "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"2.0\">\n <Domain>\n  <Grid Name=\"cloth\" GridType=\"Collection\" CollectionType=\"Temporal\">\n"));
   for (PetscInt k = 0; k < o->nframes; k++) {
     PetscCall(PetscFPrintf(PETSC_COMM_SELF, fp, "   <Grid Name=\"frame %" PetscInt_FMT "\" GridType=\"Uniform\">\n    <Time Value=\"%.10g\"/>\n", k, (double) o->times[k]));
@@ -321,7 +345,7 @@ static PetscErrorCode OutputWriteXDMF(Output o)
     PetscCall(PetscFPrintf(PETSC_COMM_SELF, fp, "   </Grid>\n"));
   }
   PetscCall(PetscFPrintf(PETSC_COMM_SELF, fp, "  </Grid>\n </Domain>\n</Xdmf>\n"));
-  PetscCall(PetscFClose(PETSC_COMM_SELF, fp));
+  PetscCheck(!fclose(fp), PETSC_COMM_SELF, PETSC_ERR_FILE_WRITE, "Cannot write %s: %s", tmp, strerror(errno));
   PetscCheck(rename(tmp, o->xdmf) == 0, PETSC_COMM_SELF, PETSC_ERR_FILE_WRITE, "Cannot rename %s to %s", tmp, o->xdmf);
   PetscFunctionReturn(0);
 }
@@ -331,6 +355,49 @@ typedef struct {
   PetscInt  step;
   PetscReal t, values[NSCALARS][3];
 } OutputFrameContext;
+
+/* Is there room for one more frame? A write that fails half-way leaves HDF5's
+ * metadata in memory ahead of the file: when the library closes the file (at
+ * MPI_Finalize at the latest) it writes them, and every frame is lost. So a frame
+ * that would pass the process's file-size limit (ulimit -f; SIGXFSZ is ignored, so
+ * a write that passes it anyway fails with EFBIG instead of killing drape) or not
+ * fit on the file system is refused before it is written, while the file still
+ * holds only complete, flushed frames. Room asked for: the frame's data twice
+ * (chunks and their index) and 256 KiB for HDF5's metadata. */
+static PetscErrorCode OutputCheckRoom(void *ctx)
+{
+  OutputFrameContext *c    = (OutputFrameContext *) ctx;
+  Output              o    = c->o;
+  const double        need = 2.0 * 48.0 * (double) o->Mx * (double) o->My + 262144.0;
+  struct rlimit       limit;
+  struct stat         st;
+  struct statvfs      fs;
+  char                dir[PETSC_MAX_PATH_LEN];
+  const char         *slash = strrchr(o->file, '/');
+
+  PetscFunctionBeginUser;
+  if (stat(o->file, &st)) PetscFunctionReturn(0); /* the write's own error says why */
+  if (!getrlimit(RLIMIT_FSIZE, &limit) && limit.rlim_cur != RLIM_INFINITY) {
+    const double room = (double) limit.rlim_cur;
+    PetscCheck((double) st.st_size + need <= room, PETSC_COMM_SELF, PETSC_ERR_FILE_WRITE,
+               "the file would pass this process's file-size limit (ulimit -f: %.0f bytes; the file has %.0f and a frame needs up to %.0f more); the %" PetscInt_FMT
+               " frames written are complete; raise the limit (ulimit -f unlimited), or write fewer frames (-output_interval, -output_steps)",
+               room, (double) st.st_size, need, o->nframes);
+    PetscCheck(1024.0 * (double) (o->nframes + 2) <= room, PETSC_COMM_SELF, PETSC_ERR_FILE_WRITE,
+               "its XDMF index %s would pass this process's file-size limit (ulimit -f: %.0f bytes); the %" PetscInt_FMT " frames written are complete; raise the limit", o->xdmf, room, o->nframes);
+  }
+  PetscCall(PetscStrncpy(dir, o->file, sizeof dir));
+  if (!slash)
+    PetscCall(PetscStrcpy(dir, "."));
+  else
+    dir[slash == o->file ? 1 : slash - o->file] = 0;
+  if (!statvfs(dir, &fs)) {
+    const double avail = (double) fs.f_bavail * (double) fs.f_frsize;
+    PetscCheck(avail >= need, PETSC_COMM_SELF, PETSC_ERR_FILE_WRITE,
+               "the disk is full: the file system of %s has %.0f bytes free and a frame needs up to %.0f; the %" PetscInt_FMT " frames written are complete; free some space, or write fewer frames", dir, avail, need, o->nframes);
+  }
+  PetscFunctionReturn(0);
+}
 
 /* One frame into the file, flushed, and the XDMF index that lists it. */
 static PetscErrorCode OutputWriteFrameFile(void *ctx)
@@ -391,6 +458,8 @@ PetscErrorCode OutputWriteFrame(Output o, Cloth cloth, PetscInt step, PetscReal 
   ctx.values[10][0] = t;
   PetscCall(ClothToDMDA(cloth, x, o->X));
   PetscCall(ClothToDMDA(cloth, v, o->V));
+  PetscCall(PetscSNPrintf(what, sizeof what, "Cannot write frame %" PetscInt_FMT " to -output_file %s", o->nframes, o->file));
+  PetscCall(DrapeCollectiveWrite(o->comm, OutputCheckRoom, &ctx, what));
   PetscCall(PetscSNPrintf(what, sizeof what, "Cannot write frame %" PetscInt_FMT " to -output_file %s (is the disk full?)", o->nframes, o->file));
   PetscCall(DrapeCollectiveWrite(o->comm, OutputWriteFrameFile, &ctx, what));
   PetscFunctionReturn(0);

@@ -67,6 +67,11 @@ PetscErrorCode SelfBroadPhase(const SelfMesh *m, const PetscReal *x0, const Pets
       if (A[0] != B[0] && A[0] != B[1] && A[1] != B[0] && A[1] != B[1]) pairs.push_back(std::make_pair(std::min(a.info(), b.info()), std::max(a.info(), b.info())));
     });
     PetscCall(Store(pairs, nee, ee));
+  } catch (const std::bad_alloc &) {
+    SETERRQ(PETSC_COMM_SELF, PETSC_ERR_MEM,
+            "Out of memory in the self-contact broad phase (CGAL's box intersection of %" PetscInt_FMT " vertices, %" PetscInt_FMT " triangles and %" PetscInt_FMT
+            " edges): this run needs more memory than the machine gives it; use -contact_self_broad_phase hash, a smaller lattice, or more memory",
+            m->nv, m->nt, m->ne);
   } catch (const std::exception &e) {
     SETERRQ(PETSC_COMM_SELF, PETSC_ERR_LIB, "CGAL's box intersection failed in the self-contact broad phase: %s", e.what());
   }

@@ -8,11 +8,18 @@
 #include <CGAL/Surface_mesh.h>
 #include <CGAL/boost/graph/IO/polygon_mesh_io.h>
 #include <CGAL/boost/graph/helpers.h>
+#include <CGAL/IO/polygon_soup_io.h>
+#include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
+#include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <fstream>
 #include <memory>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include <solid.h>
 
@@ -54,27 +61,79 @@ static PetscErrorCode SolidMeshFinish(SolidMesh m, const char *what)
     m->hi[0]       = b.xmax();
     m->hi[1]       = b.ymax();
     m->hi[2]       = b.zmax();
+  } catch (const std::bad_alloc &) {
+    SETERRQ(PETSC_COMM_SELF, PETSC_ERR_MEM, "Out of memory building the AABB tree of the solid %s (%zu triangles): this run needs more memory than the machine gives it; use a coarser mesh, or more memory", what, (size_t) m->mesh.number_of_faces());
   } catch (const std::exception &e) {
     SETERRQ(PETSC_COMM_SELF, PETSC_ERR_LIB, "CGAL failed to build the AABB tree of the solid %s: %s", what, e.what());
   }
   PetscFunctionReturn(0);
 }
 
+// A mesh CGAL's reader refuses, read again as a polygon soup: after a UTF-8
+// byte-order mark (which a text editor may put first), and with its faces oriented
+// consistently (a mesh with some faces flipped is no halfedge mesh as written). Says
+// in `why` what is wrong when it still is no mesh.
+static bool ReadAsSoup(const char path[], Mesh &mesh, const char *&why)
+{
+  std::vector<Point>                    points;
+  std::vector<std::vector<std::size_t>> polygons;
+  std::string                           name(path), ext;
+  std::ifstream                         in(path, std::ios::binary);
+  char                                  bom[3] = {0, 0, 0};
+  bool                                  ok     = false;
+
+  why = "not a valid OFF, OBJ, STL or PLY polygon mesh";
+  if (name.find_last_of('.') != std::string::npos) ext = name.substr(name.find_last_of('.') + 1);
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return (char) std::tolower(c); });
+  if (!in.read(bom, 3) || (unsigned char) bom[0] != 0xEF || (unsigned char) bom[1] != 0xBB || (unsigned char) bom[2] != 0xBF) in.seekg(0); /* no byte-order mark */
+  in.clear();
+  if (ext == "off")
+    ok = CGAL::IO::read_OFF(in, points, polygons);
+  else if (ext == "obj")
+    ok = CGAL::IO::read_OBJ(in, points, polygons);
+  else if (ext == "stl")
+    ok = CGAL::IO::read_STL(in, points, polygons);
+  else if (ext == "ply")
+    ok = CGAL::IO::read_PLY(in, points, polygons);
+  if (!ok || polygons.empty()) return false;
+  /* faces flipped against their neighbours are turned (inside and outside, by ray
+   * parity, do not depend on which way the whole surface faces) */
+  if (!CGAL::Polygon_mesh_processing::orient_polygon_soup(points, polygons)) {
+    why = "an edge is shared by more than two faces, or a vertex joins surfaces that meet only there (not a manifold surface); drape needs a closed triangle mesh";
+    return false;
+  }
+  if (!CGAL::Polygon_mesh_processing::is_polygon_soup_a_polygon_mesh(polygons)) {
+    why = "its faces do not form a manifold surface; drape needs a closed triangle mesh";
+    return false;
+  }
+  CGAL::Polygon_mesh_processing::polygon_soup_to_polygon_mesh(points, polygons, mesh);
+  return true;
+}
+
 PetscErrorCode SolidMeshCreateFromFile(const char path[], const PetscReal A[9], const PetscReal b[3], SolidMesh *mesh)
 {
-  std::unique_ptr<_p_SolidMesh> m(new _p_SolidMesh);
-  bool                          ok = false;
-  FILE                         *fp = fopen(path, "r");
+  std::unique_ptr<_p_SolidMesh> m;
+  bool                          ok = false, memory = false;
+  const char                   *why = "not a valid OFF, OBJ, STL or PLY polygon mesh";
+  FILE                         *fp  = fopen(path, "r");
 
   PetscFunctionBeginUser;
   PetscCheck(fp, PETSC_COMM_SELF, PETSC_ERR_FILE_OPEN, "Cannot open the solid mesh file %s", path);
   fclose(fp);
   try {
+    m.reset(new _p_SolidMesh);
     ok = CGAL::IO::read_polygon_mesh(std::string(path), m->mesh);
+    if (!ok) {
+      m->mesh.clear();
+      ok = ReadAsSoup(path, m->mesh, why);
+    }
+  } catch (const std::bad_alloc &) {
+    memory = true;
   } catch (const std::exception &e) {
     ok = false;
   }
-  PetscCheck(ok, PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED, "Cannot read the solid mesh file %s: not a valid OFF, OBJ, STL or PLY polygon mesh", path);
+  PetscCheck(!memory, PETSC_COMM_SELF, PETSC_ERR_MEM, "Out of memory reading the solid mesh file %s: this run needs more memory than the machine gives it; use a coarser mesh, or more memory", path);
+  PetscCheck(ok, PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED, "Cannot read the solid mesh file %s: %s", path, why);
   for (auto v : m->mesh.vertices()) {
     const Point &p = m->mesh.point(v);
     double       q[3];
@@ -130,6 +189,8 @@ PetscErrorCode SolidMeshQuery(SolidMesh m, const PetscReal p[3], PetscReal close
     closest[1] = c.y();
     closest[2] = c.z();
     *inside    = (*m->side)(q) == CGAL::ON_BOUNDED_SIDE ? PETSC_TRUE : PETSC_FALSE;
+  } catch (const std::bad_alloc &) {
+    SETERRQ(PETSC_COMM_SELF, PETSC_ERR_MEM, "Out of memory in a distance query to the solid mesh: this run needs more memory than the machine gives it; use a coarser mesh, or more memory");
   } catch (const std::exception &e) {
     SETERRQ(PETSC_COMM_SELF, PETSC_ERR_LIB, "CGAL query failed: %s", e.what());
   }
