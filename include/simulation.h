@@ -8,6 +8,7 @@
 #include <petscts.h>
 #include <cloth.h>
 #include <solid.h>
+#include <contactsolve.h>
 #include <selfcontact.h>
 
 typedef struct _p_Simulation *Simulation;
@@ -28,13 +29,13 @@ PETSC_EXTERN PetscErrorCode SimulationInterrupted(Simulation, PetscBool *interru
 /* drapebe.c: drape's backward Euler in the paper's form (scheme 4: A dv = b, SNES +
  * KSP CG on an assembled matrix, contact as constraints of the step), the TS type
  * "drapebe". DrapeTSRegister() registers it; TSDrapeBESetCloth() gives it the cloth
- * (required) and TSDrapeBESetContact() the contact with the solid (none: no
- * contact). The setters and getters do nothing on TS of other types (the impulse and
+ * (required) and TSDrapeBESetContact() the contact with the solid as constraints of
+ * the step (include/contactsolve.h; none: no contact), which its TSSetUp sets up. The setters and getters do nothing on TS of other types (the impulse and
  * statistics are then zero). */
 #define TSDRAPEBE "drapebe"
 PETSC_EXTERN PetscErrorCode DrapeTSRegister(void);
 PETSC_EXTERN PetscErrorCode TSDrapeBESetCloth(TS, Cloth);
-PETSC_EXTERN PetscErrorCode TSDrapeBESetContact(TS, Contact);
+PETSC_EXTERN PetscErrorCode TSDrapeBESetContact(TS, ContactSolve);
 /* Self-contact's close pairs in the step's solve (include/selfcontact.h); NULL: none. */
 PETSC_EXTERN PetscErrorCode TSDrapeBESetSelfContact(TS, SelfContact);
 /* Omega_max of the cloth at the start (rad/s): with (h Omega_max)^2 the default

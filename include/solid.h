@@ -53,15 +53,15 @@ typedef enum {
 
 typedef struct _p_Contact  *Contact;
 PETSC_EXTERN PetscErrorCode ContactCreate(MPI_Comm, Solid, Contact *);
-/* -contact_mode, -contact_thickness, -contact_friction, -contact_stick_velocity.
+/* -contact_mode, -contact_thickness, -contact_friction (-contact_stick_velocity:
+ * include/contactsolve.h).
  * ContactSetFromOptions and ContactView are collective; ContactCreate,
  * ContactDestroy, ContactGetMode are not. */
 PETSC_EXTERN PetscErrorCode ContactSetFromOptions(Contact);
 PETSC_EXTERN PetscErrorCode ContactView(Contact, PetscViewer);
 PETSC_EXTERN PetscErrorCode ContactDestroy(Contact *);
-/* mode, Coulomb coefficient (0 unless friction), sliding speed below which backward
- * Euler smooths static friction into a viscous force (m/s) */
-PETSC_EXTERN PetscErrorCode ContactGetMode(Contact, ContactMode *, PetscReal *friction, PetscReal *stick_velocity);
+/* mode, Coulomb coefficient (0 unless friction) */
+PETSC_EXTERN PetscErrorCode ContactGetMode(Contact, ContactMode *, PetscReal *friction);
 /* After a step: move particles closer than the thickness back onto the contact
  * surface and constrain their velocity by the mode; n particles, 3 entries each,
  * pinned particles skipped. Returns the deepest penetration below the contact

@@ -14,37 +14,13 @@
  * with bending friction, -cloth_bend_hysteresis). Pinned particles
  * keep dv = 0 (their rows and columns are removed). Then v += dv and x += h v.
  *
- * Contact with the solid is a constraint of the step, found by an active set made
- * consistent with the motion it allows (Baraff & Witkin's filtered system, with
- * unilateral release as in Bridson, Fedkiw & Anderson 2002; friction smoothed and
- * lagged as in Li et al. 2020, IPC):
- *   - constrained are the particles within the contact thickness of the solid at the
- *     start of the step (but those that lifted off and have not left the layer
- *     since: the shallow contacts at the edge of a contact region), those that
- *     falling freely would land in the step, and those that a solve of the step
- *     carries into the layer: their normal velocity is prescribed so that the step
- *     ends on the contact surface (the plane through the closest point). Sticky
- *     contact fixes them (tangential velocity zero too); frictionless contact and
- *     friction let them slide;
- *   - with S_i the projector onto particle i's free directions (0 when fixed, I - n n^T
- *     when sliding), the unknown is w with dv = S w + z, z making the prescribed
- *     components right, and SNES solves S R(dv) + (I - S) D w = 0, whose matrix
- *     S A S + (I - S) D stays SPD for CG (D: ClothSetConstraints);
- *   - after a solve, the impulse p = M (v+ - v) - h F each constraint carried decides
- *     whether it lets go: a particle that, released alone, would lift off the
- *     surface is released (contact is unilateral). The step is solved again until
- *     no constraint comes or goes (-drape_contact_its bounds the solves; a particle
- *     is released at most once a step, so they cannot cycle);
- *   - friction (Coulomb, mu) acts on sliding particles inside the solve as a force of
- *     magnitude mu f_n against the sliding velocity, f_n the normal force of the
- *     previous step: linearised about that step's sliding direction, and below the
- *     sliding speed -contact_stick_velocity a viscous force mu f_n v/eps that holds
- *     the particle (static friction, creeping at most eps tan(alpha)/mu). Its
- *     Jacobian, PSD, joins the matrix;
- *   - a particle that ends the step on the surface keeps no velocity into it (an
- *     inelastic landing), and none at all when fixed.
- * The impulses the constraints gave the cloth are what TSDrapeBEGetContactImpulse()
- * returns.
+ * Contact with the solid is a constraint of the step (ContactSolve,
+ * include/contactsolve.h: the constrained particles' trial velocity, their rows of
+ * the residual and the matrix, the active set after each solve, friction, the
+ * landing); the step is solved again until no constraint comes or goes
+ * (-drape_contact_its bounds the solves), and likewise for self-contact's pairs
+ * (include/selfcontact.h). The impulses the constraints gave the cloth are what
+ * TSDrapeBEGetContactImpulse() returns.
  *
  * A step whose solve fails (SNES or KSP diverged) is rejected and retried at a
  * quarter of the step through TSAdaptCheckStage (-ts_max_reject rejections per
@@ -55,26 +31,19 @@
 #include <petsc/private/tsimpl.h>
 #include <drape.h>
 #include <simulation.h>
-#include <solid.h>
+#include <contactsolve.h>
 #include <selfcontact.h>
-
-/* A particle that a step carries less than this fraction of the contact thickness
- * into the contact layer is not made a constraint of the step: the projection
- * after the step lifts it back (by at most this much). Such shallow contacts are
- * the particles at the edge of a contact region, which the solve pulls off and
- * pushes on by turns; as constraints they would make the iterations cycle. */
-#define CONTACT_SHALLOW 0.1
 
 typedef struct {
   Cloth              cloth;
-  Contact            contact;    /* NULL: no solid */
+  ContactSolve       contact;    /* NULL: no solid */
   SelfContact        self;       /* NULL: no self-contact in the solve */
   MatType            mattype;    /* of J (a new J when self-contact needs more blocks) */
   Vec                U0;         /* the state at the start of the step */
   Vec                DV, R, W;   /* W: work vector of the CG start */
   Vec                nullvec[6]; /* near null space (BENearNullSpace) */
   Mat                J;
-  PetscScalar       *xt, *vt, *at, *z, *dvlast; /* dvlast: the velocity change of the last step */
+  PetscScalar       *xt, *vt, *at;
   const PetscScalar *x0, *v0;
   const PetscReal   *mass;
   const PetscBool   *pinned;
@@ -83,29 +52,11 @@ typedef struct {
   PetscReal          h, damping, g; /* g: |gravity|, m/s^2 */
   PetscReal          weight;        /* |M g| over the free particles (CG's absolute tolerance: rtol h weight), N */
   PetscReal          omega;         /* Omega_max of the cloth at the start, rad/s (0: unknown) */
-  /* contact constraints of the step, per owned particle */
-  ContactMode      mode;
-  PetscReal        mu, thickness, stick_velocity;
-  ClothConstraint *ctype;
-  PetscReal       *cnormal;     /* outward unit normal, 3 each */
-  PetscReal       *ctarget;     /* prescribed normal velocity n.v of the step, m/s */
-  PetscInt        *released;    /* times released in this step */
-  PetscBool       *lifted;      /* released, and not yet out of the contact layer */
-  ClothConstraint *ctype_pc;    /* the constraints when the preconditioner was last built */
-  PetscBool        pc_stale;    /* the constraints changed since */
-  PetscBool        pc_amg;      /* the preconditioner is algebraic multigrid (costly to build) */
-  PetscBool        constrained; /* any constraint on any rank */
-  PetscInt         contact_its; /* solves allowed per step */
-  PetscReal        release;     /* released when it would lift faster than h release, m/s^2 */
-  const PetscReal *hdiag;       /* the Cloth's Hessian diagonal blocks of the last assembly */
-  /* friction of sliding particles: from the previous step, the normal force, the
-   * sliding direction and speed; for this step, the impulse h f = fimp - fblock v */
-  PetscReal *fnormal;       /* N */
-  PetscReal *fdir, *fspeed; /* 3 each (unit, tangential), m/s */
-  PetscReal *fimp, *fblock; /* 3 and 9 each */
-  PetscReal  impulse[3];    /* of the last step, owned particles, N s */
+  PetscInt           contact_its;   /* solves allowed per step, for the solid's and self-contact's active sets */
   /* preconditioner */
-  PetscInt pc_lag, lag; /* rebuild every pc_lag steps (ksponly, iterative KSP); lag: where it applies */
+  PetscInt  pc_lag, lag; /* rebuild every pc_lag steps (ksponly, iterative KSP); lag: where it applies */
+  PetscBool pc_stale;    /* rebuild it: the solid's constraints changed since it was built, or a step failed */
+  PetscBool pc_amg;      /* it is algebraic multigrid (costly to build) */
   /* step control */
   PetscReal dt_nominal;                                           /* the step asked for */
   PetscInt  accepted;                                             /* accepted steps since the step was last cut or grown */
@@ -120,7 +71,8 @@ typedef struct {
   char     failure[512]; /* the last failed solve, for the error message */
 } TS_DrapeBE;
 
-/* Trial state of the step: v_t = v0 + S dv + z, x_t = x0 + h v_t; pinned particles
+/* Trial state of the step: v_t = v0 + S dv + z (the solid's constraints S, z:
+ * ContactSolveTrialVelocity), x_t = x0 + h v_t; pinned particles
  * stay put whatever dv holds, so R of the free particles does not depend on their dv
  * (the eliminated rows and columns of the matrix). */
 static PetscErrorCode TrialState(TS_DrapeBE *be, Vec DV)
@@ -130,20 +82,7 @@ static PetscErrorCode TrialState(TS_DrapeBE *be, Vec DV)
   PetscFunctionBeginUser;
   PetscCall(VecGetArrayRead(DV, &dv));
   for (PetscInt i = 0; i < be->n; i++) be->vt[i] = be->v0[i] + (be->pinned[i / 3] ? 0 : dv[i]);
-  if (be->constrained) {
-    for (PetscInt k = 0; k < be->n / 3; k++) {
-      const PetscReal *nk = be->cnormal + 3 * k, *w = dv + 3 * k;
-      const PetscReal  wn = nk[0] * w[0] + nk[1] * w[1] + nk[2] * w[2];
-      if (be->ctype[k] == CLOTH_FREE) continue;
-      for (PetscInt d = 0; d < 3; d++) {
-        if (be->ctype[k] == CLOTH_SLIDE)
-          be->vt[3 * k + d] -= wn * nk[d];
-        else
-          be->vt[3 * k + d] = be->v0[3 * k + d];
-        be->vt[3 * k + d] += be->z[3 * k + d];
-      }
-    }
-  }
+  if (be->contact) PetscCall(ContactSolveTrialVelocity(be->contact, dv, be->vt));
   for (PetscInt i = 0; i < be->n; i++) be->xt[i] = be->x0[i] + be->h * be->vt[i];
   PetscCall(VecRestoreArrayRead(DV, &dv));
   PetscFunctionReturn(0);
@@ -171,24 +110,7 @@ static PetscErrorCode BEFunction(SNES snes, Vec DV, Vec R, void *ctx)
   PetscCall(VecGetArrayRead(DV, &dv));
   PetscCall(VecGetArray(R, &r));
   for (PetscInt i = 0; i < be->n; i++) r[i] = be->mass[i / 3] * (be->pinned[i / 3] ? dv[i] : be->vt[i] - be->v0[i] - be->h * be->at[i]);
-  if (be->constrained) {
-    /* S (R - h f) + (I - S) D w, f the friction of sliding particles, D as in the
-     * matrix (the constrained w stay zero, whatever D) */
-    for (PetscInt k = 0; k < be->n / 3; k++) {
-      const PetscReal *nk = be->cnormal + 3 * k, *w = dv + 3 * k, *B = be->fblock + 9 * k, *v = be->vt + 3 * k;
-      PetscReal       *rk = r + 3 * k, rn, wn, d;
-      if (be->ctype[k] == CLOTH_FREE) continue;
-      PetscCall(ClothGetConstraintScale(be->cloth, 1 + be->h * be->damping, be->h * be->h, k, &d));
-      if (be->ctype[k] == CLOTH_FIXED)
-        for (PetscInt i = 0; i < 3; i++) rk[i] = d * w[i];
-      else {
-        for (PetscInt i = 0; i < 3; i++) rk[i] += B[3 * i] * v[0] + B[3 * i + 1] * v[1] + B[3 * i + 2] * v[2] - be->fimp[3 * k + i];
-        rn = nk[0] * rk[0] + nk[1] * rk[1] + nk[2] * rk[2];
-        wn = nk[0] * w[0] + nk[1] * w[1] + nk[2] * w[2];
-        for (PetscInt i = 0; i < 3; i++) rk[i] += (d * wn - rn) * nk[i];
-      }
-    }
-  }
+  if (be->contact) PetscCall(ContactSolveResidual(be->contact, dv, be->vt, r)); /* the constrained particles' rows */
   PetscCall(VecRestoreArray(R, &r));
   PetscCall(VecRestoreArrayRead(DV, &dv));
   PetscFunctionReturn(0);
@@ -208,220 +130,23 @@ static PetscErrorCode BEJacobian(SNES snes, Vec DV, Mat J, Mat P, void *ctx)
   PetscFunctionReturn(0);
 }
 
-/* The friction of sliding particle k for this step, as the impulse h f(v) = fimp -
- * fblock v: from the previous step's normal force f_n and sliding velocity (speed
- * y, direction t, projected on this step's tangent plane P = I - n n^T),
- *   y >= eps: h f = -h mu f_n (t + (P - t t^T) v / y)  (magnitude mu f_n, direction
- *             linearised about t),
- *   y <  eps: h f = -h mu f_n P v / eps               (static friction, smoothed). */
-static void BEFriction(TS_DrapeBE *be, PetscInt k)
+/* The solid's constraints to the Cloth's matrix and to self-contact's pairs; the
+ * preconditioner is stale when they changed (pc_changes particles) since it was
+ * built. Collective. */
+static PetscErrorCode BESetConstraints(TS_DrapeBE *be, PetscInt pc_changes)
 {
-  const PetscReal *n = be->cnormal + 3 * k, eps = be->stick_velocity;
-  const PetscReal  c   = be->h * be->mu * be->fnormal[k];
-  PetscReal       *imp = be->fimp + 3 * k, *B = be->fblock + 9 * k, t[3], tn = 0, ln = 0, y = be->fspeed[k];
-
-  for (PetscInt i = 0; i < 3; i++) imp[i] = 0;
-  for (PetscInt i = 0; i < 9; i++) B[i] = 0;
-  if (be->mode != CONTACT_FRICTION || be->ctype[k] != CLOTH_SLIDE || c <= 0) return;
-  for (PetscInt i = 0; i < 3; i++) tn += n[i] * be->fdir[3 * k + i];
-  for (PetscInt i = 0; i < 3; i++) {
-    t[i] = be->fdir[3 * k + i] - tn * n[i];
-    ln += t[i] * t[i];
-  }
-  ln = PetscSqrtReal(ln);
-  if (y < eps || ln < 0.5) { /* sticking (or the surface turned under a slider) */
-    for (PetscInt i = 0; i < 3; i++)
-      for (PetscInt j = 0; j < 3; j++) B[3 * i + j] = c / eps * ((i == j) - n[i] * n[j]);
-    return;
-  }
-  for (PetscInt i = 0; i < 3; i++) {
-    t[i] /= ln;
-    imp[i] = -c * t[i];
-  }
-  for (PetscInt i = 0; i < 3; i++)
-    for (PetscInt j = 0; j < 3; j++) B[3 * i + j] = c / y * ((i == j) - n[i] * n[j] - t[i] * t[j]);
-}
-
-/* The constraints of the step: z, the velocity change that gives the constrained
- * particles their prescribed velocity (the normal target along n; nothing else
- * when fixed), the friction, and the filter of the Cloth's matrix. Collective. */
-static PetscErrorCode BEApplyConstraints(TS_DrapeBE *be)
-{
-  PetscInt counts[2] = {0, 0}; /* constrained, different from the preconditioner's */
+  const ClothConstraint *type;
+  const PetscReal       *normal, *block;
 
   PetscFunctionBeginUser;
-  for (PetscInt k = 0; k < be->n / 3; k++) {
-    const PetscReal *nk = be->cnormal + 3 * k, *v = be->v0 + 3 * k, g = be->ctarget[k];
-    const PetscReal  vn = nk[0] * v[0] + nk[1] * v[1] + nk[2] * v[2];
-    for (PetscInt d = 0; d < 3; d++) {
-      if (be->ctype[k] == CLOTH_SLIDE)
-        be->z[3 * k + d] = (g - vn) * nk[d];
-      else if (be->ctype[k] == CLOTH_FIXED)
-        be->z[3 * k + d] = g * nk[d] - v[d];
-      else
-        be->z[3 * k + d] = 0;
-    }
-    BEFriction(be, k);
-    counts[0] += be->ctype[k] != CLOTH_FREE;
-    counts[1] += be->ctype[k] != be->ctype_pc[k];
-  }
-  PetscCall(MPIU_Allreduce(MPI_IN_PLACE, counts, 2, MPIU_INT, MPI_SUM, PetscObjectComm((PetscObject) be->J)));
-  be->constrained = (PetscBool) (counts[0] > 0);
-  PetscCall(ClothSetConstraints(be->cloth, be->constrained ? be->ctype : NULL, be->cnormal, be->mode == CONTACT_FRICTION ? be->fblock : NULL));
-  if (be->self) PetscCall(SelfContactSolveSetConstraints(be->self, be->constrained ? be->ctype : NULL, be->cnormal));
+  PetscCall(ContactSolveGetConstraints(be->contact, &type, &normal, &block));
+  PetscCall(ClothSetConstraints(be->cloth, type, normal, block));
+  if (be->self) PetscCall(SelfContactSolveSetConstraints(be->self, type, normal));
   /* a constraint that comes or goes changes its row of the matrix, and a factorisation
    * (ICC) of the old one is then a poor preconditioner: rebuilt (cheap); an algebraic
    * multigrid hierarchy, costly to build, copes with a few particles more or less in
    * contact and is rebuilt after a landing (more than 1 % of the particles) */
-  be->pc_stale = (PetscBool) (be->pc_stale || counts[1] > (be->pc_amg ? PetscMax(8, be->nparticles / 100) : 0));
-  PetscFunctionReturn(0);
-}
-
-/* Constrain particle k: normal n, prescribed normal velocity g. */
-static inline void BEConstrain(TS_DrapeBE *be, PetscInt k, const PetscReal n[3], PetscReal g)
-{
-  be->ctype[k]   = be->mode == CONTACT_STICKY ? CLOTH_FIXED : CLOTH_SLIDE;
-  be->ctarget[k] = g;
-  for (PetscInt d = 0; d < 3; d++) be->cnormal[3 * k + d] = n[d];
-}
-
-/* No longer in contact: no constraint, no friction carried on. */
-static inline void BEFree(TS_DrapeBE *be, PetscInt k)
-{
-  be->ctype[k]   = CLOTH_FREE;
-  be->fnormal[k] = 0;
-}
-
-/* Friction of a particle in contact at the start of the step that has no history
- * (its first step in contact: no normal force yet) or was sticking: from the forces
- * on it now, a = F(x, v)/m in be->at, the normal force -m n.a, and whether the pull
- * along the surface already overcomes friction (then it starts sliding, along the
- * pull, with exact kinetic friction from this step on). */
-static void BEFrictionStart(TS_DrapeBE *be, PetscInt k)
-{
-  const PetscReal m = be->mass[k], *n = be->cnormal + 3 * k, *a = be->at + 3 * k;
-  const PetscReal an = n[0] * a[0] + n[1] * a[1] + n[2] * a[2];
-  PetscReal       ft[3], lt = 0;
-
-  if (be->fnormal[k] <= 0) be->fnormal[k] = PetscMax(-m * an, 0);
-  if (be->fspeed[k] >= be->stick_velocity) return;
-  for (PetscInt d = 0; d < 3; d++) {
-    ft[d] = m * (a[d] - an * n[d]);
-    lt += ft[d] * ft[d];
-  }
-  lt = PetscSqrtReal(lt);
-  if (lt <= be->mu * be->fnormal[k]) return;
-  for (PetscInt d = 0; d < 3; d++) be->fdir[3 * k + d] = ft[d] / lt;
-  be->fspeed[k] = PetscMax(be->stick_velocity, be->h * (lt - be->mu * be->fnormal[k]) / m);
-}
-
-/* The constraints at the start of the step: particles within the contact layer
- * (but those released since they last left it: the edge of a contact region, whose
- * shallow contacts the projection after the step handles), and particles from
- * outside that the step would carry deeper into it at their velocity extrapolated
- * from the last step, v + dv_last (most of a landing, so that few are left for the
- * iterations; not v + h a, which at steps above the explicit limit is no prediction
- * at all, nor v + h g, which at large steps lands every particle that tension holds
- * just above the surface). */
-static PetscErrorCode BEInitialConstraints(TS_DrapeBE *be)
-{
-  const PetscReal h = be->h, tol = be->thickness * (1 + 1e-6) + PETSC_SMALL;
-
-  PetscFunctionBeginUser;
-  if (be->mode == CONTACT_FRICTION) PetscCall(ClothComputeAcceleration(be->cloth, be->x0, be->v0, be->at));
-  for (PetscInt k = 0; k < be->n / 3; k++) {
-    const PetscReal *x = be->x0 + 3 * k;
-    PetscReal        dist, nrm[3];
-    be->released[k] = 0;
-    if (be->pinned[k]) {
-      BEFree(be, k);
-      continue;
-    }
-    PetscCall(ContactDistance(be->contact, k, be->n / 3, x, &dist, nrm));
-    if (dist <= tol) {
-      if (be->lifted[k])
-        BEFree(be, k);
-      else {
-        BEConstrain(be, k, nrm, (be->thickness - dist) / h);
-        if (be->mode == CONTACT_FRICTION) BEFrictionStart(be, k);
-      }
-    } else {
-      const PetscReal *v0 = be->v0 + 3 * k, *dv = be->dvlast + 3 * k;
-      const PetscReal  v[3] = {v0[0] + dv[0], v0[1] + dv[1], v0[2] + dv[2]}, xp[3] = {x[0] + h * v[0], x[1] + h * v[1], x[2] + h * v[2]};
-      be->lifted[k] = PETSC_FALSE;
-      BEFree(be, k);
-      PetscCall(ContactDistance(be->contact, k, be->n / 3, xp, &dist, nrm));
-      if (dist < be->thickness * (1 - CONTACT_SHALLOW)) BEConstrain(be, k, nrm, nrm[0] * v[0] + nrm[1] * v[1] + nrm[2] * v[2] + (be->thickness - dist) / h);
-    }
-  }
-  PetscFunctionReturn(0);
-}
-
-/* Does constrained particle k, released alone, leave the surface? p is the impulse
- * the constraint carried. Released, the particle's velocity changes by
- * dv = -A_kk^{-1} p (A_kk its diagonal block of the unconstrained matrix,
- * (1 + h c) m I + h^2 H_kk): it lifts off when n.dv is positive, by more than a
- * tenth of what gravity gives in a step. Not simply n.p < 0: a large tangential
- * impulse (sticky contact holding the cloth's pull along the surface) turns, through
- * the anisotropic A_kk, into motion into the solid, and such a particle released
- * would come straight back. */
-static PetscBool BEWouldLift(TS_DrapeBE *be, PetscInt k, const PetscReal p[3])
-{
-  const PetscReal *H = be->hdiag + 9 * k, *nk = be->cnormal + 3 * k, a = (1 + be->h * be->damping) * be->mass[k], b = be->h * be->h;
-  PetscReal        A[9], y[3], det;
-
-  for (PetscInt i = 0; i < 9; i++) A[i] = b * H[i] + (i % 4 == 0 ? a : 0);
-  /* y = A^{-1} n (A symmetric): cofactors */
-  {
-    const PetscReal c00 = A[4] * A[8] - A[5] * A[7], c01 = A[5] * A[6] - A[3] * A[8], c02 = A[3] * A[7] - A[4] * A[6];
-    const PetscReal c11 = A[0] * A[8] - A[2] * A[6], c12 = A[1] * A[6] - A[0] * A[7], c22 = A[0] * A[4] - A[1] * A[3];
-    det  = A[0] * c00 + A[1] * c01 + A[2] * c02;
-    y[0] = (c00 * nk[0] + c01 * nk[1] + c02 * nk[2]) / det;
-    y[1] = (c01 * nk[0] + c11 * nk[1] + c12 * nk[2]) / det;
-    y[2] = (c02 * nk[0] + c12 * nk[1] + c22 * nk[2]) / det;
-  }
-  /* n.dv = -(A^{-1} n).p */
-  return (PetscBool) (-(y[0] * p[0] + y[1] * p[1] + y[2] * p[2]) > be->release * be->h);
-}
-
-/* After a solve: constrain the free particles the step carries deep into the
- * contact layer, and release the constraints that would let their particle lift
- * off. The number of changes over all ranks. be->vt, be->xt hold the solved step;
- * be->at gets its accelerations. */
-static PetscErrorCode BEUpdateActiveSet(TS_DrapeBE *be, PetscInt *changes)
-{
-  const PetscReal h        = be->h;
-  PetscInt        kinds[2] = {0, 0}, sums[2]; /* new, released */
-
-  PetscFunctionBeginUser;
-  PetscCall(BEAcceleration(be));
-  PetscCall(ClothGetHessianDiagonal(be->cloth, &be->hdiag));
-  for (PetscInt k = 0; k < be->n / 3; k++) {
-    const PetscReal m = be->mass[k], *vt = be->vt + 3 * k;
-    PetscReal       p[3];
-    if (be->pinned[k]) continue;
-    if (be->ctype[k] == CLOTH_FREE) {
-      PetscReal dist, nrm[3];
-      PetscCall(ContactDistance(be->contact, k, be->n / 3, be->xt + 3 * k, &dist, nrm));
-      if (dist < be->thickness * (1 - CONTACT_SHALLOW)) {
-        BEConstrain(be, k, nrm, nrm[0] * vt[0] + nrm[1] * vt[1] + nrm[2] * vt[2] + (be->thickness - dist) / h);
-        be->lifted[k] = PETSC_FALSE;
-        kinds[0]++;
-      }
-      continue;
-    }
-    /* the impulse the solid gave the particle (friction included) */
-    for (PetscInt d = 0; d < 3; d++) p[d] = m * (vt[d] - be->v0[3 * k + d] - h * be->at[3 * k + d]);
-    if (!be->released[k] && BEWouldLift(be, k, p)) {
-      BEFree(be, k);
-      be->released[k]++;
-      be->lifted[k] = PETSC_TRUE;
-      kinds[1]++;
-    }
-  }
-  PetscCall(MPIU_Allreduce(kinds, sums, 2, MPIU_INT, MPI_SUM, PetscObjectComm((PetscObject) be->J)));
-  *changes = sums[0] + sums[1];
-  PetscCall(PetscInfo(be->J, "contact active set: %" PetscInt_FMT " new, %" PetscInt_FMT " released\n", sums[0], sums[1]));
+  be->pc_stale = (PetscBool) (be->pc_stale || pc_changes > (be->pc_amg ? PetscMax(8, be->nparticles / 100) : 0));
   PetscFunctionReturn(0);
 }
 
@@ -498,15 +223,17 @@ static PetscErrorCode BEStartFromLastSolution(KSP ksp, Vec b, Vec x, void *ctx)
  * Without the filter, contact leaves GAMG twice the iterations (BENCHMARKS.md). */
 static PetscErrorCode BENearNullSpace(TS ts, TS_DrapeBE *be)
 {
-  SNES         snes;
-  KSP          ksp;
-  PC           pc;
-  PetscBool    gamg;
-  MatNullSpace nsp;
-  PetscScalar *u[6];
-  PetscReal    c[3] = {0, 0, 0}, csum[3];
-  PetscInt     nvec = 0, m = be->n / 3;
-  ClothInfo    info;
+  SNES                   snes;
+  KSP                    ksp;
+  PC                     pc;
+  PetscBool              gamg;
+  MatNullSpace           nsp;
+  PetscScalar           *u[6];
+  PetscReal              c[3] = {0, 0, 0}, csum[3];
+  PetscInt               nvec = 0, m = be->n / 3;
+  ClothInfo              info;
+  const ClothConstraint *type   = NULL; /* the solid's constraints (NULL: none) */
+  const PetscReal       *normal = NULL;
 
   PetscFunctionBeginUser;
   PetscCall(TSGetSNES(ts, &snes));
@@ -515,21 +242,22 @@ static PetscErrorCode BENearNullSpace(TS ts, TS_DrapeBE *be)
   PetscCall(PetscObjectTypeCompareAny((PetscObject) pc, &gamg, PCGAMG, PCML, ""));
   if (!gamg) PetscFunctionReturn(0);
   PetscCall(ClothGetInfo(be->cloth, &info));
+  if (be->contact) PetscCall(ContactSolveGetConstraints(be->contact, &type, &normal, NULL));
   for (PetscInt k = 0; k < m; k++)
     for (PetscInt d = 0; d < 3; d++) c[d] += be->x0[3 * k + d] / info.nparticles;
   PetscCall(MPIU_Allreduce(c, csum, 3, MPIU_REAL, MPI_SUM, PetscObjectComm((PetscObject) ts)));
   for (PetscInt i = 0; i < 6; i++) PetscCall(VecGetArray(be->nullvec[i], &u[i]));
   for (PetscInt k = 0; k < m; k++) {
-    const PetscReal *x = be->x0 + 3 * k, r[3] = {x[0] - csum[0], x[1] - csum[1], x[2] - csum[2]}, *n = be->cnormal + 3 * k;
+    const PetscReal *x = be->x0 + 3 * k, r[3] = {x[0] - csum[0], x[1] - csum[1], x[2] - csum[2]}, *n = type ? normal + 3 * k : NULL;
     const PetscReal  mode[6][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {0, -r[2], r[1]}, {r[2], 0, -r[0]}, {-r[1], r[0], 0}};
     for (PetscInt i = 0; i < 6; i++) {
       PetscReal un = 0;
-      if (be->pinned[k] || (be->constrained && be->ctype[k] == CLOTH_FIXED)) {
+      if (be->pinned[k] || (type && type[k] == CLOTH_FIXED)) {
         u[i][3 * k] = u[i][3 * k + 1] = u[i][3 * k + 2] = 0;
         continue;
       }
-      if (be->constrained && be->ctype[k] == CLOTH_SLIDE) un = n[0] * mode[i][0] + n[1] * mode[i][1] + n[2] * mode[i][2];
-      for (PetscInt d = 0; d < 3; d++) u[i][3 * k + d] = mode[i][d] - (be->constrained && be->ctype[k] == CLOTH_SLIDE ? un * n[d] : 0);
+      if (type && type[k] == CLOTH_SLIDE) un = n[0] * mode[i][0] + n[1] * mode[i][1] + n[2] * mode[i][2];
+      for (PetscInt d = 0; d < 3; d++) u[i][3 * k + d] = mode[i][d] - (type && type[k] == CLOTH_SLIDE ? un * n[d] : 0);
     }
   }
   for (PetscInt i = 0; i < 6; i++) PetscCall(VecRestoreArray(be->nullvec[i], &u[i]));
@@ -677,10 +405,9 @@ static PetscErrorCode BEStep(TS ts, TS_DrapeBE *be, PetscBool *ok)
   }
   if (be->self) PetscCall(SelfContactSolveBegin(be->self, be->h, be->x0, be->v0));
   if (be->contact) {
-    PetscCall(PetscLogEventBegin(drape_log.contact, 0, 0, 0, 0));
-    PetscCall(BEInitialConstraints(be));
-    PetscCall(BEApplyConstraints(be));
-    PetscCall(PetscLogEventEnd(drape_log.contact, 0, 0, 0, 0));
+    PetscInt pc_changes;
+    PetscCall(ContactSolveBegin(be->contact, be->h, be->x0, be->v0, &pc_changes));
+    PetscCall(BESetConstraints(be, pc_changes));
   }
   if (be->self) PetscCall(BESelfBlocks(ts, be));
   /* the matrix changes little from step to step: CG keeps the last factorisation as
@@ -696,7 +423,7 @@ static PetscErrorCode BEStep(TS ts, TS_DrapeBE *be, PetscBool *ok)
     }
     if (rebuild) {
       PetscCall(BENearNullSpace(ts, be));
-      for (PetscInt k = 0; k < be->n / 3; k++) be->ctype_pc[k] = be->ctype[k];
+      if (be->contact) PetscCall(ContactSolveSetPreconditioned(be->contact));
     }
     PetscCall(BESolve(ts, be, ok));
     if (!*ok) PetscFunctionReturn(0);
@@ -704,10 +431,10 @@ static PetscErrorCode BEStep(TS ts, TS_DrapeBE *be, PetscBool *ok)
     last    = (PetscBool) ((!be->contact && !be->self) || it + 1 >= be->contact_its);
     changes = 0;
     if (be->contact && !last) { /* the solid's active set, from the forces of the solve just made */
-      PetscCall(PetscLogEventBegin(drape_log.contact, 0, 0, 0, 0));
-      PetscCall(BEUpdateActiveSet(be, &changes));
-      if (changes) PetscCall(BEApplyConstraints(be));
-      PetscCall(PetscLogEventEnd(drape_log.contact, 0, 0, 0, 0));
+      PetscInt pc_changes;
+      PetscCall(BEAcceleration(be));
+      PetscCall(ContactSolveUpdate(be->contact, be->xt, be->vt, be->at, &changes, &pc_changes));
+      if (changes) PetscCall(BESetConstraints(be, pc_changes));
     }
     /* the pairs pressing in this solve are counted; their set changes only if another solve follows */
     if (be->self) PetscCall(SelfContactSolveUpdate(be->self, be->xt, (PetscBool) !last, &self_changes));
@@ -718,43 +445,22 @@ static PetscErrorCode BEStep(TS ts, TS_DrapeBE *be, PetscBool *ok)
   PetscFunctionReturn(0);
 }
 
-/* The accepted step into U: x = x0 + h v_t; a constrained particle ends on the
- * surface with no velocity into it (none at all when fixed); a sliding one carries
- * its normal force and sliding velocity into the next step's friction; the impulse
- * the constraints gave. */
+/* The accepted step into U: x = x0 + h v_t, and the velocity v_t that the solid's
+ * constraints leave (ContactSolveAccept: no velocity into the surface). */
 static PetscErrorCode BEAccept(TS ts, TS_DrapeBE *be)
 {
   PetscScalar *u;
 
   PetscFunctionBeginUser;
-  be->impulse[0] = be->impulse[1] = be->impulse[2] = 0;
-  if (be->constrained) PetscCall(BEAcceleration(be));
   PetscCall(VecGetArray(ts->vec_sol, &u));
-  for (PetscInt k = 0; k < be->n / 3; k++) {
-    PetscReal *v = be->vt + 3 * k;
-    for (PetscInt d = 0; d < 3; d++) {
-      u[3 * k + d]          = be->x0[3 * k + d] + be->h * v[d];
-      be->dvlast[3 * k + d] = v[d] - be->v0[3 * k + d];
-    }
-    if (be->constrained && be->ctype[k] != CLOTH_FREE) {
-      const PetscReal *nk = be->cnormal + 3 * k, vn = nk[0] * v[0] + nk[1] * v[1] + nk[2] * v[2];
-      PetscReal        vend[3], lambda = 0, speed = 0;
-      for (PetscInt d = 0; d < 3; d++) {
-        vend[d] = be->ctype[k] == CLOTH_FIXED ? 0 : v[d] - vn * nk[d];
-        lambda += nk[d] * be->mass[k] * (v[d] - be->v0[3 * k + d] - be->h * be->at[3 * k + d]);
-        speed += vend[d] * vend[d];
-        be->impulse[d] += be->mass[k] * (vend[d] - be->v0[3 * k + d] - be->h * be->at[3 * k + d]);
-      }
-      speed          = PetscSqrtReal(speed);
-      be->fnormal[k] = PetscMax(lambda, 0) / be->h;
-      be->fspeed[k]  = speed;
-      for (PetscInt d = 0; d < 3; d++) {
-        be->fdir[3 * k + d] = speed > 0 ? vend[d] / speed : 0;
-        v[d]                = vend[d];
-      }
-    }
-    for (PetscInt d = 0; d < 3; d++) u[be->n + 3 * k + d] = v[d];
+  for (PetscInt i = 0; i < be->n; i++) u[i] = be->x0[i] + be->h * be->vt[i];
+  if (be->contact) { /* after x: a landing changes the velocity, not the position */
+    const ClothConstraint *type;
+    PetscCall(ContactSolveGetConstraints(be->contact, &type, NULL, NULL));
+    if (type) PetscCall(BEAcceleration(be)); /* the constraints' impulses */
+    PetscCall(ContactSolveAccept(be->contact, be->vt, be->at));
   }
+  for (PetscInt i = 0; i < be->n; i++) u[be->n + i] = be->vt[i];
   PetscCall(VecRestoreArray(ts->vec_sol, &u));
   PetscFunctionReturn(0);
 }
@@ -825,14 +531,10 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
   PetscCheck(be->cloth, PetscObjectComm((PetscObject) ts), PETSC_ERR_ARG_WRONGSTATE, "TS type %s needs the cloth: call TSDrapeBESetCloth()", TSDRAPEBE);
   PetscCall(ClothGetInfo(be->cloth, &info));
   PetscCall(ClothGetMasses(be->cloth, &be->mass, &be->pinned));
-  be->damping    = info.damping;
-  be->n          = 3 * info.nowned;
-  be->nparticles = info.nparticles;
-  be->g          = PetscSqrtReal(PetscSqr(info.gravity[0]) + PetscSqr(info.gravity[1]) + PetscSqr(info.gravity[2]));
-  /* a particle at the edge of a contact region is pulled off and pushed on by turns:
-   * released only when it would lift faster than a tenth of what gravity gives it in
-   * a step, such a particle does not make the iterations cycle */
-  be->release      = 0.1 * be->g;
+  be->damping      = info.damping;
+  be->n            = 3 * info.nowned;
+  be->nparticles   = info.nparticles;
+  be->g            = PetscSqrtReal(PetscSqr(info.gravity[0]) + PetscSqr(info.gravity[1]) + PetscSqr(info.gravity[2]));
   be->dt_nominal   = ts->time_step;
   be->h_failed     = PETSC_MAX_REAL;
   be->wait         = 4;
@@ -913,27 +615,8 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
       if (be->weight > 0) PetscCall(KSPSetNormType(ksp, KSP_NORM_UNPRECONDITIONED));
     }
   }
-  {
-    const PetscInt m = be->n / 3;
-    PetscCall(PetscMalloc5(be->n, &be->xt, be->n, &be->vt, be->n, &be->at, be->n, &be->z, be->n, &be->dvlast));
-    PetscCall(PetscArrayzero(be->dvlast, be->n));
-    PetscCall(PetscMalloc6(m, &be->ctype, 3 * m, &be->cnormal, m, &be->ctarget, m, &be->released, m, &be->lifted, m, &be->ctype_pc));
-    PetscCall(PetscMalloc5(m, &be->fnormal, 3 * m, &be->fdir, m, &be->fspeed, 3 * m, &be->fimp, 9 * m, &be->fblock));
-    for (PetscInt k = 0; k < m; k++) {
-      be->ctype[k] = be->ctype_pc[k] = CLOTH_FREE;
-      be->lifted[k]                  = PETSC_FALSE;
-    }
-    PetscCall(PetscArrayzero(be->z, be->n));
-    PetscCall(PetscArrayzero(be->fnormal, m));
-    PetscCall(PetscArrayzero(be->fspeed, m));
-    PetscCall(PetscArrayzero(be->fdir, 3 * m));
-    PetscCall(PetscArrayzero(be->fimp, 3 * m));
-    PetscCall(PetscArrayzero(be->fblock, 9 * m));
-  }
-  if (be->contact) {
-    PetscCall(ContactGetMode(be->contact, &be->mode, &be->mu, &be->stick_velocity));
-    PetscCall(ContactGetThickness(be->contact, &be->thickness));
-  }
+  PetscCall(PetscMalloc3(be->n, &be->xt, be->n, &be->vt, be->n, &be->at));
+  if (be->contact) PetscCall(ContactSolveSetUp(be->contact));
   PetscCall(SNESSetFunction(snes, be->R, BEFunction, be));
   PetscCall(SNESSetJacobian(snes, be->J, be->J, BEJacobian, be));
   PetscFunctionReturn(0);
@@ -950,9 +633,7 @@ static PetscErrorCode TSReset_DrapeBE(TS ts)
   PetscCall(VecDestroy(&be->R));
   PetscCall(VecDestroy(&be->W));
   PetscCall(MatDestroy(&be->J));
-  PetscCall(PetscFree5(be->xt, be->vt, be->at, be->z, be->dvlast));
-  PetscCall(PetscFree6(be->ctype, be->cnormal, be->ctarget, be->released, be->lifted, be->ctype_pc));
-  PetscCall(PetscFree5(be->fnormal, be->fdir, be->fspeed, be->fimp, be->fblock));
+  PetscCall(PetscFree3(be->xt, be->vt, be->at));
   PetscFunctionReturn(0);
 }
 
@@ -963,7 +644,7 @@ static PetscErrorCode TSDrapeBESetCloth_DrapeBE(TS ts, Cloth cloth)
   PetscFunctionReturn(0);
 }
 
-static PetscErrorCode TSDrapeBESetContact_DrapeBE(TS ts, Contact contact)
+static PetscErrorCode TSDrapeBESetContact_DrapeBE(TS ts, ContactSolve contact)
 {
   PetscFunctionBeginUser;
   ((TS_DrapeBE *) ts->data)->contact = contact;
@@ -982,7 +663,7 @@ static PetscErrorCode TSDrapeBEGetContactImpulse_DrapeBE(TS ts, PetscReal impuls
   TS_DrapeBE *be = (TS_DrapeBE *) ts->data;
 
   PetscFunctionBeginUser;
-  for (PetscInt d = 0; d < 3; d++) impulse[d] = be->impulse[d];
+  if (be->contact) PetscCall(ContactSolveGetImpulse(be->contact, impulse));
   PetscFunctionReturn(0);
 }
 
@@ -1032,10 +713,10 @@ PetscErrorCode TSDrapeBEStateChanged(TS ts)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode TSDrapeBESetContact(TS ts, Contact contact)
+PetscErrorCode TSDrapeBESetContact(TS ts, ContactSolve contact)
 {
   PetscFunctionBeginUser;
-  PetscTryMethod(ts, "TSDrapeBESetContact_C", (TS, Contact), (ts, contact));
+  PetscTryMethod(ts, "TSDrapeBESetContact_C", (TS, ContactSolve), (ts, contact));
   PetscFunctionReturn(0);
 }
 
@@ -1099,6 +780,7 @@ static PetscErrorCode TSView_DrapeBE(TS ts, PetscViewer viewer)
   if (isascii) {
     PetscCall(PetscViewerASCIIPrintf(viewer, "  drape backward Euler: (M - h dF/dv - h^2 dF/dx) dv = h F, velocity form\n"));
     PetscCall(PetscViewerASCIIPrintf(viewer, "  %" PetscInt_FMT " solves, %" PetscInt_FMT " rejected steps\n", be->nsolves, be->nrejected));
+    if (be->contact) PetscCall(ContactSolveView(be->contact, viewer));
   }
   PetscFunctionReturn(0);
 }

@@ -55,6 +55,7 @@ struct _p_Simulation {
   PetscBool       json;
   Solid           solid;
   Contact         contact; /* NULL when the scene has no solid */
+  ContactSolve    solve;   /* contact inside drapebe's step (contactsolve.h); NULL when contact is */
   SelfContact     self;    /* NULL without -contact_self */
   PetscReal       depth;   /* deepest penetration since the last frame, m */
   PetscInt        ncontact;
@@ -532,6 +533,8 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
   PetscCall(SolidSetFromOptions(s->solid));
   PetscCall(ContactCreate(s->comm, s->solid, &s->contact));
   PetscCall(ContactSetFromOptions(s->contact));
+  PetscCall(ContactSolveCreate(s->comm, s->contact, s->cloth, &s->solve));
+  PetscCall(ContactSolveSetFromOptions(s->solve));
   PetscCall(SelfContactSetFromOptions(s->self));
   PetscCall(OutputSetFromOptions(s->output));
   PetscCall(CheckOptionsApply(s));
@@ -563,7 +566,10 @@ PetscErrorCode SimulationSetUp(Simulation s)
   {
     PetscBool empty;
     PetscCall(SolidIsEmpty(s->solid, &empty));
-    if (empty) PetscCall(ContactDestroy(&s->contact)); /* no solid, no contact code */
+    if (empty) { /* no solid, no contact code */
+      PetscCall(ContactSolveDestroy(&s->solve));
+      PetscCall(ContactDestroy(&s->contact));
+    }
   }
   {
     PetscBool self;
@@ -590,7 +596,7 @@ PetscErrorCode SimulationSetUp(Simulation s)
   s->n = 3 * info.nowned;
   if (s->self && s->contact) { /* what sticky contact holds, for the filter */
     ContactMode mode;
-    PetscCall(ContactGetMode(s->contact, &mode, NULL, NULL));
+    PetscCall(ContactGetMode(s->contact, &mode, NULL));
     if (mode == CONTACT_STICKY) PetscCall(PetscMalloc1(info.nowned + 1, &s->held));
   }
   PetscCall(VecCreateMPI(s->comm, 2 * s->n, PETSC_DETERMINE, &s->U));
@@ -684,7 +690,7 @@ PetscErrorCode SimulationSetUp(Simulation s)
     if (implicit) PetscCall(ClothSetUpImplicit(s->cloth)); /* else at the first Hessian product, if any (small lattices' stability estimate) */
   }
   PetscCall(TSDrapeBESetCloth(s->ts, s->cloth));
-  if (s->contact) PetscCall(TSDrapeBESetContact(s->ts, s->contact));
+  if (s->solve) PetscCall(TSDrapeBESetContact(s->ts, s->solve));
   if (s->self) {
     PetscBool in_solve;
     PetscCall(SelfContactSolveEnabled(s->self, &in_solve));
@@ -778,6 +784,7 @@ PetscErrorCode SimulationDestroy(Simulation *sim)
   PetscCall(ISDestroy(&s->is_v));
   PetscCall(OutputDestroy(&s->output));
   PetscCall(ReportDestroy(&s->report));
+  PetscCall(ContactSolveDestroy(&s->solve));
   PetscCall(ContactDestroy(&s->contact));
   PetscCall(SelfContactDestroy(&s->self));
   PetscCall(PetscFree(s->held));

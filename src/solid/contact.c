@@ -1,5 +1,6 @@
 /* Particle-solid contact: projection and velocity constraints after a step (all
- * schemes), and the cached distance queries the implicit step's constraints use. */
+ * schemes), and the cached distance queries the implicit step's constraints use
+ * (src/solid/contactsolve.c). */
 #include <solid.h>
 #include <drape.h>
 #include <petscviewer.h>
@@ -19,7 +20,7 @@ struct _p_Contact {
   MPI_Comm     comm;
   Solid        solid;
   ContactMode  mode;
-  PetscReal    thickness, mu, stick_velocity;
+  PetscReal    thickness, mu;
   ContactCache owned; /* one entry per owned particle */
 };
 
@@ -60,13 +61,12 @@ PetscErrorCode ContactCreate(MPI_Comm comm, Solid solid, Contact *contact)
 
   PetscFunctionBeginUser;
   PetscCall(PetscNew(&c));
-  c->comm           = comm;
-  c->solid          = solid;
-  c->mode           = CONTACT_STICKY;
-  c->thickness      = 2e-3;
-  c->mu             = 0.3;
-  c->stick_velocity = 1e-5;
-  *contact          = c;
+  c->comm      = comm;
+  c->solid     = solid;
+  c->mode      = CONTACT_STICKY;
+  c->thickness = 2e-3;
+  c->mu        = 0.3;
+  *contact     = c;
   PetscFunctionReturn(0);
 }
 
@@ -79,13 +79,10 @@ PetscErrorCode ContactSetFromOptions(Contact c)
   PetscCall(PetscOptionsEList("-contact_mode", "sticky (the paper: v = 0 on the surface), friction (Coulomb), frictionless", "ContactSetFromOptions", mode_names, 3, mode_names[imode], &imode, NULL));
   PetscCall(PetscOptionsReal("-contact_thickness", "Distance from the solid at which particles are in contact (m)", "ContactSetFromOptions", c->thickness, &c->thickness, NULL));
   PetscCall(PetscOptionsReal("-contact_friction", "Coulomb friction coefficient mu (static = kinetic)", "ContactSetFromOptions", c->mu, &c->mu, NULL));
-  PetscCall(PetscOptionsReal("-contact_stick_velocity", "Backward Euler: sliding speed below which friction is static friction smoothed into a viscous force (it creeps at most this fast, m/s)", "ContactSetFromOptions", c->stick_velocity,
-                             &c->stick_velocity, NULL));
   PetscOptionsEnd();
   c->mode = (ContactMode) imode;
   PetscCall(DrapeCheckReal(c->comm, "-contact_thickness", 1, &c->thickness, 0, 1, "m"));
   PetscCall(DrapeCheckReal(c->comm, "-contact_friction", 1, &c->mu, 0, 10, ""));
-  PetscCall(DrapeCheckReal(c->comm, "-contact_stick_velocity", 1, &c->stick_velocity, 1e-12, 1, "m/s"));
   PetscFunctionReturn(0);
 }
 
@@ -107,12 +104,11 @@ PetscErrorCode ContactDestroy(Contact *c)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode ContactGetMode(Contact c, ContactMode *mode, PetscReal *mu, PetscReal *stick_velocity)
+PetscErrorCode ContactGetMode(Contact c, ContactMode *mode, PetscReal *mu)
 {
   PetscFunctionBeginUser;
   if (mode) *mode = c->mode;
   if (mu) *mu = c->mode == CONTACT_FRICTION ? c->mu : 0;
-  if (stick_velocity) *stick_velocity = c->stick_velocity;
   PetscFunctionReturn(0);
 }
 
