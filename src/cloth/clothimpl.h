@@ -107,8 +107,11 @@ struct _p_Cloth {
   char             outline[PETSC_MAX_PATH_LEN]; /* polygon file (-cloth_outline)  */
   PetscInt         nring, *ring_start;          /* rings: outer boundary, holes     */
   PetscReal       *ring_xy;                     /* vertices, 2 each, all rings      */
-  unsigned char   *mask;                        /* active flag per lattice particle */
-  PartitionType    partition;
+  /* the activity of the lattice around the rank's particles (ClothIsActive computes
+   * it elsewhere): columns act_i0 .. act_i0 + act_w - 1, rows act_j0 .. */
+  PetscInt       act_i0, act_j0, act_w, act_h;
+  unsigned char *act;
+  char           partition[64];                /* -cloth_partition: dmda, metis, ptscotch, ... */
   PetscInt (*work)(void *, const PetscReal *); /* particle work at its initial position */
   void     *work_ctx;
   PetscInt *pin_list, npin_list; /* (i, j) pairs */
