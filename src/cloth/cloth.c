@@ -520,16 +520,25 @@ static inline PetscBool ActiveFromNeighbourhood(const PetscBool in[9])
   return PETSC_FALSE;
 }
 
-PetscBool ClothIsActive(Cloth c, PetscInt i, PetscInt j)
+/* Activity outside the kept box: from the outline. */
+static __attribute__((noinline)) PetscBool ActiveFromOutline(Cloth c, PetscInt i, PetscInt j)
 {
   PetscBool in[9];
 
-  if (c->shape == CLOTH_SQUARE) return PETSC_TRUE;
-  if (c->act && i >= c->act_i0 && i < c->act_i0 + c->act_w && j >= c->act_j0 && j < c->act_j0 + c->act_h) return (PetscBool) c->act[(j - c->act_j0) * c->act_w + i - c->act_i0];
   if (!InsideShape(c, i, j)) return PETSC_FALSE;
   for (PetscInt k = 0; k < 9; k++) in[k] = InsideShape(c, i + k % 3 - 1, j + k / 3 - 1);
   return ActiveFromNeighbourhood(in);
 }
+
+/* ClothIsActive, inlined into the set-up's loops (hundreds of calls per particle). */
+static inline PetscBool Active(Cloth c, PetscInt i, PetscInt j)
+{
+  if (c->shape == CLOTH_SQUARE) return PETSC_TRUE;
+  if (c->act && i >= c->act_i0 && i < c->act_i0 + c->act_w && j >= c->act_j0 && j < c->act_j0 + c->act_h) return (PetscBool) c->act[(j - c->act_j0) * c->act_w + i - c->act_i0];
+  return ActiveFromOutline(c, i, j);
+}
+
+PetscBool ClothIsActive(Cloth c, PetscInt i, PetscInt j) { return Active(c, i, j); }
 
 /* The activity of columns i0 .. i1 - 1 and rows j0 .. j1 - 1 (clipped to the
  * lattice), kept for ClothIsActive: the rank's particles and their neighbours. */
@@ -597,7 +606,7 @@ static PetscBool IsPinned(Cloth c, PetscInt i, PetscInt j)
 static inline PetscBool CellIn(Cloth c, PetscInt i, PetscInt j)
 {
   if (i < 0 || j < 0 || i + 1 >= c->Mx || j + 1 >= c->My) return PETSC_FALSE;
-  return (PetscBool) (ClothIsActive(c, i, j) && ClothIsActive(c, i + 1, j) && ClothIsActive(c, i, j + 1) && ClothIsActive(c, i + 1, j + 1));
+  return (PetscBool) (Active(c, i, j) && Active(c, i + 1, j) && Active(c, i, j + 1) && Active(c, i + 1, j + 1));
 }
 
 /* Fraction of a full particle's area dx dy that particle (i, j) stands for. */
@@ -621,7 +630,7 @@ static PetscReal TripleShare(Cloth c, PetscInt i, PetscInt j, PetscInt di, Petsc
 static PetscBool TripleIn(Cloth c, PetscInt i, PetscInt j, PetscInt di, PetscInt dj)
 {
   if (i - di < 0 || i + di < 0 || i - di >= c->Mx || i + di >= c->Mx || j - dj < 0 || j + dj < 0 || j - dj >= c->My || j + dj >= c->My) return PETSC_FALSE;
-  return (PetscBool) (ClothIsActive(c, i - di, j - dj) && ClothIsActive(c, i, j) && ClothIsActive(c, i + di, j + dj));
+  return (PetscBool) (Active(c, i - di, j - dj) && Active(c, i, j) && Active(c, i + di, j + dj));
 }
 
 /* Weight of the bending triple along (di, dj) centred on (i, j): its particle's share
@@ -717,6 +726,12 @@ static inline PetscInt MapLocal(const ClothLocalMap *m, PetscInt i, PetscInt j)
   return i >= 0 && i < m->w && j >= 0 && j < m->h ? m->l[j * m->w + i] : -1;
 }
 
+static inline PetscBool MapOwned(const ClothLocalMap *m, PetscInt nowned, PetscInt i, PetscInt j)
+{
+  const PetscInt l = MapLocal(m, i, j);
+  return (PetscBool) (l >= 0 && l < nowned);
+}
+
 /* Build the element lists: every element with at least one owned particle (so
  * owned particles receive all their forces without a reverse scatter), in natural
  * lattice order, its energy counted by the owner of its first or vertex particle.
@@ -731,8 +746,8 @@ static PetscErrorCode ClothBuildElements(Cloth c, const ClothLocalMap *map)
   KernelBendLaw      law[3]; /* warp, weft and diagonal triples */
 
 #define LOCAL(i, j) MapLocal(map, i, j)
-#define OWNED(i, j) (MapLocal(map, i, j) >= 0 && MapLocal(map, i, j) < nowned)
-#define ACT(i, j)   ClothIsActive(c, i, j)
+#define OWNED(i, j) MapOwned(map, nowned, i, j)
+#define ACT(i, j)   Active(c, i, j)
   PetscFunctionBeginUser;
   PetscCall(ElementsAllocate(st, 2 * nl, 2));
   PetscCall(ElementsAllocate(sh, 4 * nl, 3));
@@ -855,7 +870,7 @@ static void InitialPosition(Cloth c, PetscInt i, PetscInt j, PetscBool imperfect
   }
 }
 
-static PetscBool ActiveCallback(void *ctx, PetscInt i, PetscInt j) { return ClothIsActive((Cloth) ctx, i, j); }
+static PetscBool ActiveCallback(void *ctx, PetscInt i, PetscInt j) { return Active((Cloth) ctx, i, j); }
 
 /* The 12 interaction neighbours (paper Fig. 2), and the 4 of the diagonal bending
  * triples: whatever a kernel of an owned particle touches is owned or one of these
@@ -965,24 +980,25 @@ static PetscErrorCode ClothBuildLayout(Cloth c, const PartitionBlocks *b, const 
   PetscCall(PetscMalloc1(map->w * map->h + 1, &map->l));
   for (PetscInt q = 0; q < map->w * map->h; q++) map->l[q] = -1;
   for (PetscInt k = 0; k < c->nowned; k++) map->l[(owned[k] / Mx - map->j0) * map->w + owned[k] % Mx - map->i0] = k;
-  for (PetscInt k = 0; k < c->nowned; k++)
+  /* the ghosts: the other particles of the box with an owned neighbour (a ghost's
+   * number marks it; the owned are those below nowned) */
+  for (PetscInt q = 0; q < map->w * map->h; q++) {
+    const PetscInt i = map->i0 + q % map->w, j = map->j0 + q / map->w;
+    if (map->l[q] >= 0) continue;
     for (PetscInt s = 0; s < nneighbour; s++) {
-      const PetscInt i = owned[k] % Mx + neighbours[s][0], j = owned[k] / Mx + neighbours[s][1];
-      PetscInt      *l = map->l + (j - map->j0) * map->w + i - map->i0;
-      if (i >= 0 && i < Mx && j >= 0 && j < My && *l == -1) {
-        *l = -2;
-        nghost++;
+      const PetscInt l = MapLocal(map, i + neighbours[s][0], j + neighbours[s][1]);
+      if (l >= 0 && l < c->nowned) {
+        map->l[q] = c->nowned + nghost++;
+        break;
       }
     }
+  }
   c->nlocal = c->nowned + nghost;
   PetscCall(PetscMalloc1(c->nlocal + 1, &c->natural));
   PetscCall(PetscArraycpy(c->natural, owned, c->nowned));
   PetscCall(PetscFree(owned));
-  for (PetscInt q = 0, g = c->nowned; q < map->w * map->h; q++)
-    if (map->l[q] == -2) {
-      c->natural[g] = (map->j0 + q / map->w) * Mx + map->i0 + q % map->w;
-      map->l[q]     = g++;
-    }
+  for (PetscInt q = 0; q < map->w * map->h; q++)
+    if (map->l[q] >= c->nowned) c->natural[map->l[q]] = (map->j0 + q / map->w) * Mx + map->i0 + q % map->w;
   /* global block numbers; one array where they are the natural ones (one rank) */
   PetscCall(PetscMalloc1(c->nlocal + 1, &c->global));
   for (PetscInt k = 0; k < c->nowned; k++) c->global[k] = c->rstart + k;
@@ -1108,7 +1124,7 @@ PetscErrorCode ClothSetUp(Cloth c)
     PetscInt nact = 0;
     PetscCall(ClothActivityPatch(c, i0 - 4, i1 + 4, j0 - 4, j1 + 4));
     for (PetscInt j = j0; j < j1; j++)
-      for (PetscInt i = i0; i < i1; i++) nact += ClothIsActive(c, i, j);
+      for (PetscInt i = i0; i < i1; i++) nact += Active(c, i, j);
     PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &nact, 1, MPIU_INT, MPI_SUM, c->comm));
     PetscCheck(nact > 0, c->comm, PETSC_ERR_USER_INPUT, "No lattice particle lies inside the cloth's outline; check -cloth_outline against -cloth_size");
   }
@@ -1136,7 +1152,7 @@ PetscErrorCode ClothSetUp(Cloth c)
   mass = 0;
   for (PetscInt k = 0; k < c->nowned; k++) {
     PetscInt i = c->natural[k] % c->Mx, j = c->natural[k] / c->Mx;
-    c->active[k] = ClothIsActive(c, i, j);
+    c->active[k] = Active(c, i, j);
     c->mass[k]   = c->density * c->spacing[0] * c->spacing[1] * (c->active[k] ? ClothCellWeight(c, i, j) : 1); /* inactive: held like a pin, a nominal mass for the matrix */
     c->pinned[k] = (PetscBool) (IsPinned(c, i, j) || !c->active[k]);
     if (c->active[k]) mass += c->mass[k];
@@ -1187,7 +1203,7 @@ PetscErrorCode ClothSetUpImplicit(Cloth c)
   PetscCall(PetscMalloc1(c->nlocal, &c->pinned_local));
   for (PetscInt l = 0; l < c->nlocal; l++) {
     PetscInt i = c->natural[l] % c->Mx, j = c->natural[l] / c->Mx;
-    c->pinned_local[l] = (PetscBool) (IsPinned(c, i, j) || !ClothIsActive(c, i, j));
+    c->pinned_local[l] = (PetscBool) (IsPinned(c, i, j) || !Active(c, i, j));
     c->col_map[l]      = c->pinned_local[l] ? -1 : c->global[l];
   }
   if (c->nlocal == c->nowned) /* no ghosts: every row is a column */
