@@ -1030,15 +1030,23 @@ static PetscErrorCode ClothBuildLayout(Cloth c, const PartitionBlocks *b, const 
       c->global = c->natural;
     }
   }
-  /* vectors and the ghost scatter: the global vector only ever wraps caller arrays;
-   * the positions need a local copy only with ghosts (ClothScatterPositions) */
+  /* the global vector only ever wraps caller arrays; the ghost scatter and the local
+   * copy of the positions are made where the element lists' loops first need them
+   * (ClothSetUpGhosts): the explicit schemes' lattice kernel has its own */
   PetscCall(VecCreateMPIWithArray(c->comm, 3, 3 * c->nowned, PETSC_DETERMINE, NULL, &c->Xg));
-  if (nghost) {
+  PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &nghost, 1, MPIU_INT, MPI_MAX, c->comm));
+  c->any_ghost = (PetscBool) (nghost > 0);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ClothSetUpGhosts(Cloth c)
+{
+  PetscFunctionBeginUser;
+  if (c->any_ghost && !c->ghost) PetscCall(ClothBuildGhostScatter(c));
+  if (c->nlocal > c->nowned && !c->Xl) {
     PetscCall(VecCreateSeq(PETSC_COMM_SELF, 3 * c->nlocal, &c->Xl));
     PetscCall(VecSetBlockSize(c->Xl, 3));
   }
-  PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &nghost, 1, MPIU_INT, MPI_MAX, c->comm));
-  if (nghost) PetscCall(ClothBuildGhostScatter(c)); /* else only ClothSetUpImplicit needs it */
   PetscFunctionReturn(0);
 }
 
@@ -1197,6 +1205,7 @@ PetscErrorCode ClothSetUpImplicit(Cloth c)
   PetscCheck(c->setup, c->comm, PETSC_ERR_ORDER, "ClothSetUpImplicit needs ClothSetUp first");
   if (c->Zl) PetscFunctionReturn(0);
   if (!c->ghost) PetscCall(ClothBuildGhostScatter(c));
+  PetscCall(ClothSetUpGhosts(c));
   PetscCall(VecCreateSeq(PETSC_COMM_SELF, 3 * c->nlocal, &c->Zl));
   PetscCall(VecSetBlockSize(c->Zl, 3));
   PetscCall(PetscMalloc1(c->nlocal, &c->col_map));

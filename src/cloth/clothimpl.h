@@ -128,7 +128,8 @@ struct _p_Cloth {
   /* Xg: global, wraps caller arrays; Yl: local (owned + ghost) force; Xl: local
    * positions, only with ghosts (ClothScatterPositions); Zl: ClothSetUpImplicit */
   Vec        Xg, Xl, Yl, Zl;
-  VecScatter ghost;                      /* global -> local (without ghosts: a copy)           */
+  VecScatter ghost;                      /* global -> local (without ghosts: a copy); ClothSetUpGhosts */
+  PetscBool  any_ghost;                  /* some rank has ghosts                               */
   VecScatter to_dmda;                    /* Cloth order -> DMDA order (NULL: the same)         */
   PetscInt  *natural;                    /* local -> natural lattice index j Mx + i            */
   PetscInt   rstart;                     /* global block number of the first owned particle    */
@@ -222,6 +223,9 @@ static inline void ElementHessian(Cloth c, PetscBool project, PetscInt kind, Pet
  * Hessian product, made at its first use (the lattice kernel needs none). Not
  * collective. */
 PETSC_INTERN PetscErrorCode ClothGetLocalWork(Cloth, Vec *);
+/* The ghost scatter and the local copy of the positions, at their first use
+ * (ClothScatterPositions, ClothSetUpImplicit). Collective. */
+PETSC_INTERN PetscErrorCode ClothSetUpGhosts(Cloth);
 PETSC_INTERN PetscErrorCode ClothScatterPositions(Cloth, const PetscScalar *, const PetscScalar **);
 PETSC_INTERN PetscErrorCode ClothEndScatter(Cloth, const PetscScalar **);
 
