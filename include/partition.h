@@ -4,10 +4,10 @@
  * each particle of the home block the rank that will own it: the home rank itself
  * (dmda), a part of a serial METIS k-way partition (metis: the whole graph on rank
  * 0), or a part of a parallel partition through PETSc's MatPartitioning (ptscotch,
- * parmetis where PETSc has them: the graph distributed as a MATMPIADJ, each rank
- * building its home block's rows). The physics kernels never see this: the Cloth
- * turns the destinations into local particle lists, element lists, a ghost
- * scatter and a local-to-global map. */
+ * parmetis where PETSc has them: the graph of 2 x 2 tiles of particles distributed
+ * as a MATMPIADJ, each rank building its home block's rows). The physics kernels
+ * never see this: the Cloth turns the destinations into local particle lists,
+ * element lists, a ghost scatter and a local-to-global map. */
 #pragma once
 
 #include <petscdm.h>

@@ -28,7 +28,7 @@ Per run:
 
 Output in --out (default out/setup_scaling): setup_scaling.csv, setup_scaling.md.
 
-    python3 scripts/setup_scaling.py --sizes 2048 --ranks 1,2,4     # about 5 minutes here
+    python3 scripts/setup_scaling.py --sizes 2048 --partitions dmda,ptscotch,metis   # 1-8 ranks: about 7 minutes here
     python3 scripts/setup_scaling.py --quick --out /tmp/ss           # smoke run, seconds
 """
 import argparse
