@@ -1,7 +1,7 @@
 /* The cloth: a lattice of particles at warp/weft crossings (paper sections 2-3).
  *
  * A Cloth owns the lattice, the material, the pins, the lumped masses, the
- * partition (DMDA blocks or METIS, -cloth_partition: which rank owns which
+ * partition (DMDA blocks or a graph partition, -cloth_partition: which rank owns which
  * particle), the ghost exchange and the local element lists (stretch edges, shear
  * corners, bending triples) that the physics kernels loop over. Every array handed
  * out by the functions below is in "owned-particle order": 3 entries per particle
@@ -29,7 +29,7 @@ typedef struct {
   PetscInt    nparticles, npinned;        /* global counts                        */
   PetscInt    nactive;                    /* particles inside the cloth's outline */
   PetscInt    owned_min, owned_max, ncut; /* active particles per rank, stretch edges cut by the partition */
-  const char *partition;                  /* dmda or metis                        */
+  const char *partition;                  /* dmda, metis, ptscotch or parmetis    */
   PetscInt    nstretch, nshear, nbend;    /* global element counts                */
   PetscInt    nowned;                     /* particles owned by this rank         */
   PetscReal   mass;                       /* total mass, kg                       */
@@ -71,7 +71,7 @@ PETSC_EXTERN PetscErrorCode ClothGetNatural(Cloth, const PetscInt **);
 /* A vector in owned-particle order (3 entries per particle, block size 3). Collective. */
 PETSC_EXTERN PetscErrorCode ClothCreateVector(Cloth, Vec *);
 /* Owned-order array <-> DMDA global vector (whose VecView/VecLoad are in natural
- * order): a copy for -cloth_partition dmda, a scatter for metis. Collective. */
+ * order): a copy for -cloth_partition dmda, a scatter for a graph partition. Collective. */
 PETSC_EXTERN PetscErrorCode ClothToDMDA(Cloth, const PetscScalar *x, Vec Xda);
 PETSC_EXTERN PetscErrorCode ClothFromDMDA(Cloth, Vec Xda, PetscScalar *x);
 /* Lumped particle masses and pin flags, owned-particle order (1 entry each). Not
@@ -85,7 +85,7 @@ PETSC_EXTERN PetscBool ClothIsActive(Cloth, PetscInt i, PetscInt j);
 /* Owned-order active flags. ClothIsActive and ClothGetActive: not collective. */
 PETSC_EXTERN PetscErrorCode ClothGetActive(Cloth, const PetscBool **);
 
-/* Work of a particle, from its initial position, for -cloth_partition metis to
+/* Work of a particle, from its initial position, for a graph partition to
  * balance (e.g. contact candidates count more); call before ClothSetUp. Not
  * collective. */
 PETSC_EXTERN PetscErrorCode ClothSetPartitionWeight(Cloth, PetscInt (*work)(void *, const PetscReal x[3]), void *ctx);

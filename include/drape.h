@@ -10,7 +10,7 @@
 /* Log events and stages, registered once by DrapeInitialize(); -log_view shows them. */
 typedef struct {
   PetscClassId  classid;
-  PetscLogEvent forces, energies, jacobian, linear_solve, output, stability, contact, self_contact, self_broad;
+  PetscLogEvent forces, energies, jacobian, linear_solve, output, stability, contact, self_contact, self_broad, cloth_setup, partition;
   PetscLogStage setup, timeloop;
 } DrapeLog;
 

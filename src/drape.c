@@ -190,6 +190,8 @@ PetscErrorCode DrapeInitialize(void)
   PetscCall(PetscLogEventRegister("DrapeContact", drape_log.classid, &drape_log.contact));
   PetscCall(PetscLogEventRegister("DrapeSelfContact", drape_log.classid, &drape_log.self_contact));
   PetscCall(PetscLogEventRegister("DrapeSelfBroad", drape_log.classid, &drape_log.self_broad));
+  PetscCall(PetscLogEventRegister("DrapeClothSetUp", drape_log.classid, &drape_log.cloth_setup));
+  PetscCall(PetscLogEventRegister("DrapePartition", drape_log.classid, &drape_log.partition));
   PetscCall(PetscLogStageRegister("Setup", &drape_log.setup));
   PetscCall(PetscLogStageRegister("Time loop", &drape_log.timeloop));
   PetscFunctionReturn(0);

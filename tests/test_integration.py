@@ -136,7 +136,7 @@ def test_help_lists_drape_options():
 def test_small_lattices_on_many_ranks_and_solver_options(tmp):
     """More ranks than a coarse lattice has rows, with either partition, runs (no
     hang); the implicit matrix type option is read, not refused."""
-    for part in ("dmda", "metis"):
+    for part in ("dmda", "metis", "ptscotch"):
         run(f"-da_grid_x 5 -da_grid_y 5 -cloth_partition {part} -ts_max_steps 5", np_=4)
     run("-ts_type drapebe -ts_dt 1e-3 -ts_max_time 0.01 -drape_mat_type aij")
 

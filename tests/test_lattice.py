@@ -47,7 +47,7 @@ def test_lattice_kernel_moves_the_cloth_as_the_element_lists(tmp, case):
     assert np.abs(lat.strain_max - ref.strain_max).max() <= 1e-9 * np.abs(ref.strain_max).max()
 
 
-@pytest.mark.parametrize("np_,partition", [(2, "dmda"), (3, "metis"), (4, "dmda")])
+@pytest.mark.parametrize("np_,partition", [(2, "dmda"), (3, "metis"), (4, "dmda"), (3, "ptscotch")])
 def test_lattice_kernel_on_any_partition(tmp, np_, partition):
     """A patch per rank (a DMDA block, or the bounding box of a METIS part with empty
     slots): the same frames as on one rank, for the circle (cut cells, classes of

@@ -1,5 +1,6 @@
-"""Partitions: DMDA blocks or METIS k-way give the same frames on 1-4 ranks, and
-METIS balances an irregular (circular) cloth that DMDA blocks cannot."""
+"""Partitions: DMDA blocks, serial METIS k-way or PT-Scotch through PETSc's
+MatPartitioning give the same frames on 1-4 ranks, and the graph partitions balance
+an irregular (circular) cloth that DMDA blocks cannot."""
 import numpy as np
 import pytest
 
@@ -20,7 +21,7 @@ def test_same_frames_for_every_partition_and_rank_count(tmp, scheme, tol):
     a = drape_h5.load(ref)
     assert a.energies["kinetic"][-1] > 0
     for np_ in (2, 3, 4):
-        for part in ("dmda", "metis"):
+        for part in ("dmda", "metis", "ptscotch"):
             out = tmp / f"{part}{np_}.h5"
             run(f"{CIRCLE} {scheme} -cloth_partition {part} -output_file {out}", np_=np_)
             b = drape_h5.load(out)
@@ -32,15 +33,30 @@ def quality(res):
     return int(m[0]), int(m[1]), printed(res, r"imbalance ([0-9.]+)"), printed(res, r"(\d+) of \d+ stretch edges cut", int)
 
 
-def test_metis_balances_a_circular_cloth():
-    """Every rank owns particles; METIS keeps the imbalance below 5 % on 3 ranks
-    where DMDA's row blocks of a disc are over 20 % off, with a comparable cut."""
+@pytest.mark.parametrize("part", ["metis", "ptscotch"])
+def test_graph_partition_balances_a_circular_cloth(part):
+    """Every rank owns particles; METIS and PT-Scotch keep the imbalance below 5 % on 3
+    ranks where DMDA's row blocks of a disc are over 20 % off, with a comparable cut."""
     base = "-da_grid_x 41 -da_grid_y 41 -cloth_shape circle -ts_max_steps 0"
     dmda = quality(run(f"{base} -cloth_partition dmda", np_=3))
-    metis = quality(run(f"{base} -cloth_partition metis", np_=3))
-    assert metis[0] > 0 and dmda[0] > 0
-    assert metis[2] < 1.05 < 1.2 < dmda[2], (metis, dmda)
-    assert metis[3] <= 1.5 * dmda[3]
+    graph = quality(run(f"{base} -cloth_partition {part}", np_=3))
+    assert graph[0] > 0 and dmda[0] > 0
+    assert graph[2] < 1.05 < 1.2 < dmda[2], (graph, dmda)
+    assert graph[3] <= 1.5 * dmda[3]
+
+
+def test_ptscotch_balances_the_cusick_disc_on_4_ranks():
+    """The Cusick specimen (runs/cusick.opts) on 4 ranks: PT-Scotch within 5 %."""
+    res = run("-options_file runs/cusick.opts -ts_max_steps 0 -cloth_partition ptscotch", np_=4)
+    lo, hi, imbalance, cut = quality(res)
+    assert lo > 0 and imbalance < 1.05, (lo, hi, imbalance, cut)
+
+
+def test_a_partitioner_petsc_lacks_is_refused_with_those_it_has():
+    res = run("-da_grid_x 8 -da_grid_y 8 -ts_max_steps 1 -cloth_partition nosuch", check=False)
+    msg = res.stdout + res.stderr
+    assert res.returncode != 0 and "-cloth_partition nosuch is not a partitioner this build has" in msg, msg
+    assert "it has dmda, metis, ptscotch" in msg and "PETSC ERROR" not in msg, msg
 
 
 def inside(polys, x, y):
@@ -59,7 +75,7 @@ def test_polygon_panel_with_a_hole(tmp):
     """A cut garment panel with a hole (runs/outlines/panel.txt): the cloth is exactly
     the lattice cells whose four corners lie inside (even-odd rule), its mass their
     area times the density; the particles of no such cell (the hole's, the cut's
-    spikes) never move, and METIS on 3 ranks gives the 1-rank frames."""
+    spikes) never move, and METIS and PT-Scotch on 3 ranks give the 1-rank frames."""
     from conftest import ROOT
     rings, ring = [], []
     for line in (ROOT / "runs/outlines/panel.txt").read_text().splitlines():
@@ -82,7 +98,10 @@ def test_polygon_panel_with_a_hole(tmp):
     one, three = tmp / "one.h5", tmp / "three.h5"
     res = run(f"{args} -output_file {one}")
     run(f"{args} -cloth_partition metis -output_file {three}", np_=3)
+    scotch = tmp / "scotch.h5"
+    run(f"{args} -cloth_partition ptscotch -output_file {scotch}", np_=3)
     a, b = drape_h5.load(one), drape_h5.load(three)
+    assert np.abs(a.positions - drape_h5.load(scotch).positions).max() <= ROUNDOFF
     cell = active[:-1, :-1] & active[1:, :-1] & active[:-1, 1:] & active[1:, 1:]
     corner = np.zeros_like(active)
     for dj in (0, 1):

@@ -263,3 +263,20 @@ def test_bad_input_from_the_command_line(tmp_path):
     res = script("render.py", tmp_path / "missing.h5")
     assert res.returncode == 2
     assert res.stderr.strip().splitlines()[-1] == f"render.py: error: {tmp_path / 'missing.h5'}: no such file"
+
+
+def test_setup_scaling_quick(tmp_path):
+    """scripts/setup_scaling.py --quick: a 64^2 disc set up on 1 and 2 ranks with the
+    DMDA's blocks and PT-Scotch; every row has its times, memory per rank above the
+    fixed cost, and a balanced partition."""
+    import csv
+    res = script("setup_scaling.py", "--quick", "--out", tmp_path)
+    assert res.returncode == 0, res.stdout + res.stderr
+    with open(tmp_path / "setup_scaling.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [(r["ranks"], r["partition"]) for r in rows] == [("1", "dmda"), ("1", "ptscotch"), ("2", "dmda"), ("2", "ptscotch")]
+    for r in rows:
+        assert r["N"] == "64" and float(r["cloth_setup_s"]) > 0 and float(r["setup_stage_s"]) >= float(r["cloth_setup_s"])
+        assert float(r["rank_max_mib"]) >= float(r["rank_min_mib"]) > float(r["fixed_mib"]) * 0.9 > 0
+        assert float(r["imbalance"]) < 1.1
+    assert "| 64 | 2 | ptscotch |" in (tmp_path / "setup_scaling.md").read_text()

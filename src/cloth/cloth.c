@@ -1,6 +1,7 @@
 /* The cloth lattice: options, DMDA layout, masses, pins and element lists. */
 #include "clothimpl.h"
 #include <petscdmda.h>
+#include <petscsf.h>
 #include <stdint.h>
 #include <partition.h>
 #include <drape.h>
@@ -33,6 +34,7 @@ PetscErrorCode ClothCreate(MPI_Comm comm, Cloth *cloth)
   c->pin         = CLOTH_PIN_NONE;
   c->Mx          = 32;
   c->My          = 32;
+  PetscCall(PetscStrncpy(c->partition, "dmda", sizeof c->partition));
 
   c->hyst_stiffness = CLOTH_HYSTERESIS_STIFFNESS;
 
@@ -255,9 +257,8 @@ static PetscBool InsideOutline(Cloth c, PetscReal x, PetscReal y)
 /* A lattice must fit in PetscInt (drape forms indices up to about 128 per particle:
  * matrix entries, element lists, the METIS graph) and, at least roughly, in memory:
  * refused before anything is allocated, with the limit named. Memory: a lower bound
- * (about 400 bytes per particle for the explicit schemes, 3 PetscInt per particle of
- * the whole lattice on every rank, the METIS graph on rank 0) against what a node
- * has. */
+ * (about 400 bytes per particle of the rank's share for the explicit schemes, and
+ * with -cloth_partition metis the whole graph on rank 0) against what a node has. */
 static PetscErrorCode ClothCheckLatticeSize(Cloth c, PetscInt Mx, PetscInt My)
 {
   const PetscInt64 N = (PetscInt64) Mx * (PetscInt64) My, most = PETSC_MAX_INT / 128;
@@ -276,8 +277,12 @@ static PetscErrorCode ClothCheckLatticeSize(Cloth c, PetscInt Mx, PetscInt My)
   PetscCallMPI(MPI_Comm_size(node, &local));
   PetscCallMPI(MPI_Comm_free(&node));
   PetscCall(DrapeMemoryAvailable(&node_bytes, &process_bytes));
-  need = (PetscLogDouble) N * (3 * sizeof(PetscInt) + 1) + 400.0 * (PetscLogDouble) N / size;
-  if (!rank && c->partition == PARTITION_METIS) need += 17.0 * sizeof(PetscInt) * (PetscLogDouble) N;
+  need = 400.0 * (PetscLogDouble) N / size;
+  {
+    PetscBool metis;
+    PetscCall(PetscStrcmp(c->partition, "metis", &metis));
+    if (!rank && metis) need += 18.0 * sizeof(PetscInt) * (PetscLogDouble) N;
+  }
   fits = (PetscBool) (need * local <= node_bytes && need <= process_bytes);
   PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &fits, 1, MPIU_BOOL, MPI_LAND, c->comm));
   PetscCheck(fits, c->comm, PETSC_ERR_USER_INPUT,
@@ -425,16 +430,26 @@ PetscErrorCode ClothSetFromOptions(Cloth c)
   PetscCheck(!set || npin < 2 * 1024, c->comm, PETSC_ERR_USER_INPUT, "-cloth_pin_list takes at most 1023 pairs; for more, pin an edge or the corners");
   c->npin_list = set ? npin / 2 : 0;
   {
-    PetscInt ipart = (PetscInt) c->partition;
-    PetscCall(PetscOptionsEList("-cloth_partition", "Particles to ranks: dmda (blocks of the lattice) or metis (k-way partition of the interaction graph; balances irregular shapes)", "ClothSetFromOptions", PartitionTypes, 2, PartitionTypes[ipart],
-                                &ipart, NULL));
-    c->partition = (PartitionType) ipart;
+    char list[256], text[1024];
+    PetscCall(PartitionList(list, sizeof list));
+    PetscCall(PetscSNPrintf(text, sizeof text,
+                            "Particles to ranks: dmda (blocks of the lattice), metis (serial METIS k-way partition of the interaction graph, on rank 0), or a parallel partition of the graph through PETSc's MatPartitioning (ptscotch, "
+                            "parmetis); the graph partitions balance irregular shapes. This build: %s",
+                            list));
+    PetscCall(PetscOptionsString("-cloth_partition", text, "ClothSetFromOptions", c->partition, c->partition, sizeof c->partition, NULL));
   }
   PetscCall(PetscOptionsEList("-cloth_hessian", "Hessian in the implicit matrix: projected (SPD, default) or exact (may be indefinite)", "ClothSetFromOptions", hessian_names, 2, hessian_names[0], &hess, NULL));
   PetscOptionsEnd();
   c->pin           = (ClothPinType) ipin;
   c->orientation   = (ClothOrientation) iorient;
   c->exact_hessian = hess == 1 ? PETSC_TRUE : PETSC_FALSE;
+  {
+    PetscBool known;
+    char      list[256];
+    PetscCall(PartitionKnown(c->partition, &known));
+    PetscCall(PartitionList(list, sizeof list));
+    PetscCheck(known, c->comm, PETSC_ERR_USER_INPUT, "-cloth_partition %s is not a partitioner this build has (ptscotch and parmetis need a PETSc configured with PT-Scotch or ParMETIS); it has %s", c->partition, list);
+  }
 
   for (const char *const *name = (const char *const[]){"-da_grid_x", "-da_grid_y", "-da_processors_x", "-da_processors_y", "-da_refine", "-da_refine_x", "-da_refine_y", NULL}; *name; name++)
     PetscCall(DrapeCheckIntOption(c->comm, *name)); /* the DMDA reads these too */
@@ -478,17 +493,79 @@ PetscErrorCode ClothSetFromOptions(Cloth c)
   PetscFunctionReturn(0);
 }
 
-PetscBool ClothIsActive(Cloth c, PetscInt i, PetscInt j)
+/* Is lattice point (i, j) inside the outline (circle or polygon)? Outside the lattice:
+ * no. */
+static PetscBool InsideShape(Cloth c, PetscInt i, PetscInt j)
 {
-  PetscReal a, b, r;
+  PetscReal a, b;
 
+  if (i < 0 || j < 0 || i >= c->Mx || j >= c->My) return PETSC_FALSE;
   if (c->shape == CLOTH_SQUARE) return PETSC_TRUE;
-  if (c->mask) return (PetscBool) c->mask[j * c->Mx + i];
   if (c->shape == CLOTH_POLYGON) return InsideOutline(c, i * c->spacing[0] - 0.5 * c->size[0], j * c->spacing[1] - 0.5 * c->size[1]);
   a = (i - 0.5 * (c->Mx - 1)) / (0.5 * (c->Mx - 1));
   b = (j - 0.5 * (c->My - 1)) / (0.5 * (c->My - 1));
-  r = a * a + b * b;
-  return (PetscBool) (r <= 1 + 1e-12);
+  return (PetscBool) (a * a + b * b <= 1 + 1e-12);
+}
+
+/* The cloth is its lattice cells inside the outline (all four corners inside): a
+ * particle inside that is a corner of no such cell (a spike of the cut) carries no
+ * area and would hang on edges of no width, so it is not part of the cloth. in: the
+ * 3 x 3 points around the particle, row by row. */
+static inline PetscBool ActiveFromNeighbourhood(const PetscBool in[9])
+{
+  if (!in[4]) return PETSC_FALSE;
+  for (PetscInt dj = 0; dj < 2; dj++)
+    for (PetscInt di = 0; di < 2; di++)
+      if (in[3 * dj + di] && in[3 * dj + di + 1] && in[3 * dj + di + 3] && in[3 * dj + di + 4]) return PETSC_TRUE;
+  return PETSC_FALSE;
+}
+
+/* Activity outside the kept box: from the outline. */
+static __attribute__((noinline)) PetscBool ActiveFromOutline(Cloth c, PetscInt i, PetscInt j)
+{
+  PetscBool in[9];
+
+  if (!InsideShape(c, i, j)) return PETSC_FALSE;
+  for (PetscInt k = 0; k < 9; k++) in[k] = InsideShape(c, i + k % 3 - 1, j + k / 3 - 1);
+  return ActiveFromNeighbourhood(in);
+}
+
+/* ClothIsActive, inlined into the set-up's loops (hundreds of calls per particle). */
+static inline PetscBool Active(Cloth c, PetscInt i, PetscInt j)
+{
+  if (c->shape == CLOTH_SQUARE) return PETSC_TRUE;
+  if (c->act && i >= c->act_i0 && i < c->act_i0 + c->act_w && j >= c->act_j0 && j < c->act_j0 + c->act_h) return (PetscBool) c->act[(j - c->act_j0) * c->act_w + i - c->act_i0];
+  return ActiveFromOutline(c, i, j);
+}
+
+PetscBool ClothIsActive(Cloth c, PetscInt i, PetscInt j) { return Active(c, i, j); }
+
+/* The activity of columns i0 .. i1 - 1 and rows j0 .. j1 - 1 (clipped to the
+ * lattice), kept for ClothIsActive: the rank's particles and their neighbours. */
+static PetscErrorCode ClothActivityPatch(Cloth c, PetscInt i0, PetscInt i1, PetscInt j0, PetscInt j1)
+{
+  PetscBool *in;
+  PetscInt   w, h;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscFree(c->act));
+  if (c->shape == CLOTH_SQUARE) PetscFunctionReturn(0);
+  i0 = PetscMax(i0, 0), i1 = PetscMin(i1, c->Mx), j0 = PetscMax(j0, 0), j1 = PetscMin(j1, c->My);
+  w = PetscMax(i1 - i0, 0), h = PetscMax(j1 - j0, 0);
+  /* the outline test once per point, on a frame one wider */
+  PetscCall(PetscMalloc1((w + 2) * (h + 2), &in));
+  for (PetscInt j = 0; j < h + 2; j++)
+    for (PetscInt i = 0; i < w + 2; i++) in[j * (w + 2) + i] = InsideShape(c, i0 + i - 1, j0 + j - 1);
+  PetscCall(PetscMalloc1(w * h + 1, &c->act));
+  for (PetscInt j = 0; j < h; j++)
+    for (PetscInt i = 0; i < w; i++) {
+      PetscBool nb[9];
+      for (PetscInt k = 0; k < 9; k++) nb[k] = in[(j + k / 3) * (w + 2) + i + k % 3];
+      c->act[j * w + i] = (unsigned char) ActiveFromNeighbourhood(nb);
+    }
+  PetscCall(PetscFree(in));
+  c->act_i0 = i0, c->act_j0 = j0, c->act_w = w, c->act_h = h;
+  PetscFunctionReturn(0);
 }
 
 PetscErrorCode ClothGetActive(Cloth c, const PetscBool **active)
@@ -529,7 +606,7 @@ static PetscBool IsPinned(Cloth c, PetscInt i, PetscInt j)
 static inline PetscBool CellIn(Cloth c, PetscInt i, PetscInt j)
 {
   if (i < 0 || j < 0 || i + 1 >= c->Mx || j + 1 >= c->My) return PETSC_FALSE;
-  return (PetscBool) (ClothIsActive(c, i, j) && ClothIsActive(c, i + 1, j) && ClothIsActive(c, i, j + 1) && ClothIsActive(c, i + 1, j + 1));
+  return (PetscBool) (Active(c, i, j) && Active(c, i + 1, j) && Active(c, i, j + 1) && Active(c, i + 1, j + 1));
 }
 
 /* Fraction of a full particle's area dx dy that particle (i, j) stands for. */
@@ -553,7 +630,7 @@ static PetscReal TripleShare(Cloth c, PetscInt i, PetscInt j, PetscInt di, Petsc
 static PetscBool TripleIn(Cloth c, PetscInt i, PetscInt j, PetscInt di, PetscInt dj)
 {
   if (i - di < 0 || i + di < 0 || i - di >= c->Mx || i + di >= c->Mx || j - dj < 0 || j + dj < 0 || j - dj >= c->My || j + dj >= c->My) return PETSC_FALSE;
-  return (PetscBool) (ClothIsActive(c, i - di, j - dj) && ClothIsActive(c, i, j) && ClothIsActive(c, i + di, j + dj));
+  return (PetscBool) (Active(c, i - di, j - dj) && Active(c, i, j) && Active(c, i + di, j + dj));
 }
 
 /* Weight of the bending triple along (di, dj) centred on (i, j): its particle's share
@@ -636,22 +713,41 @@ static PetscErrorCode ElementsDestroy(ClothElements *el)
   PetscFunctionReturn(0);
 }
 
+/* The local index of each lattice particle of a box around the rank's particles
+ * (owned and ghosts), -1 for the others: columns i0 .. i0 + w - 1, rows j0 ... */
+typedef struct {
+  PetscInt  i0, j0, w, h;
+  PetscInt *l;
+} ClothLocalMap;
+
+static inline PetscInt MapLocal(const ClothLocalMap *m, PetscInt i, PetscInt j)
+{
+  i -= m->i0, j -= m->j0;
+  return i >= 0 && i < m->w && j >= 0 && j < m->h ? m->l[j * m->w + i] : -1;
+}
+
+static inline PetscBool MapOwned(const ClothLocalMap *m, PetscInt nowned, PetscInt i, PetscInt j)
+{
+  const PetscInt l = MapLocal(m, i, j);
+  return (PetscBool) (l >= 0 && l < nowned);
+}
+
 /* Build the element lists: every element with at least one owned particle (so
  * owned particles receive all their forces without a reverse scatter), in natural
  * lattice order, its energy counted by the owner of its first or vertex particle.
- * local[n] is the local index of natural particle n, or -1. */
-static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const PetscInt *owner, PetscMPIInt rank)
+ * Each element is found at its anchor (i, j), a neighbour of each of its particles:
+ * the loop runs over the local particles only. */
+static PetscErrorCode ClothBuildElements(Cloth c, const ClothLocalMap *map)
 {
   const PetscReal    dx = c->spacing[0], dy = c->spacing[1];
-  const PetscInt     Mx = c->Mx, My = c->My, nl = c->nlocal;
+  const PetscInt     Mx = c->Mx, My = c->My, nl = c->nlocal, nowned = c->nowned;
   ClothElements     *st = &c->stretch_el, *sh = &c->shear_el, *be = &c->bend_el;
   ClothFrictionList *fr = &c->friction_el;
   KernelBendLaw      law[3]; /* warp, weft and diagonal triples */
 
-#define NAT(i, j)   ((j) *Mx + (i))
-#define LOCAL(i, j) local[NAT(i, j)]
-#define OWNED(i, j) (owner[NAT(i, j)] == rank)
-#define ACT(i, j)   ClothIsActive(c, i, j)
+#define LOCAL(i, j) MapLocal(map, i, j)
+#define OWNED(i, j) MapOwned(map, nowned, i, j)
+#define ACT(i, j)   Active(c, i, j)
   PetscFunctionBeginUser;
   PetscCall(ElementsAllocate(st, 2 * nl, 2));
   PetscCall(ElementsAllocate(sh, 4 * nl, 3));
@@ -661,8 +757,9 @@ static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const P
   ClothTripleLaw(c, 0, dx, &law[0]);
   ClothTripleLaw(c, 1, dy, &law[1]);
   ClothTripleLaw(c, 2, PetscSqrtReal(dx * dx + dy * dy), &law[2]);
-  for (PetscInt j = 0; j < My; j++) {
-    for (PetscInt i = 0; i < Mx; i++) {
+  for (PetscInt j = map->j0; j < map->j0 + map->h; j++) {
+    for (PetscInt i = map->i0; i < map->i0 + map->w; i++) {
+      if (LOCAL(i, j) < 0) continue;
       /* stretch along the warp (i) and the weft (j) */
       if (c->stretch[0] > 0 && i + 1 < Mx && (OWNED(i, j) || OWNED(i + 1, j)) && ACT(i, j) && ACT(i + 1, j)) {
         PetscInt e       = st->n++;
@@ -741,7 +838,6 @@ static PetscErrorCode ClothBuildElements(Cloth c, const PetscInt *local, const P
       }
     }
   }
-#undef NAT
 #undef LOCAL
 #undef OWNED
 #undef ACT
@@ -774,7 +870,7 @@ static void InitialPosition(Cloth c, PetscInt i, PetscInt j, PetscBool imperfect
   }
 }
 
-static PetscBool ActiveCallback(void *ctx, PetscInt i, PetscInt j) { return ClothIsActive((Cloth) ctx, i, j); }
+static PetscBool ActiveCallback(void *ctx, PetscInt i, PetscInt j) { return Active((Cloth) ctx, i, j); }
 
 /* The 12 interaction neighbours (paper Fig. 2), and the 4 of the diagonal bending
  * triples: whatever a kernel of an owned particle touches is owned or one of these
@@ -811,129 +907,205 @@ static PetscErrorCode ClothBuildGhostScatter(Cloth c)
   PetscFunctionReturn(0);
 }
 
-/* Local layout from the owner array: owned particles first (natural order), then
- * ghosts (natural order); global block numbers rank by rank; ghost scatter where
- * some rank has ghosts. */
-static PetscErrorCode ClothBuildLayout(Cloth c, const PetscInt *owner, PetscInt **local_out)
+/* Local layout from the partition's destinations (dest: the new owner of each
+ * particle of this rank's home block, PartitionDestinations): owned particles first
+ * (natural order), then the ghosts, the neighbours the kernels of owned particles
+ * touch (natural order); global block numbers rank by rank; ghost scatter where some
+ * rank has ghosts. Nothing of the whole lattice is held: with the DMDA's blocks a
+ * particle's owner and global number are functions of (i, j); with a graph
+ * partition each rank receives its particles from their home ranks, tells the home
+ * ranks their global numbers, and asks them for those of its ghosts (a PetscSF whose
+ * roots are the home blocks: communication of the ghost layer). map: the local
+ * index of each particle of a box around the local ones. */
+static PetscErrorCode ClothBuildLayout(Cloth c, const PartitionBlocks *b, const PetscInt *dest, ClothLocalMap *map)
 {
-  const PetscInt N = c->Mx * c->My;
-  PetscMPIInt    rank, size;
-  PetscInt      *local, *offset, *count, *gl, nghost = 0;
+  const PetscInt  Mx = c->Mx, My = c->My, nneighbour = c->bend_coef[2] > 0 ? 16 : 12;
+  const PetscBool graph = PartitionIsGraph(c->partition);
+  PetscMPIInt     rank, size;
+  PetscInt        i0, i1, j0, j1, nb, *owned, nghost = 0, *home_global = NULL;
 
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_rank(c->comm, &rank));
   PetscCallMPI(MPI_Comm_size(c->comm, &size));
-  PetscCall(PetscMalloc1(N, &local));
-  PetscCall(PetscCalloc2(size + 1, &offset, size, &count));
-  for (PetscInt n = 0; n < N; n++) count[owner[n]]++;
-  for (PetscMPIInt r = 0; r < size; r++) offset[r + 1] = offset[r] + count[r];
-  c->nowned = count[rank];
-  /* position of each particle in its owner's list = its global block number */
-  PetscCall(PetscMalloc1(N, &gl));
-  for (PetscMPIInt r = 0; r < size; r++) count[r] = 0;
-  for (PetscInt n = 0; n < N; n++) gl[n] = offset[owner[n]] + count[owner[n]]++;
-  for (PetscInt n = 0; n < N; n++) local[n] = -1;
-  c->nlocal = 0;
-  for (PetscInt n = 0; n < N; n++)
-    if (owner[n] == rank) local[n] = c->nlocal++;
-  for (PetscInt n = 0; n < N; n++) {
-    if (owner[n] == rank || local[n] >= 0) continue;
-    for (PetscInt s = 0; s < (c->bend_coef[2] > 0 ? 16 : 12); s++) {
-      PetscInt i = n % c->Mx - neighbours[s][0], j = n / c->Mx - neighbours[s][1];
-      if (i >= 0 && i < c->Mx && j >= 0 && j < c->My && owner[j * c->Mx + i] == rank) {
-        local[n] = c->nowned + nghost++;
+  i0 = b->x0[rank % b->m], i1 = b->x0[rank % b->m + 1], j0 = b->y0[rank / b->m], j1 = b->y0[rank / b->m + 1], nb = (i1 - i0) * (j1 - j0);
+  if (!graph) { /* the home block */
+    c->nowned = nb;
+    PetscCall(PetscMalloc1(nb + 1, &owned));
+    for (PetscInt j = j0, k = 0; j < j1; j++)
+      for (PetscInt i = i0; i < i1; i++) owned[k++] = j * Mx + i;
+    c->rstart = nb ? PartitionBlockNumber(b, i0, j0) : 0;
+  } else { /* each home particle to its destination: counts, then the natural numbers */
+    PetscMPIInt *scount, *sdispl, *rcount, *rdispl;
+    PetscInt    *send, *place, *perm, *back, *got, nrecv, end;
+    PetscCall(PetscCalloc4(size, &scount, size + 1, &sdispl, size, &rcount, size + 1, &rdispl));
+    for (PetscInt k = 0; k < nb; k++) scount[dest[k]]++;
+    for (PetscMPIInt r = 0; r < size; r++) sdispl[r + 1] = sdispl[r] + scount[r];
+    PetscCallMPI(MPI_Alltoall(scount, 1, MPI_INT, rcount, 1, MPI_INT, c->comm));
+    for (PetscMPIInt r = 0; r < size; r++) rdispl[r + 1] = rdispl[r] + rcount[r];
+    nrecv = rdispl[size];
+    PetscCall(PetscMalloc3(nb + 1, &send, nb + 1, &place, nb + 1, &got));
+    for (PetscMPIInt r = 0; r < size; r++) scount[r] = 0;
+    for (PetscInt k = 0; k < nb; k++) {
+      place[k]       = sdispl[dest[k]] + scount[dest[k]]++;
+      send[place[k]] = (j0 + k / (i1 - i0)) * Mx + i0 + k % (i1 - i0);
+    }
+    PetscCall(PetscMalloc1(nrecv + 1, &owned));
+    PetscCall(PetscMalloc2(nrecv + 1, &perm, nrecv + 1, &back));
+    PetscCallMPI(MPI_Alltoallv(send, scount, sdispl, MPIU_INT, owned, rcount, rdispl, MPIU_INT, c->comm));
+    for (PetscInt q = 0; q < nrecv; q++) perm[q] = q;
+    PetscCall(PetscSortIntWithArray(nrecv, owned, perm));
+    c->nowned = nrecv;
+    PetscCallMPI(MPI_Scan(&c->nowned, &end, 1, MPIU_INT, MPI_SUM, c->comm));
+    c->rstart = end - c->nowned;
+    /* the home ranks learn the global numbers of their particles */
+    for (PetscInt k = 0; k < nrecv; k++) back[perm[k]] = c->rstart + k;
+    PetscCallMPI(MPI_Alltoallv(back, rcount, rdispl, MPIU_INT, got, scount, sdispl, MPIU_INT, c->comm));
+    PetscCall(PetscMalloc1(nb + 1, &home_global));
+    for (PetscInt k = 0; k < nb; k++) home_global[k] = got[place[k]];
+    PetscCall(PetscFree3(send, place, got));
+    PetscCall(PetscFree4(scount, sdispl, rcount, rdispl));
+    PetscCall(PetscFree2(perm, back));
+  }
+  /* the box of the owned particles and their neighbours */
+  {
+    PetscInt imin = Mx, imax = -1, jmin = My, jmax = -1;
+    for (PetscInt k = 0; k < c->nowned; k++) {
+      const PetscInt i = owned[k] % Mx, j = owned[k] / Mx;
+      imin = PetscMin(imin, i), imax = PetscMax(imax, i), jmin = PetscMin(jmin, j), jmax = PetscMax(jmax, j);
+    }
+    map->i0 = PetscMax(imin - 2, 0), map->j0 = PetscMax(jmin - 2, 0);
+    map->w = c->nowned ? PetscMin(imax + 3, Mx) - map->i0 : 0;
+    map->h = c->nowned ? PetscMin(jmax + 3, My) - map->j0 : 0;
+  }
+  PetscCall(PetscMalloc1(map->w * map->h + 1, &map->l));
+  for (PetscInt q = 0; q < map->w * map->h; q++) map->l[q] = -1;
+  for (PetscInt k = 0; k < c->nowned; k++) map->l[(owned[k] / Mx - map->j0) * map->w + owned[k] % Mx - map->i0] = k;
+  /* the ghosts: the other particles of the box with an owned neighbour (a ghost's
+   * number marks it; the owned are those below nowned) */
+  for (PetscInt q = 0; q < map->w * map->h; q++) {
+    const PetscInt i = map->i0 + q % map->w, j = map->j0 + q / map->w;
+    if (map->l[q] >= 0) continue;
+    for (PetscInt s = 0; s < nneighbour; s++) {
+      const PetscInt l = MapLocal(map, i + neighbours[s][0], j + neighbours[s][1]);
+      if (l >= 0 && l < c->nowned) {
+        map->l[q] = c->nowned + nghost++;
         break;
       }
     }
   }
   c->nlocal = c->nowned + nghost;
-  PetscCall(PetscMalloc1(c->nlocal, &c->natural));
-  for (PetscInt n = 0; n < N; n++)
-    if (local[n] >= 0) c->natural[local[n]] = n;
-  /* one array where the global block numbers are the natural ones (one rank) */
+  PetscCall(PetscMalloc1(c->nlocal + 1, &c->natural));
+  PetscCall(PetscArraycpy(c->natural, owned, c->nowned));
+  PetscCall(PetscFree(owned));
+  for (PetscInt q = 0; q < map->w * map->h; q++)
+    if (map->l[q] >= c->nowned) c->natural[map->l[q]] = (map->j0 + q / map->w) * Mx + map->i0 + q % map->w;
+  /* global block numbers; one array where they are the natural ones (one rank) */
+  PetscCall(PetscMalloc1(c->nlocal + 1, &c->global));
+  for (PetscInt k = 0; k < c->nowned; k++) c->global[k] = c->rstart + k;
+  if (!graph)
+    for (PetscInt g = c->nowned; g < c->nlocal; g++) c->global[g] = PartitionBlockNumber(b, c->natural[g] % Mx, c->natural[g] / Mx);
+  else { /* the ghosts' from their home ranks */
+    PetscSF      sf;
+    PetscSFNode *remote;
+    PetscCall(PetscMalloc1(nghost + 1, &remote));
+    for (PetscInt g = 0; g < nghost; g++) {
+      const PetscInt    i = c->natural[c->nowned + g] % Mx, j = c->natural[c->nowned + g] / Mx;
+      const PetscMPIInt r  = PartitionBlockRank(b, i, j);
+      const PetscInt    a0 = b->x0[r % b->m], a1 = b->x0[r % b->m + 1], b0 = b->y0[r / b->m];
+      remote[g].rank  = r;
+      remote[g].index = (j - b0) * (a1 - a0) + i - a0;
+    }
+    PetscCall(PetscSFCreate(c->comm, &sf));
+    PetscCall(PetscSFSetGraph(sf, nb, nghost, NULL, PETSC_COPY_VALUES, remote, PETSC_OWN_POINTER));
+    PetscCall(PetscSFBcastBegin(sf, MPIU_INT, home_global, c->global + c->nowned, MPI_REPLACE));
+    PetscCall(PetscSFBcastEnd(sf, MPIU_INT, home_global, c->global + c->nowned, MPI_REPLACE));
+    PetscCall(PetscSFDestroy(&sf));
+    PetscCall(PetscFree(home_global));
+  }
   {
     PetscBool same = PETSC_TRUE;
-    for (PetscInt l = 0; l < c->nlocal && same; l++) same = (PetscBool) (gl[c->natural[l]] == c->natural[l]);
-    if (same)
+    for (PetscInt l = 0; l < c->nlocal && same; l++) same = (PetscBool) (c->global[l] == c->natural[l]);
+    if (same) {
+      PetscCall(PetscFree(c->global));
       c->global = c->natural;
-    else {
-      PetscCall(PetscMalloc1(c->nlocal, &c->global));
-      for (PetscInt l = 0; l < c->nlocal; l++) c->global[l] = gl[c->natural[l]];
     }
   }
-  c->rstart = offset[rank];
-  PetscCall(PetscFree(gl));
-  PetscCall(PetscFree2(offset, count));
-  /* vectors and the ghost scatter: the global vector only ever wraps caller arrays;
-   * the positions need a local copy only with ghosts (ClothScatterPositions) */
+  /* the global vector only ever wraps caller arrays; the ghost scatter and the local
+   * copy of the positions are made where the element lists' loops first need them
+   * (ClothSetUpGhosts): the explicit schemes' lattice kernel has its own */
   PetscCall(VecCreateMPIWithArray(c->comm, 3, 3 * c->nowned, PETSC_DETERMINE, NULL, &c->Xg));
-  if (nghost) {
+  PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &nghost, 1, MPIU_INT, MPI_MAX, c->comm));
+  c->any_ghost = (PetscBool) (nghost > 0);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ClothSetUpGhosts(Cloth c)
+{
+  PetscFunctionBeginUser;
+  if (c->any_ghost && !c->ghost) PetscCall(ClothBuildGhostScatter(c));
+  if (c->nlocal > c->nowned && !c->Xl) {
     PetscCall(VecCreateSeq(PETSC_COMM_SELF, 3 * c->nlocal, &c->Xl));
     PetscCall(VecSetBlockSize(c->Xl, 3));
   }
-  PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &nghost, 1, MPIU_INT, MPI_MAX, c->comm));
-  if (nghost) PetscCall(ClothBuildGhostScatter(c)); /* else only ClothSetUpImplicit needs it */
-  *local_out = local;
   PetscFunctionReturn(0);
 }
 
 /* Scatter between the Cloth's particle order and the DMDA's (I/O in natural
  * order); NULL when they are the same (the DMDA partition, or one rank). The DMDA's
- * numbering is computed from its ownership ranges (rank by rank, each rank's block
- * row by row), not asked of its AO, which would keep two more integers for every
- * unknown for the rest of the run. */
-static PetscErrorCode ClothBuildDMDAScatter(Cloth c)
+ * numbering is computed from its ownership ranges (PartitionBlockNumber), not asked
+ * of its AO, which would keep two more integers for every unknown for the rest of
+ * the run. */
+static PetscErrorCode ClothBuildDMDAScatter(Cloth c, const PartitionBlocks *b)
 {
-  const PetscInt *lx, *ly;
-  PetscInt       *idx, *start, *col, *row, *x0, *y0, m, n;
-  PetscMPIInt     rank;
-  IS              from, to;
-  Vec             Xda;
-  PetscBool       same = PETSC_TRUE;
+  PetscInt   *idx;
+  PetscMPIInt rank;
+  IS          from, to;
+  Vec         Xda;
+  PetscBool   same = PETSC_TRUE;
 
   PetscFunctionBeginUser;
-  if (c->partition == PARTITION_DMDA) PetscFunctionReturn(0);
+  if (!PartitionIsGraph(c->partition)) PetscFunctionReturn(0);
   PetscCallMPI(MPI_Comm_rank(c->comm, &rank));
-  PetscCall(DMDAGetInfo(c->da, NULL, NULL, NULL, NULL, &m, &n, NULL, NULL, NULL, NULL, NULL, NULL, NULL));
-  PetscCall(DMDAGetOwnershipRanges(c->da, &lx, &ly, NULL));
-  /* the DMDA rank column (row) of each lattice column (row), where each starts, and
-   * each rank's first block */
-  PetscCall(PetscMalloc6(m * n + 1, &start, c->Mx, &col, c->My, &row, m + 1, &x0, n + 1, &y0, c->nowned + 1, &idx));
-  x0[0] = y0[0] = start[0] = 0;
-  for (PetscInt pi = 0; pi < m; pi++) x0[pi + 1] = x0[pi] + lx[pi];
-  for (PetscInt pj = 0; pj < n; pj++) y0[pj + 1] = y0[pj] + ly[pj];
-  for (PetscInt pi = 0; pi < m; pi++)
-    for (PetscInt i = x0[pi]; i < x0[pi + 1]; i++) col[i] = pi;
-  for (PetscInt pj = 0; pj < n; pj++)
-    for (PetscInt j = y0[pj]; j < y0[pj + 1]; j++) row[j] = pj;
-  for (PetscInt r = 0; r < m * n; r++) start[r + 1] = start[r] + lx[r % m] * ly[r / m];
+  PetscCall(PetscMalloc1(c->nowned + 1, &idx));
   for (PetscInt k = 0; k < c->nowned; k++) {
-    const PetscInt i = c->natural[k] % c->Mx, j = c->natural[k] / c->Mx, pi = col[i], pj = row[j];
-    idx[k] = start[pj * m + pi] + (j - y0[pj]) * lx[pi] + (i - x0[pi]);
+    idx[k] = PartitionBlockNumber(b, c->natural[k] % c->Mx, c->natural[k] / c->Mx);
     same   = (PetscBool) (same && idx[k] == c->rstart + k);
   }
   PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &same, 1, MPIU_BOOL, MPI_LAND, c->comm));
   if (!same) {
+    const PetscInt lx = b->x0[rank % b->m + 1] - b->x0[rank % b->m], ly = b->y0[rank / b->m + 1] - b->y0[rank / b->m];
     PetscCall(ISCreateBlock(c->comm, 3, c->nowned, idx, PETSC_USE_POINTER, &to));
     PetscCall(ISCreateStride(c->comm, 3 * c->nowned, 3 * c->rstart, 1, &from));
-    PetscCall(VecCreateMPIWithArray(c->comm, 3, 3 * lx[rank % m] * ly[rank / m], PETSC_DETERMINE, NULL, &Xda));
+    PetscCall(VecCreateMPIWithArray(c->comm, 3, 3 * lx * ly, PETSC_DETERMINE, NULL, &Xda));
     PetscCall(VecScatterCreate(c->Xg, from, Xda, to, &c->to_dmda));
     PetscCall(VecDestroy(&Xda));
     PetscCall(ISDestroy(&from));
     PetscCall(ISDestroy(&to));
   }
-  PetscCall(PetscFree6(start, col, row, x0, y0, idx));
+  PetscCall(PetscFree(idx));
   PetscFunctionReturn(0);
+}
+
+static PetscInt WeightCallback(void *ctx, PetscInt i, PetscInt j)
+{
+  Cloth     c = (Cloth) ctx;
+  PetscReal x[3];
+
+  InitialPosition(c, i, j, PETSC_FALSE, x);
+  return c->work(c->work_ctx, x);
 }
 
 PetscErrorCode ClothSetUp(Cloth c)
 {
-  PetscInt   *owner, *local = NULL, counts[5], sums[5], lo, hi;
-  PetscReal   mass;
-  PetscMPIInt rank;
+  PetscInt       *dest, counts[5], sums[5], lo, hi, i0, i1, j0, j1;
+  PetscReal       mass;
+  PetscMPIInt     rank;
+  PartitionBlocks blocks;
+  ClothLocalMap   map;
 
   PetscFunctionBeginUser;
   if (c->setup) PetscFunctionReturn(0);
+  PetscCall(PetscLogEventBegin(drape_log.cloth_setup, 0, 0, 0, 0));
   PetscCallMPI(MPI_Comm_rank(c->comm, &rank));
   PetscCall(DMDACreate2d(c->comm, DM_BOUNDARY_NONE, DM_BOUNDARY_NONE, DMDA_STENCIL_BOX, c->Mx, c->My, PETSC_DECIDE, PETSC_DECIDE, 3, 0, NULL, NULL, &c->da)); /* for I/O only: no ghosts */
   PetscCall(DMSetFromOptions(c->da));
@@ -952,40 +1124,27 @@ PetscErrorCode ClothSetUp(Cloth c)
   c->friction[0].L = c->spacing[0];
   c->friction[1].L = c->spacing[1];
 
+  /* the home block (this rank's DMDA block) and, for a cut outline, its activity
+   * with a frame wide enough for the graph's and the elements' neighbours */
+  PetscCall(PartitionBlocksCreate(c->da, &blocks));
+  i0 = blocks.x0[rank % blocks.m], i1 = blocks.x0[rank % blocks.m + 1], j0 = blocks.y0[rank / blocks.m], j1 = blocks.y0[rank / blocks.m + 1];
   if (c->shape != CLOTH_SQUARE) {
-    unsigned char *mask;
-    PetscInt       nact = 0;
-    PetscCall(PetscMalloc1(c->Mx * c->My, &mask));
-    for (PetscInt n = 0; n < c->Mx * c->My; n++) mask[n] = (unsigned char) ClothIsActive(c, n % c->Mx, n / c->Mx);
-    c->mask = mask;
-    /* the cloth is its lattice cells inside the outline: a particle that is a corner of
-     * no such cell (a spike of the cut) carries no area and would hang on edges of no
-     * width, so it is not part of the cloth (one pass: no cell loses a corner) */
-    for (PetscInt n = 0; n < c->Mx * c->My; n++) {
-      if (mask[n] && ClothCellWeight(c, n % c->Mx, n / c->Mx) == 0) mask[n] = 2;
-    }
-    for (PetscInt n = 0; n < c->Mx * c->My; n++) {
-      if (mask[n] == 2) mask[n] = 0;
-      nact += mask[n];
-    }
+    PetscInt nact = 0;
+    PetscCall(ClothActivityPatch(c, i0 - 4, i1 + 4, j0 - 4, j1 + 4));
+    for (PetscInt j = j0; j < j1; j++)
+      for (PetscInt i = i0; i < i1; i++) nact += Active(c, i, j);
+    PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &nact, 1, MPIU_INT, MPI_SUM, c->comm));
     PetscCheck(nact > 0, c->comm, PETSC_ERR_USER_INPUT, "No lattice particle lies inside the cloth's outline; check -cloth_outline against -cloth_size");
   }
-  PetscCall(PetscMalloc1(c->Mx * c->My, &owner));
-  {
-    PetscInt *weight = NULL;
-    if (c->work && c->partition == PARTITION_METIS) {
-      PetscCall(PetscMalloc1(c->Mx * c->My, &weight));
-      for (PetscInt n = 0; n < c->Mx * c->My; n++) {
-        PetscReal x[3];
-        InitialPosition(c, n % c->Mx, n / c->Mx, PETSC_FALSE, x);
-        weight[n] = c->work(c->work_ctx, x);
-      }
-    }
-    PetscCall(PartitionOwners(c->comm, c->partition, c->da, c->Mx, c->My, ActiveCallback, c, weight, owner));
-    PetscCall(PetscFree(weight));
-  }
-  PetscCall(ClothBuildLayout(c, owner, &local));
-  PetscCall(ClothBuildDMDAScatter(c));
+  PetscCall(PetscMalloc1((i1 - i0) * (j1 - j0) + 1, &dest));
+  PetscCall(PetscLogEventBegin(drape_log.partition, 0, 0, 0, 0));
+  PetscCall(PartitionDestinations(c->comm, c->partition, &blocks, ActiveCallback, c->work ? WeightCallback : NULL, c, dest));
+  PetscCall(PetscLogEventEnd(drape_log.partition, 0, 0, 0, 0));
+  PetscCall(ClothBuildLayout(c, &blocks, dest, &map));
+  PetscCall(PetscFree(dest));
+  if (c->shape != CLOTH_SQUARE && PartitionIsGraph(c->partition)) PetscCall(ClothActivityPatch(c, map.i0 - 2, map.i0 + map.w + 2, map.j0 - 2, map.j0 + map.h + 2));
+  PetscCall(ClothBuildDMDAScatter(c, &blocks));
+  PetscCall(PartitionBlocksDestroy(&blocks));
 
   PetscCall(PetscMalloc3(c->nowned, &c->mass, c->nowned, &c->pinned, c->nowned, &c->active));
   /* the owned particles come first in the local order: owned_local is 0, 1, ...,
@@ -1001,12 +1160,13 @@ PetscErrorCode ClothSetUp(Cloth c)
   mass = 0;
   for (PetscInt k = 0; k < c->nowned; k++) {
     PetscInt i = c->natural[k] % c->Mx, j = c->natural[k] / c->Mx;
-    c->active[k] = ClothIsActive(c, i, j);
+    c->active[k] = Active(c, i, j);
     c->mass[k]   = c->density * c->spacing[0] * c->spacing[1] * (c->active[k] ? ClothCellWeight(c, i, j) : 1); /* inactive: held like a pin, a nominal mass for the matrix */
     c->pinned[k] = (PetscBool) (IsPinned(c, i, j) || !c->active[k]);
     if (c->active[k]) mass += c->mass[k];
   }
-  PetscCall(ClothBuildElements(c, local, owner, rank));
+  PetscCall(ClothBuildElements(c, &map));
+  PetscCall(PetscFree(map.l));
   PetscCall(ClothLatticeSetUp(c));
   /* partition quality: owned active particles and cut stretch edges */
   counts[0] = CountOwned(&c->stretch_el, 1);
@@ -1034,9 +1194,8 @@ PetscErrorCode ClothSetUp(Cloth c)
     c->owned_min    = lo;
     c->owned_max    = hi;
   }
-  PetscCall(PetscFree(owner));
-  PetscCall(PetscFree(local));
   c->setup = PETSC_TRUE;
+  PetscCall(PetscLogEventEnd(drape_log.cloth_setup, 0, 0, 0, 0));
   PetscFunctionReturn(0);
 }
 
@@ -1046,13 +1205,14 @@ PetscErrorCode ClothSetUpImplicit(Cloth c)
   PetscCheck(c->setup, c->comm, PETSC_ERR_ORDER, "ClothSetUpImplicit needs ClothSetUp first");
   if (c->Zl) PetscFunctionReturn(0);
   if (!c->ghost) PetscCall(ClothBuildGhostScatter(c));
+  PetscCall(ClothSetUpGhosts(c));
   PetscCall(VecCreateSeq(PETSC_COMM_SELF, 3 * c->nlocal, &c->Zl));
   PetscCall(VecSetBlockSize(c->Zl, 3));
   PetscCall(PetscMalloc1(c->nlocal, &c->col_map));
   PetscCall(PetscMalloc1(c->nlocal, &c->pinned_local));
   for (PetscInt l = 0; l < c->nlocal; l++) {
     PetscInt i = c->natural[l] % c->Mx, j = c->natural[l] / c->Mx;
-    c->pinned_local[l] = (PetscBool) (IsPinned(c, i, j) || !ClothIsActive(c, i, j));
+    c->pinned_local[l] = (PetscBool) (IsPinned(c, i, j) || !Active(c, i, j));
     c->col_map[l]      = c->pinned_local[l] ? -1 : c->global[l];
   }
   if (c->nlocal == c->nowned) /* no ghosts: every row is a column */
@@ -1071,7 +1231,7 @@ PetscErrorCode ClothDestroy(Cloth *cloth)
   PetscFunctionBeginUser;
   if (!c) PetscFunctionReturn(0);
   PetscCall(PetscFree(c->pin_list));
-  PetscCall(PetscFree(c->mask));
+  PetscCall(PetscFree(c->act));
   PetscCall(PetscFree(c->ring_xy));
   PetscCall(PetscFree(c->ring_start));
   if (c->setup) {
@@ -1116,7 +1276,7 @@ PetscErrorCode ClothGetInfo(Cloth c, ClothInfo *info)
   info->owned_min      = c->owned_min;
   info->owned_max      = c->owned_max;
   info->ncut           = c->ncut;
-  info->partition      = PartitionTypes[c->partition];
+  info->partition      = c->partition;
   info->model          = model_names[c->model];
   info->bend_table     = c->bend_table;
   info->hysteresis[0]  = c->hysteresis[0];
@@ -1237,8 +1397,8 @@ PetscErrorCode ClothView(Cloth c, PetscViewer viewer)
     PetscMPIInt size;
     PetscCallMPI(MPI_Comm_size(c->comm, &size));
     if (size > 1)
-      PetscCall(PetscViewerASCIIPrintf(viewer, "  partition: %s on %d ranks, %" PetscInt_FMT " to %" PetscInt_FMT " active particles per rank (imbalance %.3f), %" PetscInt_FMT " of %" PetscInt_FMT " stretch edges cut\n", PartitionTypes[c->partition],
-                                       size, c->owned_min, c->owned_max, (double) (c->owned_max * size / PetscMax(c->active_total, 1)), c->ncut, c->nstretch));
+      PetscCall(PetscViewerASCIIPrintf(viewer, "  partition: %s on %d ranks, %" PetscInt_FMT " to %" PetscInt_FMT " active particles per rank (imbalance %.3f), %" PetscInt_FMT " of %" PetscInt_FMT " stretch edges cut\n", c->partition, size,
+                                       c->owned_min, c->owned_max, (double) (c->owned_max * size / PetscMax(c->active_total, 1)), c->ncut, c->nstretch));
   }
   if (c->fabric[0]) PetscCall(PetscViewerASCIIPrintf(viewer, "  fabric: %s\n", c->fabric));
   PetscCall(PetscViewerASCIIPrintf(viewer, "  material: stretch %g,%g N/m, shear %g N/m, bend %g,%g,%g N m (warp, weft, bias), density %g kg/m^2, damping %g 1/s\n", (double) c->stretch[0], (double) c->stretch[1], (double) c->shear,

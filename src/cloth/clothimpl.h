@@ -107,8 +107,11 @@ struct _p_Cloth {
   char             outline[PETSC_MAX_PATH_LEN]; /* polygon file (-cloth_outline)  */
   PetscInt         nring, *ring_start;          /* rings: outer boundary, holes     */
   PetscReal       *ring_xy;                     /* vertices, 2 each, all rings      */
-  unsigned char   *mask;                        /* active flag per lattice particle */
-  PartitionType    partition;
+  /* the activity of the lattice around the rank's particles (ClothIsActive computes
+   * it elsewhere): columns act_i0 .. act_i0 + act_w - 1, rows act_j0 .. */
+  PetscInt       act_i0, act_j0, act_w, act_h;
+  unsigned char *act;
+  char           partition[64];                /* -cloth_partition: dmda, metis, ptscotch, ... */
   PetscInt (*work)(void *, const PetscReal *); /* particle work at its initial position */
   void     *work_ctx;
   PetscInt *pin_list, npin_list; /* (i, j) pairs */
@@ -125,7 +128,8 @@ struct _p_Cloth {
   /* Xg: global, wraps caller arrays; Yl: local (owned + ghost) force; Xl: local
    * positions, only with ghosts (ClothScatterPositions); Zl: ClothSetUpImplicit */
   Vec        Xg, Xl, Yl, Zl;
-  VecScatter ghost;                      /* global -> local (without ghosts: a copy)           */
+  VecScatter ghost;                      /* global -> local (without ghosts: a copy); ClothSetUpGhosts */
+  PetscBool  any_ghost;                  /* some rank has ghosts                               */
   VecScatter to_dmda;                    /* Cloth order -> DMDA order (NULL: the same)         */
   PetscInt  *natural;                    /* local -> natural lattice index j Mx + i            */
   PetscInt   rstart;                     /* global block number of the first owned particle    */
@@ -221,6 +225,9 @@ static inline void ElementHessian(Cloth c, PetscBool project, PetscInt kind, Pet
  * Hessian product, made at its first use (the lattice kernel needs none). Not
  * collective. */
 PETSC_INTERN PetscErrorCode ClothGetLocalWork(Cloth, Vec *);
+/* The ghost scatter and the local copy of the positions, at their first use
+ * (ClothScatterPositions, ClothSetUpImplicit). Collective. */
+PETSC_INTERN PetscErrorCode ClothSetUpGhosts(Cloth);
 PETSC_INTERN PetscErrorCode ClothScatterPositions(Cloth, const PetscScalar *, const PetscScalar **);
 PETSC_INTERN PetscErrorCode ClothEndScatter(Cloth, const PetscScalar **);
 

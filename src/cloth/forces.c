@@ -7,10 +7,12 @@
 
 /* Ghosted local copy of the owned positions x (owned-particle order; the owned
  * particles come first in the local order, so without ghosts, on one rank, x itself
- * is the local array and nothing is copied). */
+ * is the local array and nothing is copied). Collective (the scatter is made at the
+ * first call). */
 PetscErrorCode ClothScatterPositions(Cloth c, const PetscScalar *x, const PetscScalar **xl)
 {
   PetscFunctionBeginUser;
+  PetscCall(ClothSetUpGhosts(c));
   if (c->nlocal == c->nowned) {
     *xl = x;
     PetscFunctionReturn(0);

@@ -1,0 +1,144 @@
+#!/usr/bin/env python3
+"""Set-up on many ranks: peak memory per rank and set-up time (not a test).
+
+A circular cloth (the Cusick specimen's disc inscribed in an N x N lattice, no
+solid, no output) set up and not stepped (-ts_max_steps 0; -drape_stability_its 0
+skips the start-up stability estimate, which is not part of the layout) on P ranks
+of this machine (oversubscribed past its cores: times then are what one core
+shared by several ranks gives, memory is what each rank holds), N in --sizes,
+P in --ranks, each partition of --partitions (dmda, and the parallel partitioner
+ptscotch; metis for comparison).
+
+Per run:
+  cloth_setup_s   the DrapeClothSetUp event of -log_view (ClothSetUp: DMDA,
+                  partition, layout, element lists, lattice patch), slowest rank
+  partition_s     its DrapePartition event (the partitioner alone), slowest rank
+  setup_stage_s   the whole Setup stage (options, cloth, solid, integrator)
+  wall_s          the launch to the exit, as the shell sees it
+  rank_max_mib, rank_min_mib, total_mib
+                  -memory_view's maximum process memory (resident set) of the
+                  largest and smallest rank, and of all ranks together
+  hwm_mib         the kernel's peak resident set of the largest process of the job
+                  (os.wait4 on the launcher: ru_maxrss is the largest of its
+                  children's), a check of -memory_view's sampling
+  fixed_mib       the same -memory_view maximum for a 16 x 16 lattice on as many
+                  ranks: what a rank costs whatever the lattice (MPI, PETSc, HDF5)
+  max_over_share  (rank_max - fixed) / ((total - P fixed) / P): 1 when every rank
+                  holds its share of the lattice and no more
+
+Output in --out (default out/setup_scaling): setup_scaling.csv, setup_scaling.md.
+
+    python3 scripts/setup_scaling.py --sizes 2048 --partitions dmda,ptscotch,metis   # 1-8 ranks: about 7 minutes here
+    python3 scripts/setup_scaling.py --quick --out /tmp/ss           # smoke run, seconds
+"""
+import argparse
+import os
+import re
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_common import machine, md_table, write_csv  # noqa: E402
+from drape_run import ROOT, Drape, fail  # noqa: E402
+
+PROG = "setup_scaling"
+MEMORY = re.compile(r"Maximum \(over computational time\) process memory:\s+total\s+(\S+)\s+max\s+(\S+)\s+min\s+(\S+)")
+
+
+def event(stdout, name):
+    """Max time (s) over ranks of -log_view's event `name`, or None."""
+    m = re.search(rf"^{name}\s+\d+\s+\S+\s+(\S+)", stdout, re.M)
+    return float(m.group(1)) if m else None
+
+
+def stage(stdout, name):
+    m = re.search(rf"^\s*\d+:\s+{name}:\s+(\S+)", stdout, re.M)
+    return float(m.group(1)) if m else None
+
+
+def args_for(n, part):
+    return ["-da_grid_x", str(n), "-da_grid_y", str(n), "-cloth_shape", "circle", "-cloth_partition", part,
+            "-ts_type", "basicsymplectic", "-ts_max_steps", "0", "-drape_stability_its", "0", "-memory_view", "-log_view"]
+
+
+def measure(build, n, np_, part, timeout):
+    drape = Drape(PROG, build, np_)
+    t0 = time.time()
+    r = drape.run(args_for(n, part), timeout=timeout)
+    wall = time.time() - t0
+    if r.returncode or r.report is None:
+        fail(PROG, f"the {n} x {n} {part} run on {np_} ranks failed (exit {r.returncode}):\n{r.tail()}")
+    m = MEMORY.search(r.stdout)
+    if not m:
+        fail(PROG, f"no -memory_view summary in the {n} x {n} {part} run on {np_} ranks:\n{r.tail()}")
+    total, hi, lo = (float(x) for x in m.groups())
+    return {"total": total, "max": hi, "min": lo, "hwm": r.maxrss, "wall": wall, "cloth": event(r.stdout, "DrapeClothSetUp"),
+            "partition": event(r.stdout, "DrapePartition"), "stage": stage(r.stdout, "Setup"), "report": r.report}
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--sizes", default="2048,4096", help="lattice sides N")
+    p.add_argument("--ranks", default="1,2,4,8", help="rank counts P")
+    p.add_argument("--partitions", default="dmda,ptscotch", help="-cloth_partition values")
+    p.add_argument("--build", default=os.environ.get("DRAPE_BUILD", "build"), help="drape's build directory")
+    p.add_argument("--timeout", type=float, default=1200, help="seconds per run")
+    p.add_argument("--out", default=str(ROOT / "out" / "setup_scaling"))
+    p.add_argument("--quick", action="store_true", help="smoke run: 64^2 on 1 and 2 ranks")
+    a = p.parse_args()
+    if a.quick:
+        a.sizes, a.ranks = "64", "1,2"
+    try:
+        sizes = [int(s) for s in a.sizes.split(",") if s]
+        ranks = [int(s) for s in a.ranks.split(",") if s]
+    except ValueError:
+        fail(PROG, "--sizes and --ranks take comma-separated integers")
+    parts = [s for s in a.partitions.split(",") if s]
+    if not sizes or not ranks or min(sizes) < 8 or min(ranks) < 1:
+        fail(PROG, "--sizes needs lattice sides of at least 8 and --ranks rank counts of at least 1")
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+
+    rows = []
+    for np_ in ranks:
+        fixed = {}
+        for part in parts:
+            fixed[part] = measure(a.build, 16, np_, part, a.timeout)["max"]
+        for n in sizes:
+            for part in parts:
+                m = measure(a.build, n, np_, part, a.timeout)
+                share = (m["total"] - np_ * fixed[part]) / np_
+                row = {"N": n, "particles": n * n, "ranks": np_, "partition": part,
+                       "cloth_setup_s": f"{m['cloth']:.3f}" if m["cloth"] is not None else "",
+                       "partition_s": f"{m['partition']:.3f}" if m["partition"] is not None else "",
+                       "setup_stage_s": f"{m['stage']:.3f}" if m["stage"] is not None else "", "wall_s": f"{m['wall']:.2f}",
+                       "rank_max_mib": f"{m['max'] / 2**20:.1f}", "rank_min_mib": f"{m['min'] / 2**20:.1f}",
+                       "total_mib": f"{m['total'] / 2**20:.1f}", "hwm_mib": f"{m['hwm'] / 2**20:.1f}",
+                       "fixed_mib": f"{fixed[part] / 2**20:.1f}",
+                       "max_over_share": f"{(m['max'] - fixed[part]) / share:.3f}" if share > 0 else "",
+                       "imbalance": f"{m['report']['owned_max'] * np_ / max(m['report']['active_particles'], 1):.3f}"}
+                rows.append(row)
+                print(f"  {n:5d}^2 {np_:2d} ranks {part:8s} cloth set-up {row['cloth_setup_s']:>8s} s (partition {row['partition_s'] or '-':>7s} s), "
+                      f"Setup stage {row['setup_stage_s']:>8s} s, per rank {row['rank_min_mib']}-{row['rank_max_mib']} MiB "
+                      f"(fixed {row['fixed_mib']}, max/share {row['max_over_share']}), HWM {row['hwm_mib']} MiB", flush=True)
+    write_csv(out / "setup_scaling.csv", rows)
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, cwd=ROOT).stdout.strip()
+    except OSError:
+        commit = "unknown"
+    hdr = ["N", "ranks", "partition", "ClothSetUp (s)", "partitioner (s)", "Setup stage (s)", "per rank max (MiB)", "per rank min (MiB)",
+           "all ranks (MiB)", "fixed (MiB)", "max / share", "imbalance"]
+    md = [f"# Set-up on many ranks (drape {commit}, {machine()})", "",
+          "Circular cloth in an N x N lattice, -ts_max_steps 0 -drape_stability_its 0; times the slowest rank's (-log_view), memory "
+          "-memory_view's maximum resident set; fixed: the same on a 16 x 16 lattice; max / share = (max - fixed) / ((all - P fixed) / P).", "",
+          md_table(hdr, [[r["N"], r["ranks"], r["partition"], r["cloth_setup_s"], r["partition_s"], r["setup_stage_s"], r["rank_max_mib"],
+                          r["rank_min_mib"], r["total_mib"], r["fixed_mib"], r["max_over_share"], r["imbalance"]] for r in rows]), ""]
+    text = "\n".join(md) + "\n"
+    (out / "setup_scaling.md").write_text(text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()
