@@ -624,7 +624,15 @@ PetscErrorCode DrapeCheckRanksAgree(MPI_Comm comm)
  * name, the petscrc files, PETSC_OPTIONS) inside PetscInitialize, before drape can
  * install its error handler: a missing, binary or malformed file ends there with a
  * traceback, a file that includes itself with a crash, and a file only rank 0 fails
- * to read with a hang. So drape reads them first, with PETSc's rules, on every rank. */
+ * to read with a hang. So drape reads them first, with PETSc's rules, on every rank.
+ * It cannot hand them to PETSc's reader instead: PetscOptionsInsertFile needs an
+ * initialised PETSc, whose error handler is the one that fails. This pass inserts
+ * nothing (PETSc still reads every file itself); it only refuses what PETSc 3.18's
+ * PetscOptionsInsertFile (src/sys/objects/options.c) would fail on or misread: a
+ * missing, unreadable or non-text file, one over 1 MiB, -options_file nesting past 8
+ * or in a cycle, a line that is neither "alias -a -b" nor an option and its value
+ * ('#' starts a comment), an unbalanced -prefix_push/-prefix_pop, and YAML. At a
+ * PETSc upgrade, compare that function's grammar with CheckOptionsFile below. */
 #define OPTIONS_FILE_MAX_BYTES (1 << 20)
 #define OPTIONS_FILE_MAX_DEPTH 8
 #define OPTIONS_PREFIX_MAX     25
