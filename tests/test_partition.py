@@ -52,6 +52,21 @@ def test_ptscotch_balances_the_cusick_disc_on_4_ranks():
     assert lo > 0 and imbalance < 1.05, (lo, hi, imbalance, cut)
 
 
+def test_ptscotch_runs_or_says_why_it_cannot():
+    """PETSc hands PT-Scotch its indices as SCOTCH_Num. Where the widths match (this
+    suite's 32-bit PETSc) the disc is partitioned; where they differ (Debian's 64-bit
+    PETSc, whose PT-Scotch is the 32-bit one: it failed inside PT-Scotch with
+    "communication error" and a traceback; CI's 64-bit run takes this branch) drape
+    refuses with one sentence naming both widths and what to use instead."""
+    res = run("-da_grid_x 41 -da_grid_y 41 -cloth_shape circle -ts_max_steps 0 -cloth_partition ptscotch", np_=3, check=False)
+    if res.returncode == 0:
+        assert "partition: ptscotch on 3 ranks" in res.stdout, res.stdout
+        return
+    lines = [l for l in res.stderr.splitlines() if l.startswith("drape: error:")]
+    assert len(lines) == 1 and "indices are 64-bit and the PT-Scotch it is linked with takes 32-bit ones" in lines[0], res.stderr
+    assert "use -cloth_partition dmda or metis" in lines[0] and "PETSC ERROR" not in res.stdout + res.stderr, res.stderr
+
+
 def test_a_partitioner_petsc_lacks_is_refused_with_those_it_has():
     res = run("-da_grid_x 8 -da_grid_y 8 -ts_max_steps 1 -cloth_partition nosuch", check=False)
     msg = res.stdout + res.stderr

@@ -1,6 +1,7 @@
 /* Particle ownership: DMDA blocks, serial METIS k-way, or a parallel partitioner
  * through PETSc's MatPartitioning (PT-Scotch, ParMETIS). */
 #define _POSIX_C_SOURCE 200809L /* setenv */
+#include <dlfcn.h>              /* dlsym: PT-Scotch's index width */
 #include <stdlib.h>
 #include <partition.h>
 #include <petscdmda.h>
@@ -191,6 +192,27 @@ static PetscErrorCode PartitionMetis(MPI_Comm comm, const char *type, const Part
  * steps of two particles; a lattice with fewer than 64 tiles per rank is partitioned
  * particle by particle. */
 #define PARTITION_TILE 2
+/* PETSc hands PT-Scotch its PetscInt arrays as SCOTCH_Num. A PETSc with 64-bit
+ * indices linked with a PT-Scotch of 32-bit SCOTCH_Num (Debian's libpetsc64 package
+ * and the libptscotch it shares with the 32-bit one) fails inside it with
+ * "dgraphGatherAll2: communication error" and a traceback. The library says its
+ * width (SCOTCH_numSizeof, Scotch 6 and later; looked up among the loaded symbols,
+ * since drape does not link Scotch itself). */
+static PetscErrorCode CheckScotchIndices(MPI_Comm comm)
+{
+  int (*numsizeof)(void);
+
+  PetscFunctionBeginUser;
+  *(void **) &numsizeof = dlsym(RTLD_DEFAULT, "SCOTCH_numSizeof");
+  if (numsizeof)
+    PetscCheck(
+      numsizeof() == (int) sizeof(PetscInt), comm, PETSC_ERR_SUP,
+      "-cloth_partition ptscotch cannot run with this PETSc: its indices are %d-bit and the PT-Scotch it is linked with takes %d-bit ones (as in Debian's 64-bit PETSc package), so PT-Scotch would fail; use -cloth_partition dmda or metis, or a PETSc "
+      "whose PT-Scotch matches its indices (configured with --download-ptscotch)",
+      8 * (int) sizeof(PetscInt), 8 * numsizeof());
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode PartitionMat(MPI_Comm comm, const char *type, const PartitionBlocks *b, PetscBool (*active)(void *, PetscInt, PetscInt), PetscInt (*weight)(void *, PetscInt, PetscInt), void *ctx, PetscInt *dest)
 {
   const PetscInt  Mx = b->Mx, My = b->My;
@@ -205,6 +227,7 @@ static PetscErrorCode PartitionMat(MPI_Comm comm, const char *type, const Partit
   const PetscInt *p;
 
   PetscFunctionBeginUser;
+  if (!strcmp(type, MATPARTITIONINGPTSCOTCH)) PetscCall(CheckScotchIndices(comm));
   PetscCallMPI(MPI_Comm_size(comm, &size));
   PetscCallMPI(MPI_Comm_rank(comm, &rank));
   HomeBlock(b, rank, &i0, &i1, &j0, &j1);
