@@ -366,6 +366,17 @@ typedef struct {
   char  base[256];
 } FileId;
 
+/* The directory of path, whose last '/' is slash (NULL: none), into dir. */
+static void DirectoryOf(const char path[], const char *slash, char dir[], size_t size)
+{
+  if (!slash)
+    (void) snprintf(dir, size, ".");
+  else if (slash == path)
+    (void) snprintf(dir, size, "/");
+  else
+    (void) snprintf(dir, size, "%.*s", (int) (slash - path), path);
+}
+
 static int GetFileId(const char path[], FileId *id)
 {
   struct stat st;
@@ -379,12 +390,7 @@ static int GetFileId(const char path[], FileId *id)
     id->ino    = st.st_ino;
     return 0;
   }
-  if (!slash)
-    (void) snprintf(dir, sizeof dir, ".");
-  else if (slash == path)
-    (void) snprintf(dir, sizeof dir, "/");
-  else
-    (void) snprintf(dir, sizeof dir, "%.*s", (int) (slash - path), path);
+  DirectoryOf(path, slash, dir, sizeof dir);
   (void) snprintf(id->base, sizeof id->base, "%s", slash ? slash + 1 : path);
   if (stat(dir, &st)) return -1;
   id->dev = st.st_dev;
@@ -416,12 +422,7 @@ static int InPseudoFileSystem(const char path[])
     char        target[PETSC_MAX_PATH_LEN];
     struct stat st;
     ssize_t     n;
-    if (!slash)
-      (void) snprintf(dir, sizeof dir, ".");
-    else if (slash == p)
-      (void) snprintf(dir, sizeof dir, "/");
-    else
-      (void) snprintf(dir, sizeof dir, "%.*s", (int) (slash - p), p);
+    DirectoryOf(p, slash, dir, sizeof dir);
     if (!realpath(dir, real)) return 0; /* a missing directory: refused elsewhere in its own words */
     if (!strcmp(real, "/dev") || !strncmp(real, "/dev/", 5) || !strcmp(real, "/proc") || !strncmp(real, "/proc/", 6)) return 1;
     if (lstat(p, &st) || !S_ISLNK(st.st_mode)) return 0;

@@ -494,6 +494,19 @@ static PetscErrorCode PatternMerge(Cloth c)
 }
 
 /* The extra blocks' positions in the row buffer; *fits: all held blocks found. */
+/* The row buffer's layout: per block row, its blocks in column order; a block's
+ * (i, j) entry at si i + sj j from its start. AIJ (csr, coo): the three scalar rows
+ * of the block row one after the other (si = 3 ncols, sj = 1), CSR rows. By rows
+ * (MatSetValuesBlocked, column-oriented) and in (S)BAIJ's own array: each block
+ * whole, by columns (si = 1, sj = 3), as BAIJ and SBAIJ store their blocks. */
+static inline PetscInt RowBufferBlock(Cloth c, PetscInt k, PetscInt loc) { return c->rb_start[k] + (c->rb_block ? 9 : 3) * loc; } /* block loc of row k */
+
+static inline void RowBufferStrides(Cloth c, PetscInt k, PetscInt *si, PetscInt *sj)
+{
+  *si = c->rb_block ? 1 : 3 * c->rb_ncols[k];
+  *sj = c->rb_block ? 3 : 1;
+}
+
 static PetscErrorCode ExtraMap(Cloth c, PetscBool *fits)
 {
   PetscFunctionBeginUser;
@@ -508,7 +521,7 @@ static PetscErrorCode ExtraMap(Cloth c, PetscBool *fits)
       if (fits) *fits = PETSC_FALSE;
       continue;
     }
-    c->ex_map[e] = c->rb_start[k] + (c->rb_block ? 9 : 3) * loc;
+    c->ex_map[e] = RowBufferBlock(c, k, loc);
   }
   PetscFunctionReturn(0);
 }
@@ -583,7 +596,7 @@ static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
     PetscCall(PetscSortRemoveDupsInt(&c->rb_ncols[k], c->rb_cols + c->rb_colstart[k]));
     c->rb_start[k + 1] = c->rb_start[k] + 9 * c->rb_ncols[k];
     PetscCall(PetscFindInt(c->global[k], c->rb_ncols[k], c->rb_cols + c->rb_colstart[k], &c->rb_diag[k]));
-    c->rb_diag[k] = c->rb_start[k] + (c->rb_block ? 9 : 3) * c->rb_diag[k];
+    c->rb_diag[k] = RowBufferBlock(c, k, c->rb_diag[k]);
   }
   npairs = 0;
   for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) {
@@ -598,7 +611,7 @@ static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
           if (!RowBufferHolds(c, sym, p[a], p[b])) continue;
           PetscCall(PetscFindInt(col, c->rb_ncols[p[a]], c->rb_cols + c->rb_colstart[p[a]], &loc));
           PetscCheck(loc >= 0, PETSC_COMM_SELF, PETSC_ERR_PLIB, "Block column %" PetscInt_FMT " missing from the row buffer", col);
-          c->rb_map[npairs] = c->rb_start[p[a]] + (c->rb_block ? 9 : 3) * loc;
+          c->rb_map[npairs] = RowBufferBlock(c, p[a], loc);
         }
       }
     }
@@ -609,17 +622,6 @@ static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
   c->rb_sym = sym;
   PetscCall(ExtraMap(c, NULL));
   PetscFunctionReturn(0);
-}
-
-/* The row buffer's layout: per block row, its blocks in column order; a block's
- * (i, j) entry at si i + sj j from its start. AIJ (csr, coo): the three scalar rows
- * of the block row one after the other (si = 3 ncols, sj = 1), CSR rows. By rows
- * (MatSetValuesBlocked, column-oriented) and in (S)BAIJ's own array: each block
- * whole, by columns (si = 1, sj = 3), as BAIJ and SBAIJ store their blocks. */
-static inline void RowBufferStrides(Cloth c, PetscInt k, PetscInt *si, PetscInt *sj)
-{
-  *si = c->rb_block ? 1 : 3 * c->rb_ncols[k];
-  *sj = c->rb_block ? 3 : 1;
 }
 
 /* One rank, a matrix of the buffer's exact pattern: the buffer is the matrix's own
@@ -650,10 +652,10 @@ static PetscErrorCode RowBufferAlias(Cloth c, Mat J, PetscBool get)
   PetscFunctionReturn(0);
 }
 
-/* The row buffer into an AIJ matrix of its exact pattern (ClothCreateMatrix): a
- * block row's three scalar rows are CSR rows with sorted global columns. On one
- * rank they are the matrix's value array in order: the buffer is that array
- * (rb_alias; no copy, no buffer of its own). MPIAIJ keeps each row in a
+/* The row buffer copied into an AIJ matrix of its exact pattern (ClothCreateMatrix):
+ * a block row's three scalar rows are CSR rows with sorted global columns (on one
+ * rank they are the matrix's value array in order, and the buffer is that array:
+ * rb_alias, no copy). MPIAIJ keeps each row in a
  * diagonal block (the owned columns) and an off-diagonal block (the others, in
  * global order: its column map garray is sorted), so a row goes in three runs:
  * columns below the owned range, in it, above it. */
@@ -665,12 +667,6 @@ static PetscErrorCode RowBufferToAIJ(Cloth c, Mat J)
   PetscBool    mpi;
 
   PetscFunctionBeginUser;
-  if (c->rb_alias) { /* one rank: the buffer was the matrix's value array */
-    PetscCall(RowBufferAlias(c, J, PETSC_FALSE));
-    PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
-    PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
-    PetscFunctionReturn(0);
-  }
   PetscCall(PetscObjectTypeCompare((PetscObject) J, MATMPIAIJ, &mpi));
   if (mpi) PetscCall(MatMPIAIJGetSeqAIJ(J, &A, &B, NULL));
   PetscCall(MatGetOwnershipRange(J, &rstart, &rend));
@@ -695,8 +691,6 @@ static PetscErrorCode RowBufferToAIJ(Cloth c, Mat J)
   }
   PetscCall(MatSeqAIJRestoreArrayWrite(A, &va));
   if (B) PetscCall(MatSeqAIJRestoreArrayWrite(B, &vb));
-  PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY)); /* nothing to move: a new state, which the preconditioner sees */
-  PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
   PetscFunctionReturn(0);
 }
 
@@ -706,7 +700,7 @@ static PetscErrorCode ClothAddToMatrixRows(Cloth c, const PetscReal *xl, PetscRe
   PetscInt  pair = 0;
 
   PetscFunctionBeginUser;
-  if (c->rb_alias && J == c->rb_mat) PetscCall(RowBufferAlias(c, J, PETSC_TRUE));
+  if (c->rb_alias) PetscCall(RowBufferAlias(c, J, PETSC_TRUE));
   PetscCall(PetscArrayzero(c->rb_val, c->rb_start[c->nowned]));
   for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) {
     const PetscInt n = KindSize(kind), m = 3 * n;
@@ -740,20 +734,22 @@ static PetscErrorCode ClothAddToMatrixRows(Cloth c, const PetscReal *xl, PetscRe
     for (PetscInt i = 0; i < 3; i++)
       for (PetscInt j = 0; j < 3; j++) c->rb_val[c->rb_diag[k] + si * i + sj * j] += D[3 * i + j];
   }
-  if (c->rb_coo && J == c->rb_mat)
-    PetscCall(MatSetValuesCOO(J, c->rb_val, INSERT_VALUES)); /* assembled on return */
-  else if (c->rb_csr && J == c->rb_mat)
+  /* the hand-off (J is rb_mat: ClothAssembleMatrix): the values already in place,
+   * through COO (assembled on return), copied into AIJ's arrays, or row by row */
+  if (c->rb_coo) {
+    PetscCall(MatSetValuesCOO(J, c->rb_val, INSERT_VALUES));
+    PetscFunctionReturn(0);
+  }
+  if (c->rb_alias)
+    PetscCall(RowBufferAlias(c, J, PETSC_FALSE));
+  else if (c->rb_csr)
     PetscCall(RowBufferToAIJ(c, J));
   else {
-    if (c->rb_alias)
-      PetscCall(RowBufferAlias(c, J, PETSC_FALSE)); /* the values are in place */
-    else {
-      PetscCall(MatSetOption(J, MAT_ROW_ORIENTED, PETSC_FALSE)); /* block after block, each by columns */
-      for (PetscInt k = 0; k < c->nowned; k++) PetscCall(MatSetValuesBlocked(J, 1, &c->global[k], c->rb_ncols[k], c->rb_cols + c->rb_colstart[k], c->rb_val + c->rb_start[k], INSERT_VALUES));
-    }
-    PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
-    PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
+    PetscCall(MatSetOption(J, MAT_ROW_ORIENTED, PETSC_FALSE)); /* block after block, each by columns */
+    for (PetscInt k = 0; k < c->nowned; k++) PetscCall(MatSetValuesBlocked(J, 1, &c->global[k], c->rb_ncols[k], c->rb_cols + c->rb_colstart[k], c->rb_val + c->rb_start[k], INSERT_VALUES));
   }
+  PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY)); /* a new state, which the preconditioner sees */
+  PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
   PetscFunctionReturn(0);
 }
 

@@ -802,28 +802,24 @@ static PetscErrorCode NearSelect(SelfContact sc, SelfSet *s, PetscReal reach, Pe
   PetscBool use = PETSC_FALSE;
 
   PetscFunctionBeginUser;
-  if (sc->near == 0) {
-    s->pt = s->cpt, s->npt = s->ncpt, s->ee = s->cee, s->nee = s->ncee;
-    PetscFunctionReturn(0);
-  }
-  if (s->has_near) {
-    PetscCall(NearDisplacements(sc, s, s->xr, delta));
-    use = NearHolds(sc, delta, reach, gap_at_end);
-  }
-  if (!use) {
-    PetscCall(NearDisplacements(sc, s, NULL, delta));
-    if (NearHolds(sc, delta, reach, gap_at_end)) {
-      PetscCall(NearMake(sc, s));
-      sc->stats.near_lists++;
-      use = PETSC_TRUE;
+  if (sc->near > 0) { /* (0: no near list) */
+    if (s->has_near) {
+      PetscCall(NearDisplacements(sc, s, s->xr, delta));
+      use = NearHolds(sc, delta, reach, gap_at_end);
+    }
+    if (!use) {
+      PetscCall(NearDisplacements(sc, s, NULL, delta));
+      if ((use = NearHolds(sc, delta, reach, gap_at_end))) {
+        PetscCall(NearMake(sc, s));
+        sc->stats.near_lists++;
+      } else
+        sc->stats.unfiltered++;
     }
   }
   if (use)
     s->pt = s->npt_, s->npt = s->nnpt, s->ee = s->nee_, s->nee = s->nnee;
-  else {
+  else
     s->pt = s->cpt, s->npt = s->ncpt, s->ee = s->cee, s->nee = s->ncee;
-    sc->stats.unfiltered++;
-  }
   PetscFunctionReturn(0);
 }
 
