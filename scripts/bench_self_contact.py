@@ -80,7 +80,7 @@ def ranks(a, sizes, counts):
                 walls.append(reps["wall"])
                 filt.append(event(res.stdout, "DrapeSelfContact")[1])
             base = base or median(filt)
-            rows.append([f"{n}^2", str(r), f"{median(walls):.2f}", f"{median(filt):.2f}", f"{1e3 * median(filt) / reps['steps']:.2f}",
+            rows.append([f"{n}^2", str(r), f"{median(walls):.2f}", f"{median(filt):.3g}", f"{1e3 * median(filt) / reps['steps']:.3g}",
                          f"{base / median(filt):.2f}", str(reps["self_halo_max"]), str(reps["self_gathered"]), str(reps["self_contact_pairs"])])
     print(f"# {machine()}")
     print(f"# pile scene, symplectic Euler h = 0.1 ms, {a.time:g} s simulated, medians of {a.repeat}")
