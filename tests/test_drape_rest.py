@@ -111,16 +111,18 @@ STIFF = ("-cloth_size 1 -cloth_density 0.1 -cloth_stretch 1333 -cloth_shear 500 
                          ids=["hang", "drop"])
 def test_stiff_light_cloth_at_a_10ms_step(scene):
     """A peer benchmark's cloth (1333 N/m on 0.1 kg/m^2, (h Omega_max)^2 = 7e3 at 1e-2 s),
-    hanging from two corners and dropped onto a sphere: drape chooses smoothed
-    aggregation (block Jacobi's ICC(0) needed 63 CG iterations and 19 retried steps
-    on the hang), the run completes without a retried step, at most 25 CG iterations a
-    step (measured 6.3 on the hang; 20.8 on the drop, whose steps take up to two
-    solves while the cloth lands: constraints come and go), and the cloth stays
-    within 3 % strain."""
+    hanging from two corners and dropped onto a sphere. drape starts with block
+    Jacobi/ICC(0); where a solve of it fails (it loses definiteness: with -pc_type
+    bjacobi the hang retried 19 steps) the run goes on with smoothed aggregation and
+    makes that solve again at the same step. So the run completes without a retried
+    step, and the cloth stays within 3 % strain. Measured (2026-11-25): the switch at
+    t = 0.8 s on the hang and 0.59 s on the drop; 88.6 and 48.5 CG iterations a step,
+    1.28 and 3.37 CPU s, against 7.6 and 27.8 iterations, 1.08 and 4.83 s with ML
+    throughout."""
     res = run(f"{STIFF} {scene}", checks=False)
     rep = res.report
-    assert rep["pc_type"] in ("ml", "gamg"), res.stdout
-    assert rep["steps_retried"] == 0 and rep["cg_per_step"] <= 25 and rep["strain_max"] < 0.03, rep
+    assert rep["pc_type"] in ("ml", "gamg") or "the run goes on with algebraic multigrid" in res.stdout, res.stdout
+    assert rep["steps_retried"] == 0 and rep["cg_per_step"] <= 200 and rep["strain_max"] < 0.03, rep
 
 
 def test_blow_up_is_caught(tmp):

@@ -244,6 +244,26 @@ def test_backward_euler_survives_a_huge_step(tmp):
     assert fr.positions[-1, ..., 2].min() >= 0  # on or above the floor
 
 
+def test_tsadapt_chooses_the_backward_euler_step(tmp):
+    """With -ts_adapt_type basic, TSAdapt chooses drapebe's step from its local error
+    estimate (h/2 |v1 - v0| in position, second order in h; -ts_atol in metres): a
+    tolerance 100 x tighter takes more steps and lands nearer a fine fixed-step run
+    (hang, 16^2, t = 0.3 s: 15 steps and 22 mm at 1e-3, 154 steps and 4.7 mm at 1e-5).
+    Without the estimate TSAdapt would keep the first step (30 steps at 1e-2 s)."""
+    base = "-options_file runs/hang.opts -da_grid_x 16 -da_grid_y 16 -ts_max_time 0.3 -output_interval 0.3"
+    run(f"{base} -ts_dt 1e-4 -output_file {tmp / 'ref.h5'}")
+    ref = drape_h5.load(tmp / "ref.h5").positions[-1]
+    steps, err = {}, {}
+    for tol in (1e-3, 1e-5):
+        out = tmp / f"tol{tol:g}.h5"
+        res = run(f"{base} -ts_dt 1e-2 -ts_adapt_type basic -ts_atol {tol:g} -ts_rtol 0 -output_file {out}")
+        fr = drape_h5.load(out)
+        assert fr.time[-1] == pytest.approx(0.3)
+        steps[tol], err[tol] = res.report["steps"], np.abs(fr.positions[-1] - ref).max()
+    assert steps[1e-3] != 30 and steps[1e-5] > 4 * steps[1e-3], steps
+    assert err[1e-5] < err[1e-3] / 3, err
+
+
 def test_failed_step_is_retried_at_a_smaller_step(tmp):
     """A step whose solve fails (here: block Jacobi's ICC(0), asked for, loses
     definiteness at 320 x the symplectic limit) is rejected and retried at a quarter

@@ -57,8 +57,13 @@ typedef struct {
   PetscInt  pc_lag, lag; /* rebuild every pc_lag steps (ksponly, iterative KSP); lag: where it applies */
   PetscBool pc_stale;    /* rebuild it: the solid's constraints changed since it was built, or a step failed */
   PetscBool pc_amg;      /* it is algebraic multigrid (costly to build) */
+  PetscBool pc_auto;     /* drape chose it (no -pc_type): block Jacobi/ICC(0) gives way to multigrid when it fails or is slow */
+  PetscInt  pc_switched; /* the step at which it gave way (-1: never) */
+  PetscInt  lits;        /* CG iterations of the last solve */
+  PetscInt  max_its;     /* -ksp_max_it (ICC(0) chosen by drape stops at BE_ICC_MAX_ITS) */
   /* step control */
   PetscReal dt_nominal;                                           /* the step asked for */
+  PetscReal next_h;                                               /* TSAdapt's choice for the next step */
   PetscInt  accepted;                                             /* accepted steps since the step was last cut or grown */
   PetscBool snes_atol_set;                                        /* -snes_atol given: drape does not set SNES's absolute tolerance */
   PetscReal energy, energy_free, energy_trial, energy_free_trial; /* BECheckEnergy */
@@ -66,9 +71,11 @@ typedef struct {
   PetscBool have_energy;
   PetscReal h_failed; /* the smallest step that failed since a step that large last succeeded */
   PetscInt  wait;     /* accepted steps before the step grows back to h_failed or beyond */
+  PetscBool adaptive; /* a TSAdapt other than none chooses the step from the local error (TSEvaluateWLTE_DrapeBE) */
+  Vec       E;        /* work vector of the local error estimate */
   /* statistics */
-  PetscInt nsolves, nrejected;
-  char     failure[512]; /* the last failed solve, for the error message */
+  PetscInt nsolves, nrejected, nlte; /* nlte: steps rejected by TSAdapt for their local error */
+  char     failure[512];             /* the last failed solve, for the error message */
 } TS_DrapeBE;
 
 /* Trial state of the step: v_t = v0 + S dv + z (the solid's constraints S, z:
@@ -150,14 +157,42 @@ static PetscErrorCode BESetConstraints(TS_DrapeBE *be, PetscInt pc_changes)
   PetscFunctionReturn(0);
 }
 
-/* The preconditioner, unless the options chose one: by how stiff the step is,
- * (h Omega_max)^2, Omega_max the cloth's fastest frequency. Block Jacobi with ICC(0)
- * (cheap to build, and to rebuild when contacts change) wins while it stays below
- * about 2e3 (light fabrics at millisecond steps; the shipped scenes are below 600); above, its iterations grow with
- * the lattice and it can lose definiteness, and smoothed-aggregation multigrid with
- * the cloth's rigid-body modes (BENearNullSpace) wins: ML where PETSc has it, GAMG
- * otherwise (BENCHMARKS.md, "The implicit solve"). */
-#define BE_AMG_STIFFNESS 2e3
+/* The preconditioner, unless the options chose one: the solves choose it. Block
+ * Jacobi with ICC(0) is cheap to build (and to rebuild when contacts change), and
+ * one of its CG iterations costs about a 20th of one preconditioned by an ML
+ * V-cycle (12 fine-grid products and SOR sweeps: the hang at 64^2 and 1e-2 s, 65
+ * against 7.5 iterations a step, 62 against 194 ms a step, BENCHMARKS.md). Its
+ * iterations grow with the lattice and the stiffness of the step, (h
+ * Omega_max)^2, and it can lose definiteness: then smoothed-aggregation multigrid
+ * with the cloth's rigid-body modes (BENearNullSpace) wins, ML where PETSc has it,
+ * GAMG otherwise. So the run starts with ICC(0) unless the step is stiffer than
+ * BE_AMG_STIFFNESS, and gives way to multigrid for the rest of the run at the
+ * first solve that fails or takes more than BE_ICC_MAX_ITS iterations with a
+ * fresh factorisation (BEUseMultigrid); that solve is made again at the same step.
+ * A fixed rule on (h Omega)^2 alone (2e3 until 2026-11-25) chose ML where ICC(0)
+ * was 1.4-3 x faster (the hang at 128^2 up to 3.2e4; the Cusick scene at 121^2 and
+ * 161^2), and ICC(0) where it failed. */
+#define BE_AMG_STIFFNESS 5e4
+#define BE_ICC_MAX_ITS   200
+
+static PetscErrorCode BESetMultigrid(PC pc)
+{
+  PCType type = PCGAMG;
+
+  PetscFunctionBeginUser;
+#if defined(PETSC_HAVE_ML)
+  type = PCML;
+#endif
+  PetscCall(PCSetType(pc, type));
+  if (!strcmp(type, PCML)) { /* drop weak connections (anisotropy of a draped cloth): fewer iterations */
+    char      name[256];
+    PetscBool set;
+    PetscCall(PetscSNPrintf(name, sizeof name, "-%spc_ml_Threshold", ((PetscObject) pc)->prefix ? ((PetscObject) pc)->prefix : ""));
+    PetscCall(PetscOptionsHasName(NULL, NULL, name, &set));
+    if (!set) PetscCall(PetscOptionsSetValue(NULL, name, "0.02"));
+  }
+  PetscFunctionReturn(0);
+}
 
 static PetscErrorCode BEChoosePreconditioner(TS ts, TS_DrapeBE *be, PC pc)
 {
@@ -167,6 +202,7 @@ static PetscErrorCode BEChoosePreconditioner(TS ts, TS_DrapeBE *be, PC pc)
   PetscFunctionBeginUser;
   PetscCall(PetscOptionsHasName(NULL, ((PetscObject) pc)->prefix, "-pc_type", &set));
   if (set) PetscFunctionReturn(0);
+  be->pc_auto = PETSC_TRUE;
   if (be->omega <= 0) { /* not given: estimate it (the start-up estimate takes more iterations) */
     StabilityLimits    lim = {0};
     const PetscScalar *u;
@@ -175,21 +211,41 @@ static PetscErrorCode BEChoosePreconditioner(TS ts, TS_DrapeBE *be, PC pc)
     PetscCall(VecRestoreArrayRead(ts->vec_sol, &u));
     be->omega = lim.omega;
   }
-  if (PetscSqr(ts->time_step * be->omega) > BE_AMG_STIFFNESS) {
-#if defined(PETSC_HAVE_ML)
-    type = PCML;
-#else
-    type = PCGAMG;
-#endif
-  }
-  PetscCall(PCSetType(pc, type));
-  if (!strcmp(type, PCML)) { /* drop weak connections (anisotropy of a draped cloth): fewer iterations */
-    char name[256];
-    PetscCall(PetscSNPrintf(name, sizeof name, "-%spc_ml_Threshold", ((PetscObject) pc)->prefix ? ((PetscObject) pc)->prefix : ""));
-    PetscCall(PetscOptionsHasName(NULL, NULL, name, &set));
-    if (!set) PetscCall(PetscOptionsSetValue(NULL, name, "0.02"));
-  }
+  if (PetscSqr(ts->time_step * be->omega) > BE_AMG_STIFFNESS)
+    PetscCall(BESetMultigrid(pc));
+  else
+    PetscCall(PCSetType(pc, type));
   PetscCall(PCSetFromOptions(pc));
+  PetscFunctionReturn(0);
+}
+
+/* Block Jacobi/ICC(0), chosen by drape, gives way to multigrid (BEChoosePreconditioner):
+ * the matrix becomes AIJ, the preconditioner is built anew. Collective. */
+static PetscErrorCode BEUseMultigrid(TS ts, TS_DrapeBE *be)
+{
+  SNES snes;
+  KSP  ksp;
+  PC   pc;
+  Mat  J;
+
+  PetscFunctionBeginUser;
+  PetscCall(TSGetSNES(ts, &snes));
+  PetscCall(SNESGetKSP(snes, &ksp));
+  PetscCall(KSPGetPC(ksp, &pc));
+  PetscCall(PCReset(pc));
+  PetscCall(BESetMultigrid(pc));
+  PetscCall(PCSetFromOptions(pc));
+  PetscCall(KSPSetTolerances(ksp, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, be->max_its));
+  be->pc_amg      = PETSC_TRUE;
+  be->mattype     = MATAIJ;
+  be->pc_stale    = PETSC_TRUE;
+  be->pc_switched = ts->steps;
+  PetscCall(ClothCreateMatrix(be->cloth, be->mattype, &J));
+  PetscCall(SNESSetJacobian(snes, J, J, BEJacobian, be));
+  PetscCall(MatDestroy(&be->J));
+  be->J = J;
+  PetscCall(PetscPrintf(PetscObjectComm((PetscObject) ts), "note: at step %" PetscInt_FMT " (t = %g s) CG with block Jacobi/ICC(0) %s; the run goes on with algebraic multigrid (%s)\n", ts->steps, (double) ts->ptime,
+                        be->lits > BE_ICC_MAX_ITS ? "took more than " PetscStringize(BE_ICC_MAX_ITS) " iterations" : "failed", ((PetscObject) pc)->type_name));
   PetscFunctionReturn(0);
 }
 
@@ -304,7 +360,8 @@ static PetscErrorCode BESolve(TS ts, TS_DrapeBE *be, PetscBool *ok)
   ts->snes_its += its;
   ts->ksp_its += lits;
   be->nsolves++;
-  *ok = (PetscBool) (sreason > 0 && kreason >= 0);
+  be->lits = lits;
+  *ok      = (PetscBool) (sreason > 0 && kreason >= 0);
   if (!*ok) {
     Vec Y;
     PetscCall(PetscSNPrintf(be->failure, sizeof be->failure, "the backward-Euler solve of step %" PetscInt_FMT " (t = %g s, h = %g s) failed: SNES %s, KSP %s after %" PetscInt_FMT " linear iterations", ts->steps, (double) ts->ptime,
@@ -426,6 +483,15 @@ static PetscErrorCode BEStep(TS ts, TS_DrapeBE *be, PetscBool *ok)
       if (be->contact) PetscCall(ContactSolveSetPreconditioned(be->contact));
     }
     PetscCall(BESolve(ts, be, ok));
+    if (be->pc_auto && !be->pc_amg && (!*ok || be->lits >= BE_ICC_MAX_ITS)) { /* ICC(0) failed or was slow */
+      if (rebuild)
+        PetscCall(BEUseMultigrid(ts, be));
+      else
+        be->pc_stale = PETSC_TRUE; /* first with a fresh factorisation */
+      if (be->self) PetscCall(BESelfBlocks(ts, be));
+      it--;
+      continue;
+    }
     if (!*ok) PetscFunctionReturn(0);
     PetscCall(TrialState(be, be->DV));
     last    = (PetscBool) ((!be->contact && !be->self) || it + 1 >= be->contact_its);
@@ -484,6 +550,23 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
     /* a failed solve: TSAdapt cuts the step (scale_solve_failed), or stops the run
      * after -ts_max_snes_failures failures */
     PetscCall(TSAdaptCheckStage(ts->adapt, ts, ts->ptime + ts->time_step, ts->vec_sol, &accept));
+    if (accept && be->adaptive) { /* the solve succeeded: TSAdapt weighs its local error and chooses the next step */
+      PetscInt  scheme;
+      PetscReal next_h;
+      PetscCall(TSAdaptChoose(ts->adapt, ts, ts->time_step, &scheme, &next_h, &accept));
+      be->next_h = next_h;
+      if (!accept) { /* too large for the tolerances: again, at the step TSAdapt chose */
+        ts->time_step = next_h;
+        ts->reject++;
+        be->nlte++;
+        if (!ts->reason && ts->max_reject >= 0 && ++rejections > ts->max_reject) ts->reason = TS_DIVERGED_STEP_REJECTED;
+        if (ts->reason) {
+          PetscCall(VecRestoreArrayRead(be->U0, &u0));
+          PetscFunctionReturn(0);
+        }
+        continue;
+      }
+    }
     if (accept) break;
     ts->reject++;
     be->nrejected++;
@@ -506,6 +589,10 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
   PetscCall(VecRestoreArrayRead(be->U0, &u0));
   ts->ptime += ts->time_step;
   PetscCall(TSPostStage(ts, ts->ptime, 0, &ts->vec_sol));
+  if (be->adaptive) { /* TSAdapt owns the step */
+    ts->time_step = be->next_h;
+    PetscFunctionReturn(0);
+  }
   /* a step cut after a failure grows back, doubling after four accepted steps; back
    * to a size that failed only after be->wait steps, which doubles with every failure
    * there (a step that cannot be taken is not tried again every few steps) */
@@ -520,12 +607,40 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
   PetscFunctionReturn(0);
 }
 
+/* The step's local error, for TSAdapt (-ts_adapt_type basic; -ts_atol, -ts_rtol in
+ * metres): backward Euler's position x0 + h v1 against the trapezoidal rule's
+ * x0 + h (v0 + v1) / 2, that is h (v1 - v0) / 2 = h^2 a / 2 + O(h^3), second order
+ * in h. The particles a solid's constraint holds are left out (a landing changes
+ * the velocity at once: no step would resolve it), and so are the velocities (the
+ * drapes' question is where the cloth comes to rest). Collective. */
+static PetscErrorCode TSEvaluateWLTE_DrapeBE(TS ts, NormType wnormtype, PetscInt *order, PetscReal *wlte)
+{
+  TS_DrapeBE            *be   = (TS_DrapeBE *) ts->data;
+  const ClothConstraint *type = NULL;
+  PetscScalar           *e;
+  PetscReal              wltea, wlter;
+
+  PetscFunctionBeginUser;
+  if (!be->E) PetscCall(VecDuplicate(ts->vec_sol, &be->E));
+  if (be->contact) PetscCall(ContactSolveGetConstraints(be->contact, &type, NULL, NULL));
+  PetscCall(VecGetArray(be->E, &e));
+  for (PetscInt i = 0; i < be->n; i++) {
+    e[i]         = be->x0[i] + (type && type[i / 3] != CLOTH_FREE ? 0 : 0.5 * be->h * (be->vt[i] - be->v0[i]));
+    e[be->n + i] = be->v0[i];
+  }
+  PetscCall(VecRestoreArray(be->E, &e));
+  PetscCall(TSErrorWeightedNorm(ts, be->U0, be->E, wnormtype, wlte, &wltea, &wlter));
+  *order = 2;
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode TSSetUp_DrapeBE(TS ts)
 {
   TS_DrapeBE *be = (TS_DrapeBE *) ts->data;
   SNES        snes;
   ClothInfo   info;
   TSAdapt     adapt;
+  PetscBool   none;
 
   PetscFunctionBeginUser;
   PetscCheck(be->cloth, PetscObjectComm((PetscObject) ts), PETSC_ERR_ARG_WRONGSTATE, "TS type %s needs the cloth: call TSDrapeBESetCloth()", TSDRAPEBE);
@@ -541,6 +656,8 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
   be->energy_scale = info.mass * be->g * PetscMax(info.size[0], info.size[1]);
   be->have_energy  = PETSC_FALSE;
   PetscCall(TSGetAdapt(ts, &adapt));
+  PetscCall(PetscObjectTypeCompare((PetscObject) adapt, TSADAPTNONE, &none));
+  be->adaptive = (PetscBool) !none;
   PetscCall(ClothCreateVector(be->cloth, &be->DV));
   PetscCall(VecDuplicate(be->DV, &be->R));
   PetscCall(VecDuplicate(be->DV, &be->W));
@@ -579,6 +696,8 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
     }
     PetscCall(PetscObjectTypeCompareAny((PetscObject) pc, &be->pc_amg, PCGAMG, PCML, PCHYPRE, PCHMG, ""));
     be->mattype = sbaij ? MATSBAIJ : MATAIJ;
+    PetscCall(KSPGetTolerances(ksp, NULL, NULL, NULL, &be->max_its));
+    if (be->pc_auto && !be->pc_amg) PetscCall(KSPSetTolerances(ksp, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, PetscMin(be->max_its, BE_ICC_MAX_ITS)));
     PetscCall(ClothCreateMatrix(be->cloth, be->mattype, &be->J));
     /* the preconditioner lags with the single linearisation and an iterative KSP; a
      * direct solve (-ksp_type preonly) may not lag its factorisation, which is then
@@ -633,6 +752,7 @@ static PetscErrorCode TSReset_DrapeBE(TS ts)
   PetscCall(VecDestroy(&be->R));
   PetscCall(VecDestroy(&be->W));
   PetscCall(MatDestroy(&be->J));
+  PetscCall(VecDestroy(&be->E));
   PetscCall(PetscFree3(be->xt, be->vt, be->at));
   PetscFunctionReturn(0);
 }
@@ -801,7 +921,9 @@ static PetscErrorCode TSCreate_DrapeBE(TS ts)
   ts->ops->destroy        = TSDestroy_DrapeBE;
   ts->ops->view           = TSView_DrapeBE;
   ts->ops->setfromoptions = TSSetFromOptions_DrapeBE;
+  ts->ops->evaluatewlte   = TSEvaluateWLTE_DrapeBE;
   be->pc_lag              = 5;
+  be->pc_switched         = -1;
   be->contact_its         = 2; /* a third solve cost 30 % more CG iterations on the stiff drop and changed the rest strain on the sphere scene by under 0.02 % (polyester 0.25 against 0.27 %, denim 3.62 % both) */
   ts->usessnes            = PETSC_TRUE;
   ts->default_adapt_type  = TSADAPTNONE;
