@@ -29,10 +29,9 @@
  * back to a size that failed only after 8, 16, ... 1024 steps, doubling with each
  * failure at that size. */
 #include <petsc/private/tsimpl.h>
+#include <drapebe.h>
+#include <stability.h>
 #include <drape.h>
-#include <simulation.h>
-#include <contactsolve.h>
-#include <selfcontact.h>
 
 typedef struct {
   Cloth              cloth;

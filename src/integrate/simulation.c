@@ -11,9 +11,12 @@
  *   - its own TS type drapebe (scheme 4, see drapebe.c). */
 #include <petsc/private/tsimpl.h>
 #include <simulation.h>
+#include <drapebe.h>
+#include <stability.h>
 #include <output.h>
 #include <report.h>
 #include <solid.h>
+#include <contactsolve.h>
 #include <selfcontact.h>
 #include <analysis.h>
 #include <drape.h>

@@ -17,7 +17,7 @@
  *   explicit Euler    h <= c / Omega^2 if the top mode is underdamped (c < 2 Omega),
  *                     h <= 2 / (c/2 + sqrt(c^2/4 - Omega^2)) otherwise; no step at c = 0.
  */
-#include <simulation.h>
+#include <stability.h>
 #include <drape.h>
 
 #ifndef STABILITY_RTOL
