@@ -4,7 +4,8 @@
  * through an IFunction and keeps its meaning.
  *
  * The setters and getters do nothing on a TS of another type (the impulse and the
- * statistics are then zero). */
+ * statistics are then zero), except TSDrapeBESetCloth, which the TS keeps whatever
+ * its type, so that it can be given before TSSetFromOptions chooses the type. */
 #pragma once
 
 #include <petscts.h>
@@ -16,8 +17,9 @@
 
 /* Register the type with TSRegister() (again: no harm). Not collective. */
 PETSC_EXTERN PetscErrorCode DrapeTSRegister(void);
-/* The cloth whose motion the TS integrates (required by TSSetUp). Logically
- * collective on TS. */
+/* The cloth whose motion the TS integrates (required by TSSetUp). Give it before
+ * TSSetFromOptions: its defaults follow the cloth (-snes_type newtonls with bending
+ * friction), and the options override them. Logically collective on TS. */
 PETSC_EXTERN PetscErrorCode TSDrapeBESetCloth(TS, Cloth);
 /* Contact with the solid as constraints of the step (include/contactsolve.h; NULL:
  * none), set up by TSSetUp. Logically collective on TS. */

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cloth.h>
+#include <report.h>
 
 typedef struct {
   PetscBool reference;  /* in: exactly `iterations` steps, each product through the elements' full matrices (tests) */
@@ -16,3 +17,7 @@ typedef struct {
  * (fewer once it has converged), and the step limits it implies. Collective on the
  * cloth's communicator. */
 PETSC_EXTERN PetscErrorCode StabilityEstimate(Cloth, const PetscScalar *x, PetscInt iterations, StabilityLimits *);
+/* The estimate's lines on viewer (NULL: none) and its numbers in the report
+ * (omega_max, symplectic_limit, euler_limit), from the same values; damping in 1/s.
+ * Collective on the viewer. */
+PETSC_EXTERN PetscErrorCode StabilityView(const StabilityLimits *, PetscReal damping, Report, PetscViewer);
