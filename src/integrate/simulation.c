@@ -8,7 +8,11 @@
  *     (euler = paper scheme 2, rk, ssp);
  *   - the "position" and "momentum" splits for basicsymplectic (scheme 3: velocity
  *     first; the momentum update sees the current velocity for the damping force);
- *   - its own TS type drapebe (scheme 4, see drapebe.c). */
+ *   - its own TS type drapebe (scheme 4, see drapebe.c).
+ * The features around the loop are objects it calls, each with its options, state
+ * and view: restart (output.h), the rest test (rest.h), the Cusick analysis
+ * (analysis.h), the stability estimate (stability.h). A number the run prints is
+ * reported by the same call (ReportView*, report.h). */
 #include <petsc/private/tsimpl.h>
 #include <simulation.h>
 #include <drapebe.h>
