@@ -113,6 +113,10 @@ check-deps:
 	@printf '#include <metis.h>\n' | $(CC) $(DRAPE_CPPFLAGS) -E - >/dev/null 2>&1 || { echo "drape: METIS not found (no metis.h; $(PETSC_NAME) has no METIS); install it (Debian: apt-get install libmetis-dev) or configure PETSc with --download-metis"; exit 1; }
 	@printf '#include <CGAL/AABB_tree.h>\n' | $(CXX) $(DRAPE_CPPFLAGS) -x c++ -E - >/dev/null 2>&1 || { echo "drape: CGAL not found (no CGAL/AABB_tree.h, or Boost missing); install it (Debian: apt-get install libcgal-dev)"; exit 1; }
 
+# the C unit tests reach the private headers they test by their folder under src/
+# (#include <cloth/kernels.h>), not by a relative path
+$(BUILD)/tests/unit/%.o: DRAPE_CPPFLAGS += -Isrc
+
 # the lattice force kernel: no floating-point traps to preserve, so GCC may compute
 # both sides of a select and vectorise the loops (src/cloth/lattice.c)
 $(BUILD)/src/cloth/lattice.o: DRAPE_CFLAGS += -fno-trapping-math

@@ -10,6 +10,8 @@
 #pragma once
 
 #include <cloth.h>
+#include <solid.h>
+#include <report.h>
 
 /* Rasterise ntri triangles (xy: 6 reals each) on a square grid of half-width
  * `extent` around (cx, cy) with `npixels` per side; return the covered area and,
@@ -21,3 +23,21 @@ PETSC_EXTERN PetscErrorCode CusickCountFolds(PetscInt nbins, const PetscReal *ra
 /* Drape coefficient and folds of the cloth at x (owned order), against the flat
  * reference x0, for a pedestal of radius r centred at c. Collective. */
 PETSC_EXTERN PetscErrorCode CusickAnalyse(Cloth, const PetscScalar *x, const PetscScalar *x0, PetscReal pedestal_radius, const PetscReal c[2], PetscReal *dc, PetscInt *folds);
+
+/* The analysis as a part of a run: its options (-cusick_pedestal_radius,
+ * -cusick_center), the flat specimen it compares with, and its numbers at the end.
+ * Create: not collective. SetFromOptions: collective (a -cusick_center without a
+ * pedestal radius is refused). Enabled: not collective. */
+typedef struct _p_Cusick   *Cusick;
+PETSC_EXTERN PetscErrorCode CusickCreate(MPI_Comm, Cusick *);
+PETSC_EXTERN PetscErrorCode CusickSetFromOptions(Cusick);
+PETSC_EXTERN PetscErrorCode CusickEnabled(Cusick, PetscBool *);
+/* Check that the pedestal lies under the flat specimen at x (owned order) and that
+ * a solid holds it up, and keep x as the flat reference. Collective. */
+PETSC_EXTERN PetscErrorCode CusickSetUp(Cusick, Cloth, Solid, const PetscScalar *x);
+/* Analyse the cloth at x: the drape coefficient and folds on viewer (NULL: not
+ * printed; with a warning unless the cloth came to rest) and in the report
+ * (drape_coefficient, drape_folds). Collective. */
+PETSC_EXTERN PetscErrorCode CusickView(Cusick, Cloth, const PetscScalar *x, PetscBool at_rest, Report, PetscViewer);
+/* Not collective. */
+PETSC_EXTERN PetscErrorCode CusickDestroy(Cusick *);

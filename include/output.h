@@ -31,14 +31,36 @@ PETSC_EXTERN PetscErrorCode OutputLastStep(Output, PetscInt *);
 PETSC_EXTERN PetscErrorCode OutputWriteReport(Output, Report);
 PETSC_EXTERN PetscErrorCode OutputDestroy(Output *);
 
-/* Restart (src/io/restart.c). RestartInsertOptions puts the options stored in a
- * drape file into the options database under the command line's own (the command
- * line wins); a missing, truncated, foreign or damaged file ends with one sentence.
- * RestartLoad reads the last complete frame into x, v (owned order), with its time
- * and step, and the times of all complete frames (caller frees). Both collective
- * (rank 0 checks the file, every rank reads the frame). */
-PETSC_EXTERN PetscErrorCode RestartInsertOptions(MPI_Comm, const char file[]);
-PETSC_EXTERN PetscErrorCode RestartLoad(MPI_Comm, const char file[], Cloth, PetscScalar *x, PetscScalar *v, PetscReal *t, PetscInt *step, PetscInt *nframes, PetscReal **times);
 /* Continue writing into an existing file after its first nframes frames (times),
  * if it is the output file (by identity, not by name). Not collective. */
 PETSC_EXTERN PetscErrorCode OutputSetAppend(Output, const char file[], PetscInt nframes, const PetscReal times[]);
+/* The file to write when -output_file does not name one (a restart continues its
+ * own file); before OutputSetFromOptions. Not collective. */
+PETSC_EXTERN PetscErrorCode OutputSetDefaultFile(Output, const char file[]);
+/* -output_file as given (NULL: no output). Not collective. */
+PETSC_EXTERN PetscErrorCode OutputGetFileName(Output, const char **);
+
+/* Restart (src/io/restart.c): -restart FILE continues the run stored in a drape file
+ * from its last complete frame. Create and Destroy: not collective. */
+typedef struct _p_Restart  *Restart;
+PETSC_EXTERN PetscErrorCode RestartCreate(MPI_Comm, Restart *);
+PETSC_EXTERN PetscErrorCode RestartDestroy(Restart *);
+/* -restart: the file is checked (rank 0; a missing, truncated, foreign or damaged file
+ * ends with one sentence) and the options stored in it go into the options database
+ * under the command line's own (the command line wins; a cloth of another material or
+ * geometry is refused); the output continues that file unless -output_file names
+ * another. Before the other components read their options. Collective. */
+PETSC_EXTERN PetscErrorCode RestartSetFromOptions(Restart, Output);
+/* Not collective. */
+PETSC_EXTERN PetscErrorCode RestartEnabled(Restart, PetscBool *);
+/* Can -restart continue a run of this cloth? Not with bending friction, whose plastic
+ * state the frames do not hold. Not collective. */
+PETSC_EXTERN PetscErrorCode RestartSupported(Cloth, PetscBool *);
+/* Read the last complete frame into x, v (owned order; nothing without -restart) and
+ * let the output append after the frames before it. Collective (every rank reads). */
+PETSC_EXTERN PetscErrorCode RestartLoad(Restart, Cloth, Output, PetscScalar *x, PetscScalar *v);
+/* Time and step the run starts from (0, 0 without -restart). Not collective. */
+PETSC_EXTERN PetscErrorCode RestartGetStart(Restart, PetscReal *t, PetscInt *step);
+/* After a stop by `signal` at (step, t) with the last frame written: how to continue
+ * it, on viewer. Collective on the viewer. */
+PETSC_EXTERN PetscErrorCode RestartViewStop(Restart, Cloth, Output, PetscViewer, const char signal[], PetscInt step, PetscReal t);

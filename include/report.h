@@ -5,7 +5,7 @@
  * line on standard output. The printed prose says the same for people. */
 #pragma once
 
-#include <petscsys.h>
+#include <petscviewer.h>
 
 typedef struct _p_Report *Report;
 
@@ -18,6 +18,15 @@ PETSC_EXTERN PetscErrorCode ReportSetReal(Report, const char name[], PetscReal);
 PETSC_EXTERN PetscErrorCode ReportSetInt(Report, const char name[], PetscInt);
 PETSC_EXTERN PetscErrorCode ReportSetBool(Report, const char name[], PetscBool);
 PETSC_EXTERN PetscErrorCode ReportSetString(Report, const char name[], const char value[]);
+/* Set an entry and print the same value on an ASCII viewer with `format` (its one
+ * conversion for the value: a real's %g, %e or %f, "%" PetscInt_FMT, %s), so that
+ * the prose and the report cannot say different numbers; viewer NULL: set it only.
+ * ReportViewPercent prints 100 x the value (a fraction) and reports the fraction.
+ * Collective on the viewer (rank 0 prints). */
+PETSC_EXTERN PetscErrorCode ReportViewReal(Report, PetscViewer, const char name[], const char format[], PetscReal);
+PETSC_EXTERN PetscErrorCode ReportViewPercent(Report, PetscViewer, const char name[], const char format[], PetscReal);
+PETSC_EXTERN PetscErrorCode ReportViewInt(Report, PetscViewer, const char name[], const char format[], PetscInt);
+PETSC_EXTERN PetscErrorCode ReportViewString(Report, PetscViewer, const char name[], const char format[], const char value[]);
 /* Entry k (0 <= k < n): its name and type (PETSC_REAL, PETSC_INT, PETSC_BOOL or
  * PETSC_STRING) and value (the one of its type). Not collective. */
 PETSC_EXTERN PetscErrorCode ReportGetSize(Report, PetscInt *n);

@@ -80,6 +80,15 @@ def test_plastic_state_is_the_same_on_any_rank_count(tmp):
     assert np.abs(a.positions - drape_h5.load(tmp / "none.h5").positions).max() > 5e-3
 
 
+def test_bending_friction_defaults_to_newton_and_the_options_override_it():
+    """drapebe's SNES is newtonls with bending friction, ksponly without: a default set
+    on the SNES before the options, so that -snes_type still chooses."""
+    base = "-da_grid_x 8 -da_grid_y 8 -cloth_pin edge_corners -ts_type drapebe -ts_dt 2e-3 -ts_max_steps 2"
+    assert run(f"{base} -cloth_bend_hysteresis 5e-4").report["snes_type"] == "newtonls"
+    assert run(f"{base} -cloth_bend_hysteresis 5e-4 -snes_type ksponly").report["snes_type"] == "ksponly"
+    assert run(base).report["snes_type"] == "ksponly"
+
+
 @pytest.mark.parametrize("args, what", [("-cloth_bend_hysteresis -1e-3", "-cloth_bend_hysteresis"),
                                         ("-cloth_bend_hysteresis nan", "-cloth_bend_hysteresis"),
                                         ("-cloth_bend_hysteresis 1e-3,1e-3,1e-3", "one value (warp = weft) or two"),

@@ -101,3 +101,18 @@ def test_file_cut_at_random_bytes_is_refused_or_read_to_a_whole_frame(tmp):
             assert len(lines) == 1 and "Cannot restart from" in lines[0], res.stderr
         else:
             assert "Summary:" in res.stdout
+
+
+def test_restart_writes_the_file_it_continues_unless_told(tmp):
+    """The frames go on in the file restarted from (the output's default), not in the
+    file its stored options name (a copy's name the original, which must stay as it
+    is); -output_file names another."""
+    part, copy, other = tmp / "part.h5", tmp / "copy.h5", tmp / "other.h5"
+    run(f"{SCENE} -ts_type basicsymplectic -ts_dt 2e-4 -ts_max_time 0.02 -output_file {part}")
+    copy.write_bytes(part.read_bytes())
+    before = part.read_bytes()
+    run(f"-restart {copy} -ts_max_time 0.04")
+    assert part.read_bytes() == before
+    assert len(drape_h5.load(copy).time) == 5 and len(drape_h5.load(part).time) == 3
+    run(f"-restart {part} -ts_max_time 0.03 -output_file {other}")
+    assert part.read_bytes() == before and drape_h5.load(other).time[0] > 0.02 - 1e-12

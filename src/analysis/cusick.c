@@ -1,6 +1,14 @@
 /* The Cusick drape test: silhouette area, drape coefficient, number of folds. */
 #include <analysis.h>
+#include <drape.h>
 #include <petscdmda.h>
+
+struct _p_Cusick {
+  MPI_Comm     comm;
+  PetscReal    radius, center[2]; /* the pedestal; radius 0: no analysis */
+  PetscBool    center_set;
+  PetscScalar *x0; /* the flat specimen, owned order */
+};
 
 PetscErrorCode CusickSilhouette(PetscInt ntri, const PetscReal *xy, const PetscReal c[2], PetscReal extent, PetscInt npixels, PetscReal *area, PetscInt nbins, PetscReal *radius)
 {
@@ -169,5 +177,109 @@ PetscErrorCode CusickAnalyse(Cloth cloth, const PetscScalar *x, const PetscScala
   PetscCall(VecDestroy(&Z));
   PetscCall(VecDestroy(&N));
   PetscCall(VecDestroy(&G));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode CusickCreate(MPI_Comm comm, Cusick *cusick)
+{
+  PetscFunctionBeginUser;
+  PetscCall(PetscNew(cusick));
+  (*cusick)->comm = comm;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode CusickDestroy(Cusick *cusick)
+{
+  PetscFunctionBeginUser;
+  if (!*cusick) PetscFunctionReturn(0);
+  PetscCall(PetscFree((*cusick)->x0));
+  PetscCall(PetscFree(*cusick));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode CusickSetFromOptions(Cusick c)
+{
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(c->comm, NULL, "Cusick drape test", "Cusick");
+  PetscCall(PetscOptionsReal("-cusick_pedestal_radius", "Cusick drape test: pedestal radius (m); > 0 reports the drape coefficient and folds at the end", "CusickAnalyse", c->radius, &c->radius, NULL));
+  {
+    /* room for a third value: PETSc reads at most n and drops the rest without a word */
+    PetscReal center[3] = {c->center[0], c->center[1], 0};
+    PetscInt  n         = 3;
+    PetscBool set;
+    PetscCall(PetscOptionsRealArray("-cusick_center", "Cusick drape test: pedestal centre x,y (m)", "CusickAnalyse", center, &n, &set));
+    PetscCheck(!set || n == 2, c->comm, PETSC_ERR_USER_INPUT, "-cusick_center needs two coordinates x,y; got %" PetscInt_FMT, n);
+    c->center[0]  = center[0];
+    c->center[1]  = center[1];
+    c->center_set = set;
+  }
+  PetscOptionsEnd();
+  PetscCall(DrapeCheckReal(c->comm, "-cusick_pedestal_radius", 1, &c->radius, 0, 1e3, "m (0: no analysis)"));
+  {
+    char got[32];
+    PetscCheck(c->radius == 0 || c->radius >= 1e-3, c->comm, PETSC_ERR_USER_INPUT, "-cusick_pedestal_radius must be 0 (no analysis) or from 0.001 to 1000 m; got %s", DrapeFormatReal(c->radius, got, sizeof got));
+  }
+  PetscCall(DrapeCheckReal(c->comm, "-cusick_center", 2, c->center, -1e4, 1e4, "m"));
+  PetscCheck(!c->center_set || c->radius > 0, c->comm, PETSC_ERR_USER_INPUT, "-cusick_center does not apply to this run: there is no Cusick analysis (add -cusick_pedestal_radius)");
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode CusickEnabled(Cusick c, PetscBool *enabled)
+{
+  PetscFunctionBeginUser;
+  *enabled = (PetscBool) (c->radius > 0);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode CusickSetUp(Cusick c, Cloth cloth, Solid solid, const PetscScalar *u)
+{
+  PetscReal        box[5] = {-PETSC_MAX_REAL, -PETSC_MAX_REAL, -PETSC_MAX_REAL, -PETSC_MAX_REAL, -PETSC_MAX_REAL}; /* -xmin, -ymin, xmax, ymax, -zmin of the flat specimen */
+  const PetscBool *active;
+  ClothInfo        info;
+
+  PetscFunctionBeginUser;
+  if (c->radius <= 0) PetscFunctionReturn(0);
+  PetscCall(ClothGetInfo(cloth, &info));
+  PetscCheck(2 * c->radius < PetscMin(info.size[0], info.size[1]), c->comm, PETSC_ERR_USER_INPUT, "-cusick_pedestal_radius %g m leaves no overhang on a %g x %g m specimen: the pedestal must be smaller than the specimen", (double) c->radius,
+             (double) info.size[0], (double) info.size[1]);
+  PetscCall(ClothGetActive(cloth, &active));
+  for (PetscInt k = 0; k < info.nowned; k++)
+    for (PetscInt d = 0; d < 2 && active[k]; d++) {
+      box[d]     = PetscMax(box[d], -PetscRealPart(u[3 * k + d]));
+      box[2 + d] = PetscMax(box[2 + d], PetscRealPart(u[3 * k + d]));
+      if (!d) box[4] = PetscMax(box[4], -PetscRealPart(u[3 * k + 2]));
+    }
+  PetscCall(MPIU_Allreduce(MPI_IN_PLACE, box, 5, MPIU_REAL, MPIU_MAX, c->comm));
+  PetscCheck(c->center[0] - c->radius > -box[0] && c->center[0] + c->radius < box[2] && c->center[1] - c->radius > -box[1] && c->center[1] + c->radius < box[3], c->comm, PETSC_ERR_USER_INPUT,
+             "The Cusick pedestal (-cusick_center %g,%g, radius %g m) must lie under the flat specimen, which spans [%g, %g] x [%g, %g] m horizontally (the analysis needs a horizontal specimen)", (double) c->center[0], (double) c->center[1],
+             (double) c->radius, (double) -box[0], (double) box[2], (double) -box[1], (double) box[3]);
+  {
+    /* the pedestal: a solid whose top is within a pedestal radius under the
+     * specimen's centre (without one the cloth falls flat and DC = 1 means nothing) */
+    PetscReal p[3] = {c->center[0], c->center[1], -box[4]}, distance = PETSC_MAX_REAL, normal[3];
+    PetscBool empty;
+    PetscCall(SolidIsEmpty(solid, &empty));
+    if (!empty) PetscCall(SolidQuery(solid, p, &distance, normal));
+    PetscCheck(distance <= c->radius, c->comm, PETSC_ERR_USER_INPUT,
+               "-cusick_pedestal_radius %g: the Cusick analysis needs the pedestal, a solid just under the specimen's centre (%g, %g, %g) m (e.g. -solid_type cylinder -solid_radius %g, as in runs/cusick.opts), and %s", (double) c->radius,
+               (double) p[0], (double) p[1], (double) p[2], (double) c->radius, empty ? "this run has no solid" : "the nearest solid is farther than the pedestal radius");
+  }
+  PetscCall(PetscFree(c->x0));
+  PetscCall(PetscMalloc1(3 * info.nowned, &c->x0));
+  PetscCall(PetscArraycpy(c->x0, u, 3 * info.nowned));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode CusickView(Cusick c, Cloth cloth, const PetscScalar *x, PetscBool at_rest, Report r, PetscViewer viewer)
+{
+  PetscReal dc;
+  PetscInt  folds;
+
+  PetscFunctionBeginUser;
+  if (c->radius <= 0) PetscFunctionReturn(0);
+  PetscCall(CusickAnalyse(cloth, x, c->x0, c->radius, c->center, &dc, &folds));
+  PetscCall(ReportViewReal(r, viewer, "drape_coefficient", "Cusick drape test: drape coefficient DC = %.4f", dc));
+  PetscCall(ReportViewInt(r, viewer, "drape_folds", ", %" PetscInt_FMT " folds", folds));
+  if (viewer) PetscCall(PetscViewerASCIIPrintf(viewer, " (pedestal radius %g m)%s\n", (double) c->radius, at_rest ? "" : "; WARNING: the run ended before the cloth came to rest (set -drape_rest_tol and a longer -ts_max_time)"));
   PetscFunctionReturn(0);
 }

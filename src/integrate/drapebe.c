@@ -29,10 +29,11 @@
  * back to a size that failed only after 8, 16, ... 1024 steps, doubling with each
  * failure at that size. */
 #include <petsc/private/tsimpl.h>
+#include <drapebe.h>
+#include <stability.h>
 #include <drape.h>
-#include <simulation.h>
-#include <contactsolve.h>
-#include <selfcontact.h>
+
+static PetscErrorCode TSDrapeBEGetCloth(TS, Cloth *);
 
 typedef struct {
   Cloth              cloth;
@@ -643,6 +644,7 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
   PetscBool   none;
 
   PetscFunctionBeginUser;
+  PetscCall(TSDrapeBEGetCloth(ts, &be->cloth));
   PetscCheck(be->cloth, PetscObjectComm((PetscObject) ts), PETSC_ERR_ARG_WRONGSTATE, "TS type %s needs the cloth: call TSDrapeBESetCloth()", TSDRAPEBE);
   PetscCall(ClothGetInfo(be->cloth, &info));
   PetscCall(ClothGetMasses(be->cloth, &be->mass, &be->pinned));
@@ -664,17 +666,6 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
   PetscCall(VecDuplicate(ts->vec_sol, &be->U0));
   for (PetscInt i = 0; i < 6; i++) PetscCall(VecDuplicate(be->DV, &be->nullvec[i]));
   PetscCall(TSGetSNES(ts, &snes));
-  if (info.hysteresis[0] > 0 || info.hysteresis[1] > 0) {
-    /* bending friction: the single linearisation decides at the free motion's end
-     * which triples slide, and a triple that turns back within the step is pushed on
-     * by the full friction moment: energy put in (a denim Cusick drape at stick
-     * stiffness 20 B kept 5e-4 J of kinetic energy at 6 s). Newton minimises the
-     * step's incremental potential, the friction's included: the drape comes to rest
-     * (BENCHMARKS.md, "Bending hysteresis") */
-    PetscBool set;
-    PetscCall(PetscOptionsHasName(NULL, ((PetscObject) snes)->prefix, "-snes_type", &set));
-    if (!set) PetscCall(SNESSetType(snes, SNESNEWTONLS));
-  }
   {
     KSP       ksp;
     PC        pc;
@@ -757,13 +748,6 @@ static PetscErrorCode TSReset_DrapeBE(TS ts)
   PetscFunctionReturn(0);
 }
 
-static PetscErrorCode TSDrapeBESetCloth_DrapeBE(TS ts, Cloth cloth)
-{
-  PetscFunctionBeginUser;
-  ((TS_DrapeBE *) ts->data)->cloth = cloth;
-  PetscFunctionReturn(0);
-}
-
 static PetscErrorCode TSDrapeBESetContact_DrapeBE(TS ts, ContactSolve contact)
 {
   PetscFunctionBeginUser;
@@ -798,10 +782,17 @@ static PetscErrorCode TSDrapeBEGetStatistics_DrapeBE(TS ts, PetscInt *solves, Pe
   PetscFunctionReturn(0);
 }
 
+/* The cloth rides with the TS in a container, whatever the TS's type: it is given
+ * before TSSetFromOptions chooses the type, and the type's defaults follow it. */
 PetscErrorCode TSDrapeBESetCloth(TS ts, Cloth cloth)
 {
+  PetscContainer container;
+
   PetscFunctionBeginUser;
-  PetscTryMethod(ts, "TSDrapeBESetCloth_C", (TS, Cloth), (ts, cloth));
+  PetscCall(PetscContainerCreate(PetscObjectComm((PetscObject) ts), &container));
+  PetscCall(PetscContainerSetPointer(container, cloth));
+  PetscCall(PetscObjectCompose((PetscObject) ts, "TSDrapeBECloth", (PetscObject) container));
+  PetscCall(PetscContainerDestroy(&container));
   PetscFunctionReturn(0);
 }
 
@@ -865,7 +856,19 @@ PetscErrorCode TSDrapeBEGetStatistics(TS ts, PetscInt *solves, PetscInt *rejecte
   PetscFunctionReturn(0);
 }
 
-static const char *const methods[] = {"TSDrapeBESetCloth_C", "TSDrapeBESetContact_C", "TSDrapeBESetSelfContact_C", "TSDrapeBESetStiffness_C", "TSDrapeBEGetContactImpulse_C", "TSDrapeBEGetStatistics_C", "TSDrapeBEStateChanged_C"};
+/* The cloth TSDrapeBESetCloth gave the TS (NULL: none). */
+static PetscErrorCode TSDrapeBEGetCloth(TS ts, Cloth *cloth)
+{
+  PetscContainer container;
+
+  PetscFunctionBeginUser;
+  *cloth = NULL;
+  PetscCall(PetscObjectQuery((PetscObject) ts, "TSDrapeBECloth", (PetscObject *) &container));
+  if (container) PetscCall(PetscContainerGetPointer(container, (void **) cloth));
+  PetscFunctionReturn(0);
+}
+
+static const char *const methods[] = {"TSDrapeBESetContact_C", "TSDrapeBESetSelfContact_C", "TSDrapeBESetStiffness_C", "TSDrapeBEGetContactImpulse_C", "TSDrapeBEGetStatistics_C", "TSDrapeBEStateChanged_C"};
 
 static PetscErrorCode TSDestroy_DrapeBE(TS ts)
 {
@@ -887,6 +890,24 @@ static PetscErrorCode TSSetFromOptions_DrapeBE(TS ts, PetscOptionItems *PetscOpt
   PetscOptionsHeadEnd();
   PetscCall(DrapeCheckInt(PetscObjectComm((PetscObject) ts), "-drape_pc_lag", be->pc_lag, 1, 1000000));
   PetscCall(DrapeCheckInt(PetscObjectComm((PetscObject) ts), "-drape_contact_its", be->contact_its, 1, 1000));
+  {
+    /* bending friction: the single linearisation decides at the free motion's end
+     * which triples slide, and a triple that turns back within the step is pushed on
+     * by the full friction moment: energy put in (a denim Cusick drape at stick
+     * stiffness 20 B kept 5e-4 J of kinetic energy at 6 s). Newton minimises the
+     * step's incremental potential, the friction's included: the drape comes to rest
+     * (BENCHMARKS.md, "Bending hysteresis"). The default, set before TSSetFromOptions
+     * reads -snes_type into the SNES (after this function). */
+    Cloth     cloth;
+    ClothInfo info;
+    PetscCall(TSDrapeBEGetCloth(ts, &cloth));
+    if (cloth) PetscCall(ClothGetInfo(cloth, &info));
+    if (cloth && (info.hysteresis[0] > 0 || info.hysteresis[1] > 0)) {
+      SNES snes;
+      PetscCall(TSGetSNES(ts, &snes));
+      PetscCall(SNESSetType(snes, SNESNEWTONLS));
+    }
+  }
   PetscFunctionReturn(0);
 }
 
@@ -928,7 +949,6 @@ static PetscErrorCode TSCreate_DrapeBE(TS ts)
   ts->usessnes            = PETSC_TRUE;
   ts->default_adapt_type  = TSADAPTNONE;
   ts->max_snes_failures   = -1; /* a failed solve is retried at a smaller step */
-  PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBESetCloth_C", TSDrapeBESetCloth_DrapeBE));
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBESetContact_C", TSDrapeBESetContact_DrapeBE));
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBESetSelfContact_C", TSDrapeBESetSelfContact_DrapeBE));
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBESetStiffness_C", TSDrapeBESetStiffness_DrapeBE));

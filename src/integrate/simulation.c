@@ -8,15 +8,23 @@
  *     (euler = paper scheme 2, rk, ssp);
  *   - the "position" and "momentum" splits for basicsymplectic (scheme 3: velocity
  *     first; the momentum update sees the current velocity for the damping force);
- *   - its own TS type drapebe (scheme 4, see drapebe.c). */
+ *   - its own TS type drapebe (scheme 4, see drapebe.c).
+ * The features around the loop are objects it calls, each with its options, state
+ * and view: restart (output.h), the rest test (rest.h), the Cusick analysis
+ * (analysis.h), the stability estimate (stability.h). A number the run prints is
+ * reported by the same call (ReportView*, report.h). */
 #include <petsc/private/tsimpl.h>
 #include <simulation.h>
+#include <drapebe.h>
+#include <stability.h>
 #include <output.h>
 #include <report.h>
 #include <solid.h>
+#include <contactsolve.h>
 #include <selfcontact.h>
 #include <analysis.h>
 #include <drape.h>
+#include "rest.h"
 #include <unistd.h>
 #include <signal.h>
 
@@ -47,42 +55,44 @@ static void SignalsCatch(PetscBool on)
   }
 }
 
+/* What the frames say about contact with the solid since the last frame. */
+typedef struct {
+  PetscReal depth;          /* deepest penetration, m */
+  PetscInt  count;          /* particles in contact after the last step */
+  PetscReal impulse[3], t0; /* impulse on this rank's particles since t0, N s */
+} ContactTally;
+
 struct _p_Simulation {
   MPI_Comm        comm;
   Cloth           cloth;
-  Output          output;
-  Report          report; /* start-up numbers and summary by name (HDF5 attributes, -drape_json) */
-  PetscBool       json;
   Solid           solid;
   Contact         contact; /* NULL when the scene has no solid */
   ContactSolve    solve;   /* contact inside drapebe's step (contactsolve.h); NULL when contact is */
   SelfContact     self;    /* NULL without -contact_self */
-  PetscReal       depth;   /* deepest penetration since the last frame, m */
-  PetscInt        ncontact;
-  PetscReal       impulse[3], impulse_t0; /* contact impulse on this rank's particles since impulse_t0, N s */
+  PetscBool      *held;    /* owned particles sticky contact holds after the step (for the self-contact filter) */
+  ContactTally    tally;
+  RestTest        rest;    /* the run ends at rest (rest.h) */
+  Cusick          cusick;  /* the Cusick analysis at the end (analysis.h) */
+  Restart         restart; /* -restart (output.h) */
+  Output          output;
+  Report          report; /* start-up numbers and summary by name (HDF5 attributes, -drape_json) */
+  PetscBool       json, progress, summary, help;
   TS              ts;
   Vec             U;
   IS              is_x, is_v;
-  PetscInt        n; /* 3 x owned particles */
+  PetscInt        n;  /* 3 x owned particles */
+  PetscReal       t0; /* time and step this run starts from (a restart's frame) */
+  PetscInt        step0;
   StabilityLimits limits;
   PetscInt        stability_its;
-  PetscReal       divergence_factor;
-  PetscReal       max_strain, strain_last;         /* bound, and the largest strain at the last full check */
-  PetscReal       rest_tol, rest_time, rest_since; /* stop at rest */
-  PetscReal       cusick_radius, cusick_center[2]; /* Cusick analysis      */
-  PetscBool       cusick_center_set;
-  PetscScalar    *x0;   /* flat initial state   */
-  PetscBool      *held; /* owned particles sticky contact holds after the step (for the self-contact filter) */
-  PetscBool       progress, summary, help;
-  char            restart[PETSC_MAX_PATH_LEN]; /* -restart file         */
-  PetscBool       have_restart;
-  PetscReal       restart_time;
-  PetscInt        restart_step;
   PetscInt        interrupted; /* signal that stopped the run */
-  PetscBool       baseline;    /* energy0 set              */
-  PetscBool       at_rest;     /* stopped by -drape_rest_tol */
-  /* monitor state */
-  PetscReal      energy0, energy_scale, wall0, wall_last;
+  /* divergence checks */
+  PetscReal divergence_factor;
+  PetscReal max_strain, strain_last; /* bound, and the largest strain at the last full check */
+  PetscBool baseline;                /* energy0 set */
+  PetscReal energy0, energy_scale;
+  /* progress */
+  PetscReal      wall0, wall_last;
   PetscLogDouble rss0; /* resident memory before the set-up, bytes */
 };
 
@@ -327,9 +337,8 @@ static PetscErrorCode PreStep(TS ts)
 }
 
 /* After every step, whatever the scheme: contact (project particles that reached
- * the solid back onto its contact surface, constrain their velocity), and the
- * at-rest test (kinetic energy per unit mass below -drape_rest_tol for
- * -drape_rest_time) that ends a draping run by itself. */
+ * the solid back onto its contact surface, constrain their velocity), self-contact's
+ * filter, and the rest test (rest.h) that ends a draping run by itself. */
 static PetscErrorCode PostStep(TS ts)
 {
   Simulation       s;
@@ -375,9 +384,9 @@ static PetscErrorCode PostStep(TS ts)
     }
     PetscReal j[3];
     PetscCall(TSDrapeBEGetContactImpulse(ts, j));
-    for (PetscInt d = 0; d < 3; d++) s->impulse[d] += j[d];
-    PetscCall(ContactProject(s->contact, s->n / 3, u, u + s->n, mass, pinned, h, &depth, &s->ncontact, s->impulse, s->held));
-    s->depth = PetscMax(s->depth, depth);
+    for (PetscInt d = 0; d < 3; d++) s->tally.impulse[d] += j[d];
+    PetscCall(ContactProject(s->contact, s->n / 3, u, u + s->n, mass, pinned, h, &depth, &s->tally.count, s->tally.impulse, s->held));
+    s->tally.depth = PetscMax(s->tally.depth, depth);
   }
   if (s->self) { /* last: the step ends without the cloth crossing itself */
     PetscReal t0;
@@ -389,25 +398,11 @@ static PetscErrorCode PostStep(TS ts)
     if (changed) PetscCall(TSDrapeBEStateChanged(ts));
   }
   PetscCall(ClothUpdatePlasticState(s->cloth, u)); /* the step's final place: the bending friction's sliders follow */
-  if (s->rest_tol > 0) {
-    PetscReal loc[2] = {0, 0}, sum[2];
-    for (PetscInt k = 0; k < s->n / 3; k++) {
-      const PetscScalar *v = u + s->n + 3 * k;
-      if (pinned[k]) continue; /* pinned and inactive particles never move */
-      for (PetscInt d = 0; d < 3; d++) loc[0] += 0.5 * mass[k] * v[d] * v[d];
-      loc[1] += mass[k];
-    }
-    PetscCall(MPIU_Allreduce(loc, sum, 2, MPIU_REAL, MPI_SUM, s->comm));
+  {
+    PetscBool at_rest;
     PetscCall(TSGetTime(ts, &t));
-    if (sum[0] / sum[1] >= s->rest_tol)
-      s->rest_since = -1;
-    else if (s->rest_since < 0)
-      s->rest_since = t;
-    else if (t - s->rest_since >= s->rest_time) {
-      PetscCall(PetscPrintf(s->comm, "At rest at t = %g s: kinetic energy below -drape_rest_tol %g J/kg since t = %g s\n", (double) t, (double) s->rest_tol, (double) s->rest_since));
-      PetscCall(TSSetConvergedReason(ts, TS_CONVERGED_USER));
-      s->at_rest = PETSC_TRUE;
-    }
+    PetscCall(RestTestUpdate(s->rest, s->cloth, u + s->n, t, &at_rest));
+    if (at_rest) PetscCall(TSSetConvergedReason(ts, TS_CONVERGED_USER));
   }
   PetscCall(VecRestoreArray(s->U, &u));
   PetscFunctionReturn(0);
@@ -424,8 +419,6 @@ PetscErrorCode SimulationCreate(MPI_Comm comm, Simulation *sim)
   s->stability_its     = 30;
   s->divergence_factor = 1.0;
   s->max_strain        = 1.0;
-  s->rest_time         = 0.2;
-  s->rest_since        = -1;
   s->summary           = PETSC_TRUE;
   {
     /* a progress line only on an interactive terminal: Open MPI gives its ranks a pty
@@ -439,6 +432,9 @@ PetscErrorCode SimulationCreate(MPI_Comm comm, Simulation *sim)
   PetscCall(SolidCreate(comm, &s->solid));
   PetscCall(OutputCreate(comm, &s->output));
   PetscCall(ReportCreate(comm, &s->report));
+  PetscCall(RestartCreate(comm, &s->restart));
+  PetscCall(RestTestCreate(comm, &s->rest));
+  PetscCall(CusickCreate(comm, &s->cusick));
   *sim = s;
   PetscFunctionReturn(0);
 }
@@ -451,7 +447,7 @@ static PetscErrorCode RefuseOptions(MPI_Comm comm, const char *const names[], co
   PetscFunctionBeginUser;
   for (const char *const *name = names; *name; name++) {
     PetscBool set;
-    PetscCall(PetscOptionsHasName(NULL, NULL, *name, &set));
+    PetscCall(PetscOptionsHasName(NULL, NULL, *name, &set)); /* raw: the question is whether it was typed, not its value (which its component read) */
     PetscCheck(!set, comm, PETSC_ERR_USER_INPUT, "%s does not apply to this run: %s", *name, why);
   }
   PetscFunctionReturn(0);
@@ -469,7 +465,6 @@ static PetscErrorCode CheckOptionsApply(Simulation s)
   if (empty) PetscCall(RefuseOptions(s->comm, contact, "there is no solid to touch (-solid_type, -solid_file, -solid_floor or -solid_plane)"));
   PetscCall(SelfContactEnabled(s->self, &enabled));
   if (!enabled) PetscCall(RefuseOptions(s->comm, self, "self-contact is off (add -contact_self)"));
-  PetscCheck(!s->cusick_center_set || s->cusick_radius > 0, s->comm, PETSC_ERR_USER_INPUT, "-cusick_center does not apply to this run: there is no Cusick analysis (add -cusick_pedestal_radius)");
   PetscFunctionReturn(0);
 }
 
@@ -477,22 +472,7 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
 {
   PetscFunctionBeginUser;
   PetscCall(PetscOptionsHasHelp(NULL, &s->help));
-  PetscOptionsBegin(s->comm, NULL, "Restart", "Simulation");
-  PetscCall(
-    PetscOptionsString("-restart", "Continue the run stored in this drape HDF5 file from its last complete frame (its options apply; the command line overrides them)", "RestartLoad", s->restart, s->restart, sizeof s->restart, &s->have_restart));
-  PetscOptionsEnd();
-  if (s->have_restart) {
-    PetscBool output_given;
-    PetscCall(DrapeCheckPathLength(s->comm, "-restart", s->restart, sizeof s->restart));
-    PetscCheck(s->restart[0], s->comm, PETSC_ERR_USER_INPUT, "-restart needs a file name");
-    PetscCall(DrapeFileName("-restart", s->restart, s->restart, sizeof s->restart)); /* the file PETSc's viewer reads */
-    PetscCall(DrapeCheckInputPath(s->comm, "-restart", s->restart, "restart file"));
-    PetscCall(PetscOptionsHasName(NULL, NULL, "-output_file", &output_given));
-    PetscCall(RestartInsertOptions(s->comm, s->restart));
-    /* the frames go on in the file restarted from, not in the file its options name
-     * (a copy's options name the original, which a new run would truncate) */
-    if (!output_given) PetscCall(PetscOptionsSetValue(NULL, "-output_file", s->restart));
-  }
+  PetscCall(RestartSetFromOptions(s->restart, s->output)); /* first: the options stored in its file are every component's */
   PetscOptionsBegin(s->comm, NULL, "drape run control", "Simulation");
   PetscCall(PetscOptionsInt("-drape_stability_its", "Most Lanczos steps for the Omega_max estimate printed at start-up (it stops once converged; 0: skip)", "StabilityEstimate", s->stability_its, &s->stability_its, NULL));
   PetscCall(PetscOptionsBool("-drape_stability_reference", "Omega_max by exactly -drape_stability_its Lanczos steps on the elements' full matrices (slow; tests)", "StabilityEstimate", s->limits.reference, &s->limits.reference, NULL));
@@ -500,34 +480,14 @@ PetscErrorCode SimulationSetFromOptions(Simulation s)
     PetscOptionsReal("-drape_divergence_factor", "Stop when the mechanical energy exceeds its initial value by this many times the run's energy scale (M g L + initial energy)", "SimulationRun", s->divergence_factor, &s->divergence_factor, NULL));
   PetscCall(PetscOptionsReal("-drape_max_strain", "Stop when a lattice edge is stretched by more than this (relative; 1: twice its length)", "SimulationRun", s->max_strain, &s->max_strain, NULL));
   PetscCall(PetscOptionsBool("-drape_progress", "One updating progress line (default: on for a terminal, off in CI)", "SimulationRun", s->progress, &s->progress, NULL));
-  PetscCall(PetscOptionsReal("-drape_rest_tol", "Stop when the kinetic energy per unit mass (J/kg) stays below this for -drape_rest_time (0: never)", "SimulationRun", s->rest_tol, &s->rest_tol, NULL));
-  PetscCall(PetscOptionsReal("-drape_rest_time", "Simulated time the cloth must stay below -drape_rest_tol to count as at rest (s)", "SimulationRun", s->rest_time, &s->rest_time, NULL));
-  PetscCall(PetscOptionsReal("-cusick_pedestal_radius", "Cusick drape test: pedestal radius (m); > 0 reports the drape coefficient and folds at the end", "CusickAnalyse", s->cusick_radius, &s->cusick_radius, NULL));
-  {
-    /* room for a third value: PETSc reads at most n and drops the rest without a word */
-    PetscReal center[3] = {s->cusick_center[0], s->cusick_center[1], 0};
-    PetscInt  n         = 3;
-    PetscBool set;
-    PetscCall(PetscOptionsRealArray("-cusick_center", "Cusick drape test: pedestal centre x,y (m)", "CusickAnalyse", center, &n, &set));
-    PetscCheck(!set || n == 2, s->comm, PETSC_ERR_USER_INPUT, "-cusick_center needs two coordinates x,y; got %" PetscInt_FMT, n);
-    s->cusick_center[0]  = center[0];
-    s->cusick_center[1]  = center[1];
-    s->cusick_center_set = set;
-  }
   PetscCall(PetscOptionsBool("-drape_summary", "One-line summary at the end of the run", "SimulationRun", s->summary, &s->summary, NULL));
   PetscCall(PetscOptionsBool("-drape_json", "Print the run's start-up numbers and summary as one JSON line at the end (the HDF5 file has them as attributes of /)", "SimulationRun", s->json, &s->json, NULL));
   PetscOptionsEnd();
   PetscCall(DrapeCheckInt(s->comm, "-drape_stability_its", s->stability_its, 0, 100000));
-  PetscCall(DrapeCheckReal(s->comm, "-cusick_pedestal_radius", 1, &s->cusick_radius, 0, 1e3, "m (0: no analysis)"));
-  {
-    char got[32];
-    PetscCheck(s->cusick_radius == 0 || s->cusick_radius >= 1e-3, s->comm, PETSC_ERR_USER_INPUT, "-cusick_pedestal_radius must be 0 (no analysis) or from 0.001 to 1000 m; got %s", DrapeFormatReal(s->cusick_radius, got, sizeof got));
-  }
-  PetscCall(DrapeCheckReal(s->comm, "-cusick_center", 2, s->cusick_center, -1e4, 1e4, "m"));
-  PetscCall(DrapeCheckReal(s->comm, "-drape_rest_tol", 1, &s->rest_tol, 0, 1e6, "J/kg"));
-  PetscCall(DrapeCheckReal(s->comm, "-drape_rest_time", 1, &s->rest_time, 0, 1e6, "s"));
   PetscCall(DrapeCheckReal(s->comm, "-drape_divergence_factor", 1, &s->divergence_factor, 1e-12, 1e15, ""));
   PetscCall(DrapeCheckReal(s->comm, "-drape_max_strain", 1, &s->max_strain, 1e-6, 1e6, ""));
+  PetscCall(RestTestSetFromOptions(s->rest));
+  PetscCall(CusickSetFromOptions(s->cusick));
   PetscCall(DrapeCheckInputFile(s->comm, "-cloth_outline", "cloth outline")); /* before the cloth opens it */
   PetscCall(ClothSetFromOptions(s->cloth));
   PetscCall(SolidSetFromOptions(s->solid));
@@ -550,55 +510,59 @@ static PetscInt ContactWork(void *ctx, const PetscReal x[3])
   return SolidBoxNear(solid, lo, hi, 0) ? 2 : 1;
 }
 
-PetscErrorCode SimulationSetUp(Simulation s)
+/* Contact with the solid only with a solid, self-contact only with -contact_self
+ * (its thickness checked against the lattice), and what sticky contact holds for
+ * self-contact's filter. */
+static PetscErrorCode SimulationSetUpContact(Simulation s)
 {
-  ClothInfo    info;
-  PetscInt     rstart;
-  PetscScalar *u;
-  PetscInt     nframes;
-  PetscReal   *times;
+  ClothInfo info;
+  PetscBool empty, self;
 
   PetscFunctionBeginUser;
-  PetscCall(SolidSetUp(s->solid));
-  PetscCall(ClothSetPartitionWeight(s->cloth, ContactWork, s->solid));
-  PetscCall(ClothSetUp(s->cloth));
   PetscCall(ClothGetInfo(s->cloth, &info));
-  {
-    PetscBool empty;
-    PetscCall(SolidIsEmpty(s->solid, &empty));
-    if (empty) { /* no solid, no contact code */
-      PetscCall(ContactSolveDestroy(&s->solve));
-      PetscCall(ContactDestroy(&s->contact));
-    }
+  PetscCall(SolidIsEmpty(s->solid, &empty));
+  if (empty) { /* no solid, no contact code */
+    PetscCall(ContactSolveDestroy(&s->solve));
+    PetscCall(ContactDestroy(&s->contact));
   }
-  {
-    PetscBool self;
-    PetscCall(SelfContactEnabled(s->self, &self));
-    if (self) {
-      /* a flat cloth's particle lies dx dy / sqrt(dx^2 + dy^2) from its cell's
-       * diagonal, a triangle it is no corner of: a thickness beyond that has the
-       * cloth at rest inside its own layer, and the filter blows it apart */
-      SelfContactStats st;
-      const PetscReal  dx = info.spacing[0], dy = info.spacing[1], most = dx * dy / PetscSqrtReal(dx * dx + dy * dy);
-      char             got[32], max[32], sx[32], sy[32];
-      PetscCall(SelfContactSetUp(s->self));
-      PetscCall(SelfContactGetStats(s->self, &st));
-      (void) snprintf(max, sizeof max, "%.4g", (double) most); /* C's %g: PETSc's turns 1 into "1." */
-      (void) snprintf(sx, sizeof sx, "%.4g", (double) dx);
-      (void) snprintf(sy, sizeof sy, "%.4g", (double) dy);
-      PetscCheck(st.thickness < most, s->comm, PETSC_ERR_USER_INPUT,
-                 "-contact_self_thickness %s m is more than this lattice holds: it must be below %s m, the distance at rest from a particle to the diagonal of its cell (spacing %s x %s m), or the flat cloth starts inside its own contact layer and "
-                 "is blown apart; give less, or 0 (a quarter of the spacing)",
-                 DrapeFormatReal(st.thickness, got, sizeof got), max, sx, sy);
-    } else
-      PetscCall(SelfContactDestroy(&s->self)); /* no -contact_self, no self-contact code */
-  }
-  s->n = 3 * info.nowned;
-  if (s->self && s->contact) { /* what sticky contact holds, for the filter */
+  PetscCall(SelfContactEnabled(s->self, &self));
+  if (self) {
+    /* a flat cloth's particle lies dx dy / sqrt(dx^2 + dy^2) from its cell's
+     * diagonal, a triangle it is no corner of: a thickness beyond that has the
+     * cloth at rest inside its own layer, and the filter blows it apart */
+    SelfContactStats st;
+    const PetscReal  dx = info.spacing[0], dy = info.spacing[1], most = dx * dy / PetscSqrtReal(dx * dx + dy * dy);
+    char             got[32], max[32], sx[32], sy[32];
+    PetscCall(SelfContactSetUp(s->self));
+    PetscCall(SelfContactGetStats(s->self, &st));
+    (void) snprintf(max, sizeof max, "%.4g", (double) most); /* C's %g: PETSc's turns 1 into "1." */
+    (void) snprintf(sx, sizeof sx, "%.4g", (double) dx);
+    (void) snprintf(sy, sizeof sy, "%.4g", (double) dy);
+    PetscCheck(st.thickness < most, s->comm, PETSC_ERR_USER_INPUT,
+               "-contact_self_thickness %s m is more than this lattice holds: it must be below %s m, the distance at rest from a particle to the diagonal of its cell (spacing %s x %s m), or the flat cloth starts inside its own contact layer and "
+               "is blown apart; give less, or 0 (a quarter of the spacing)",
+               DrapeFormatReal(st.thickness, got, sizeof got), max, sx, sy);
+  } else
+    PetscCall(SelfContactDestroy(&s->self)); /* no -contact_self, no self-contact code */
+  if (s->self && s->contact) {               /* what sticky contact holds, for the filter */
     ContactMode mode;
     PetscCall(ContactGetMode(s->contact, &mode, NULL));
     if (mode == CONTACT_STICKY) PetscCall(PetscMalloc1(info.nowned + 1, &s->held));
   }
+  PetscFunctionReturn(0);
+}
+
+/* The state U = [x; v], its splits, the initial state (the flat cloth for the Cusick
+ * analysis) or the frame restarted from. */
+static PetscErrorCode SimulationSetUpState(Simulation s)
+{
+  ClothInfo    info;
+  PetscInt     rstart;
+  PetscScalar *u;
+
+  PetscFunctionBeginUser;
+  PetscCall(ClothGetInfo(s->cloth, &info));
+  s->n = 3 * info.nowned;
   PetscCall(VecCreateMPI(s->comm, 2 * s->n, PETSC_DETERMINE, &s->U));
   PetscCall(PetscObjectSetName((PetscObject) s->U, "state"));
   PetscCall(VecGetOwnershipRange(s->U, &rstart, NULL));
@@ -606,47 +570,47 @@ PetscErrorCode SimulationSetUp(Simulation s)
   PetscCall(ISCreateStride(s->comm, s->n, rstart + s->n, 1, &s->is_v));
   PetscCall(VecGetArray(s->U, &u));
   PetscCall(ClothSetInitialState(s->cloth, u, u + s->n));
-  if (s->cusick_radius > 0) {
-    PetscReal        box[5] = {-PETSC_MAX_REAL, -PETSC_MAX_REAL, -PETSC_MAX_REAL, -PETSC_MAX_REAL, -PETSC_MAX_REAL}; /* -xmin, -ymin, xmax, ymax, -zmin of the flat specimen */
-    const PetscBool *active;
-    PetscCheck(2 * s->cusick_radius < PetscMin(info.size[0], info.size[1]), s->comm, PETSC_ERR_USER_INPUT, "-cusick_pedestal_radius %g m leaves no overhang on a %g x %g m specimen: the pedestal must be smaller than the specimen",
-               (double) s->cusick_radius, (double) info.size[0], (double) info.size[1]);
-    PetscCall(ClothGetActive(s->cloth, &active));
-    for (PetscInt k = 0; k < s->n / 3; k++)
-      for (PetscInt d = 0; d < 2 && active[k]; d++) {
-        box[d]     = PetscMax(box[d], -PetscRealPart(u[3 * k + d]));
-        box[2 + d] = PetscMax(box[2 + d], PetscRealPart(u[3 * k + d]));
-        if (!d) box[4] = PetscMax(box[4], -PetscRealPart(u[3 * k + 2]));
-      }
-    PetscCall(MPIU_Allreduce(MPI_IN_PLACE, box, 5, MPIU_REAL, MPIU_MAX, s->comm));
-    PetscCheck(s->cusick_center[0] - s->cusick_radius > -box[0] && s->cusick_center[0] + s->cusick_radius < box[2] && s->cusick_center[1] - s->cusick_radius > -box[1] && s->cusick_center[1] + s->cusick_radius < box[3], s->comm, PETSC_ERR_USER_INPUT,
-               "The Cusick pedestal (-cusick_center %g,%g, radius %g m) must lie under the flat specimen, which spans [%g, %g] x [%g, %g] m horizontally (the analysis needs a horizontal specimen)", (double) s->cusick_center[0],
-               (double) s->cusick_center[1], (double) s->cusick_radius, (double) -box[0], (double) box[2], (double) -box[1], (double) box[3]);
-    {
-      /* the pedestal: a solid whose top is within a pedestal radius under the
-       * specimen's centre (without one the cloth falls flat and DC = 1 means nothing) */
-      PetscReal p[3] = {s->cusick_center[0], s->cusick_center[1], -box[4]}, distance = PETSC_MAX_REAL, normal[3];
-      PetscBool empty;
-      PetscCall(SolidIsEmpty(s->solid, &empty));
-      if (!empty) PetscCall(SolidQuery(s->solid, p, &distance, normal));
-      PetscCheck(distance <= s->cusick_radius, s->comm, PETSC_ERR_USER_INPUT,
-                 "-cusick_pedestal_radius %g: the Cusick analysis needs the pedestal, a solid just under the specimen's centre (%g, %g, %g) m (e.g. -solid_type cylinder -solid_radius %g, as in runs/cusick.opts), and %s", (double) s->cusick_radius,
-                 (double) p[0], (double) p[1], (double) p[2], (double) s->cusick_radius, empty ? "this run has no solid" : "the nearest solid is farther than the pedestal radius");
-    }
-    PetscCall(PetscMalloc1(s->n, &s->x0));
-    PetscCall(PetscArraycpy(s->x0, u, s->n));
-  }
-  if (s->have_restart) {
-    ClothInfo info;
-    PetscCall(ClothGetInfo(s->cloth, &info));
-    PetscCheck(!(info.hysteresis[0] > 0 || info.hysteresis[1] > 0), s->comm, PETSC_ERR_USER_INPUT,
-               "-restart cannot continue a run with -cloth_bend_hysteresis: the frames hold positions and velocities, not the plastic curvature that the bending friction remembers; run it from the start");
-    PetscCall(RestartLoad(s->comm, s->restart, s->cloth, u, u + s->n, &s->restart_time, &s->restart_step, &nframes, &times));
-    PetscCall(OutputSetAppend(s->output, s->restart, nframes, times));
-    PetscCall(PetscFree(times));
-  }
+  PetscCall(CusickSetUp(s->cusick, s->cloth, s->solid, u));
+  PetscCall(RestartLoad(s->restart, s->cloth, s->output, u, u + s->n));
   PetscCall(VecRestoreArray(s->U, &u));
+  PetscCall(RestartGetStart(s->restart, &s->t0, &s->step0));
+  s->tally.t0 = s->t0;
+  PetscFunctionReturn(0);
+}
 
+/* -ts_type among drape's integrators, read before TSSetFromOptions sets it: PETSc
+ * refuses an unknown type on each rank by itself, and accepts types drape cannot
+ * drive. Its own heading in -help (the TS's would hide PETSc's list of -ts_ options). */
+static PetscErrorCode CheckTSType(TS ts)
+{
+  char        want[64];
+  const char *prefix;
+  PetscBool   set, ok = PETSC_FALSE;
+  MPI_Comm    comm = PetscObjectComm((PetscObject) ts);
+
+  PetscFunctionBeginUser;
+  PetscCall(TSGetOptionsPrefix(ts, &prefix));
+  PetscOptionsBegin(comm, prefix, "drape's integrators", "TS");
+  PetscCall(PetscOptionsString("-ts_type", "euler (paper scheme 2), basicsymplectic (scheme 3), drapebe (scheme 4), rk or ssp", "TSSetType", TSBASICSYMPLECTIC, want, sizeof want, &set));
+  PetscOptionsEnd();
+  for (const char *const *t = supported_types; set && *t; t++) {
+    PetscBool match;
+    PetscCall(PetscStrcmp(want, *t, &match));
+    ok = (PetscBool) (ok || match);
+  }
+  PetscCheck(!set || ok || strcmp(want, TSBEULER), comm, PETSC_ERR_USER_INPUT,
+             "-ts_type beuler is PETSc's backward Euler of a first-order system, which needs an implicit function drape does not provide; the paper's backward Euler (scheme 4) is -ts_type drapebe");
+  PetscCheck(!set || ok, comm, PETSC_ERR_USER_INPUT, "-ts_type %s is not supported by drape; use euler (paper scheme 2), basicsymplectic (scheme 3), drapebe (scheme 4), rk or ssp", want);
+  PetscFunctionReturn(0);
+}
+
+/* The TS: drape's defaults (symplectic Euler, 1e-4 s to 2 s, landing on the end),
+ * then the options; the parts its type uses. */
+static PetscErrorCode SimulationSetUpTS(Simulation s)
+{
+  PetscBool restart;
+
+  PetscFunctionBeginUser;
   PetscCall(DrapeTSRegister());
   PetscCall(TSRegister(TSBASICSYMPLECTIC, TSCreate_Symplectic)); /* drape's, in PETSc's place */
   PetscCall(TSCreate(s->comm, &s->ts));
@@ -666,20 +630,8 @@ PetscErrorCode SimulationSetUp(Simulation s)
   PetscCall(TSSetSolution(s->ts, s->U));
   PetscCall(TSSetPreStep(s->ts, PreStep));
   PetscCall(TSSetPostStep(s->ts, PostStep));
-  {
-    /* refuse an unsupported -ts_type before TS tries it (PETSc's own error is per rank) */
-    char      want[64];
-    PetscBool set, ok = PETSC_FALSE;
-    PetscCall(PetscOptionsGetString(NULL, NULL, "-ts_type", want, sizeof want, &set));
-    for (const char *const *t = supported_types; set && *t; t++) {
-      PetscBool match;
-      PetscCall(PetscStrcmp(want, *t, &match));
-      ok = (PetscBool) (ok || match);
-    }
-    PetscCheck(!set || ok || strcmp(want, TSBEULER), s->comm, PETSC_ERR_USER_INPUT,
-               "-ts_type beuler is PETSc's backward Euler of a first-order system, which needs an implicit function drape does not provide; the paper's backward Euler (scheme 4) is -ts_type drapebe");
-    PetscCheck(!set || ok, s->comm, PETSC_ERR_USER_INPUT, "-ts_type %s is not supported by drape; use euler (paper scheme 2), basicsymplectic (scheme 3), drapebe (scheme 4), rk or ssp", want);
-  }
+  PetscCall(TSDrapeBESetCloth(s->ts, s->cloth)); /* before the options: drapebe's defaults follow the cloth */
+  PetscCall(CheckTSType(s->ts));
   PetscCall(TSSetFromOptions(s->ts));
   PetscCall(TSSetErrorIfStepFails(s->ts, PETSC_FALSE)); /* drape says why, after TSSolve */
   {
@@ -689,49 +641,67 @@ PetscErrorCode SimulationSetUp(Simulation s)
     PetscCall(PetscObjectTypeCompare((PetscObject) s->ts, TSDRAPEBE, &implicit));
     if (implicit) PetscCall(ClothSetUpImplicit(s->cloth)); /* else at the first Hessian product, if any (small lattices' stability estimate) */
   }
-  PetscCall(TSDrapeBESetCloth(s->ts, s->cloth));
   if (s->solve) PetscCall(TSDrapeBESetContact(s->ts, s->solve));
   if (s->self) {
     PetscBool in_solve;
     PetscCall(SelfContactSolveEnabled(s->self, &in_solve));
     if (in_solve) PetscCall(TSDrapeBESetSelfContact(s->ts, s->self));
   }
-  if (s->have_restart) {
-    PetscCall(TSSetTime(s->ts, s->restart_time));
-    s->impulse_t0 = s->restart_time;
-    PetscCall(TSSetStepNumber(s->ts, s->restart_step));
+  PetscCall(RestartEnabled(s->restart, &restart));
+  if (restart) {
+    PetscCall(TSSetTime(s->ts, s->t0));
+    PetscCall(TSSetStepNumber(s->ts, s->step0));
   }
+  PetscFunctionReturn(0);
+}
+
+/* The time options finite, in range, consistent: a run that starts must be able to end. */
+static PetscErrorCode SimulationCheckTimes(Simulation s)
+{
+  PetscReal dt, t0, tmax, atol, rtol;
+  PetscInt  max_steps;
+  PetscBool restart;
+  char      got[32], at[32]; /* values as given (DrapeFormatReal) */
+
+  PetscFunctionBeginUser;
+  PetscCall(TSGetTimeStep(s->ts, &dt));
+  PetscCall(TSGetTime(s->ts, &t0));
+  PetscCall(TSGetMaxTime(s->ts, &tmax));
+  PetscCall(TSGetMaxSteps(s->ts, &max_steps));
+  PetscCall(DrapeCheckReal(s->comm, "-ts_dt", 1, &dt, 1e-15, 1e3, "s"));
+  PetscCall(DrapeCheckReal(s->comm, "-ts_max_time", 1, &tmax, 1e-15, 1e30, "s (1e30: no limit but -ts_max_steps)"));
+  PetscCall(DrapeCheckInt(s->comm, "-ts_max_steps", max_steps, 0, PETSC_MAX_INT));
+  /* the adaptive schemes' error norm divides by atol + rtol |x|: a tolerance far
+   * below double precision's 2.2e-16 overflowed it (PETSc's traceback), and no
+   * step can meet it */
+  PetscCall(TSGetTolerances(s->ts, &atol, NULL, &rtol, NULL));
+  PetscCall(DrapeCheckReal(s->comm, "-ts_atol", 1, &atol, 0, 1e3, "(m, m/s)"));
+  PetscCall(DrapeCheckReal(s->comm, "-ts_rtol", 1, &rtol, 0, 1, ""));
+  PetscCheck(atol == 0 || atol >= 1e-14, s->comm, PETSC_ERR_USER_INPUT, "-ts_atol %s is below what a step in double precision can meet: give 0 or at least 1e-14 (m, m/s)", DrapeFormatReal(atol, got, sizeof got));
+  PetscCheck(rtol == 0 || rtol >= 1e-14, s->comm, PETSC_ERR_USER_INPUT, "-ts_rtol %s is below what a step in double precision can meet (its relative rounding error is 2.2e-16): give 0 or at least 1e-14", DrapeFormatReal(rtol, got, sizeof got));
+  PetscCheck(atol > 0 || rtol > 0, s->comm, PETSC_ERR_USER_INPUT, "-ts_atol and -ts_rtol are both 0: the adaptive step's error norm divides by atol + rtol |x|; give one of them at least 1e-14");
+  PetscCall(RestartEnabled(s->restart, &restart));
+  PetscCheck(tmax > t0, s->comm, PETSC_ERR_USER_INPUT, "-ts_max_time %s s is not after the %s time %s s: nothing to do", DrapeFormatReal(tmax, got, sizeof got), restart ? "restart" : "start", DrapeFormatReal(t0, at, sizeof at));
   {
-    /* finite, in range, consistent: a run that starts must be able to end */
-    PetscReal dt, t0, tmax;
-    PetscInt  max_steps;
-    char      got[32], at[32]; /* values as given (DrapeFormatReal) */
-    PetscCall(TSGetTimeStep(s->ts, &dt));
-    PetscCall(TSGetTime(s->ts, &t0));
-    PetscCall(TSGetMaxTime(s->ts, &tmax));
-    PetscCall(TSGetMaxSteps(s->ts, &max_steps));
-    PetscCall(DrapeCheckReal(s->comm, "-ts_dt", 1, &dt, 1e-15, 1e3, "s"));
-    PetscCall(DrapeCheckReal(s->comm, "-ts_max_time", 1, &tmax, 1e-15, 1e30, "s (1e30: no limit but -ts_max_steps)"));
-    PetscCall(DrapeCheckInt(s->comm, "-ts_max_steps", max_steps, 0, PETSC_MAX_INT));
-    {
-      /* the adaptive schemes' error norm divides by atol + rtol |x|: a tolerance far
-       * below double precision's 2.2e-16 overflowed it (PETSc's traceback), and no
-       * step can meet it */
-      PetscReal atol, rtol;
-      PetscCall(TSGetTolerances(s->ts, &atol, NULL, &rtol, NULL));
-      PetscCall(DrapeCheckReal(s->comm, "-ts_atol", 1, &atol, 0, 1e3, "(m, m/s)"));
-      PetscCall(DrapeCheckReal(s->comm, "-ts_rtol", 1, &rtol, 0, 1, ""));
-      PetscCheck(atol == 0 || atol >= 1e-14, s->comm, PETSC_ERR_USER_INPUT, "-ts_atol %s is below what a step in double precision can meet: give 0 or at least 1e-14 (m, m/s)", DrapeFormatReal(atol, got, sizeof got));
-      PetscCheck(rtol == 0 || rtol >= 1e-14, s->comm, PETSC_ERR_USER_INPUT, "-ts_rtol %s is below what a step in double precision can meet (its relative rounding error is 2.2e-16): give 0 or at least 1e-14", DrapeFormatReal(rtol, got, sizeof got));
-      PetscCheck(atol > 0 || rtol > 0, s->comm, PETSC_ERR_USER_INPUT, "-ts_atol and -ts_rtol are both 0: the adaptive step's error norm divides by atol + rtol |x|; give one of them at least 1e-14");
-    }
-    PetscCheck(tmax > t0, s->comm, PETSC_ERR_USER_INPUT, "-ts_max_time %s s is not after the %s time %s s: nothing to do", DrapeFormatReal(tmax, got, sizeof got), s->have_restart ? "restart" : "start", DrapeFormatReal(t0, at, sizeof at));
-    {
-      const PetscReal tend = PetscMin(tmax, t0 + (PetscReal) max_steps * dt); /* where the run can get to */
-      PetscCheck(t0 + dt > t0 && tend + dt > tend, s->comm, PETSC_ERR_USER_INPUT, "-ts_dt %s s is too small to advance the time near t = %s s, where this run ends: time would stand still", DrapeFormatReal(dt, got, sizeof got),
-                 DrapeFormatReal(tend, at, sizeof at));
-    }
+    const PetscReal tend = PetscMin(tmax, t0 + (PetscReal) max_steps * dt); /* where the run can get to */
+    PetscCheck(t0 + dt > t0 && tend + dt > tend, s->comm, PETSC_ERR_USER_INPUT, "-ts_dt %s s is too small to advance the time near t = %s s, where this run ends: time would stand still", DrapeFormatReal(dt, got, sizeof got),
+               DrapeFormatReal(tend, at, sizeof at));
   }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SimulationSetUp(Simulation s)
+{
+  PetscScalar *u;
+
+  PetscFunctionBeginUser;
+  PetscCall(SolidSetUp(s->solid));
+  PetscCall(ClothSetPartitionWeight(s->cloth, ContactWork, s->solid));
+  PetscCall(ClothSetUp(s->cloth));
+  PetscCall(SimulationSetUpContact(s));
+  PetscCall(SimulationSetUpState(s));
+  PetscCall(SimulationSetUpTS(s));
+  PetscCall(SimulationCheckTimes(s));
   if (s->contact) {
     PetscCall(VecGetArray(s->U, &u));
     PetscCall(ContactCheckInitial(s->contact, s->n / 3, u));
@@ -752,23 +722,11 @@ PetscErrorCode SimulationSetUp(Simulation s)
   PetscFunctionReturn(0);
 }
 
-/* -restart cannot continue a run with bending friction (its plastic curvatures are
- * not in the frames: SimulationSetUp refuses it) */
-static PetscErrorCode SimulationRestartable(Simulation s, PetscBool *restartable)
-{
-  ClothInfo info;
-
-  PetscFunctionBeginUser;
-  PetscCall(ClothGetInfo(s->cloth, &info));
-  *restartable = (PetscBool) !(info.hysteresis[0] > 0 || info.hysteresis[1] > 0);
-  PetscFunctionReturn(0);
-}
-
 PetscErrorCode SimulationInterrupted(Simulation s, PetscBool *interrupted, PetscBool *restartable)
 {
   PetscFunctionBeginUser;
   *interrupted = (PetscBool) (s->interrupted != 0);
-  PetscCall(SimulationRestartable(s, restartable));
+  PetscCall(RestartSupported(s->cloth, restartable));
   PetscFunctionReturn(0);
 }
 
@@ -784,46 +742,40 @@ PetscErrorCode SimulationDestroy(Simulation *sim)
   PetscCall(ISDestroy(&s->is_v));
   PetscCall(OutputDestroy(&s->output));
   PetscCall(ReportDestroy(&s->report));
+  PetscCall(RestartDestroy(&s->restart));
+  PetscCall(RestTestDestroy(&s->rest));
+  PetscCall(CusickDestroy(&s->cusick));
   PetscCall(ContactSolveDestroy(&s->solve));
   PetscCall(ContactDestroy(&s->contact));
   PetscCall(SelfContactDestroy(&s->self));
   PetscCall(PetscFree(s->held));
   PetscCall(SolidDestroy(&s->solid));
-  PetscCall(PetscFree(s->x0));
   PetscCall(ClothDestroy(&s->cloth));
   PetscCall(PetscFree(*sim));
   PetscFunctionReturn(0);
 }
 
-/* Mean force of the solid on the cloth since the last call (N): the contact
- * impulses of the steps in between over the time they took. */
-static PetscErrorCode SimulationContactForce(Simulation s, PetscReal t, PetscReal force[3])
-{
-  PetscReal sum[3];
-
-  PetscFunctionBeginUser;
-  PetscCall(MPIU_Allreduce(s->impulse, sum, 3, MPIU_REAL, MPI_SUM, s->comm));
-  for (PetscInt d = 0; d < 3; d++) {
-    force[d]      = t > s->impulse_t0 ? sum[d] / (t - s->impulse_t0) : 0;
-    s->impulse[d] = 0;
-  }
-  s->impulse_t0 = t;
-  PetscFunctionReturn(0);
-}
-
-/* Write a frame of the current state (energies computed only here). */
+/* Write a frame of the current state (energies computed only here) with what
+ * contact did since the last one: the deepest penetration, the contacts, and the
+ * mean force of the solid on the cloth (N, the impulses over the time they took). */
 static PetscErrorCode SimulationWriteFrame(Simulation s, PetscInt step, PetscReal t, const PetscScalar *u)
 {
   ClothEnergies en;
+  PetscReal     sum[3];
 
   PetscFunctionBeginUser;
   PetscCall(PetscLogEventBegin(drape_log.output, 0, 0, 0, 0));
   PetscCall(ClothComputeEnergies(s->cloth, u, u + s->n, &en));
-  en.contact_depth = s->depth;
-  en.contact_count = s->ncontact;
-  PetscCall(SimulationContactForce(s, t, en.contact_force));
+  en.contact_depth = s->tally.depth;
+  en.contact_count = s->tally.count;
+  PetscCall(MPIU_Allreduce(s->tally.impulse, sum, 3, MPIU_REAL, MPI_SUM, s->comm));
+  for (PetscInt d = 0; d < 3; d++) {
+    en.contact_force[d] = t > s->tally.t0 ? sum[d] / (t - s->tally.t0) : 0;
+    s->tally.impulse[d] = 0;
+  }
+  s->tally.t0 = t;
   PetscCall(OutputWriteFrame(s->output, s->cloth, step, t, u, u + s->n, &en));
-  s->depth = 0;
+  s->tally.depth = 0;
   PetscCall(PetscLogEventEnd(drape_log.output, 0, 0, 0, 0));
   PetscFunctionReturn(0);
 }
@@ -910,8 +862,8 @@ static PetscErrorCode CheckDivergence(Simulation s, TS ts, PetscInt step, PetscR
 static PetscErrorCode ProgressLine(Simulation s, TS ts, PetscInt step, PetscReal t, PetscBool last)
 {
   PetscLogDouble now;
-  PetscReal      tmax, t0 = s->restart_time;
-  PetscInt       steps = step - s->restart_step;
+  PetscReal      tmax, t0 = s->t0;
+  PetscInt       steps = step - s->step0;
 
   PetscFunctionBeginUser;
   PetscCall(PetscTime(&now));
@@ -967,11 +919,9 @@ static PetscErrorCode WarnStepLimit(Simulation s, PetscViewer viewer, TSType typ
   if (euler && dt > s->limits.euler && 2 * Om > c) {
     /* fastest mode, underdamped: |1 + h mu|^2 = 1 - h c + h^2 Omega^2 per step */
     const PetscReal g = PetscSqrtReal(1 - dt * c + dt * dt * Om * Om);
-    PetscCall(ReportSetReal(s->report, "euler_growth_per_step", g));
-    PetscCall(PetscViewerASCIIPrintf(viewer,
-                                     "  WARNING: h is above the explicit Euler limit: the fastest mode grows by %.6g per step (a factor e every %.3g steps; up to %.3g steps in this run). drape stops the run when the growth shows in the energy, "
-                                     "which can be late or never for slow growth\n",
-                                     (double) g, (double) (1 / PetscLogReal(g)), (double) steps));
+    PetscCall(ReportViewReal(s->report, viewer, "euler_growth_per_step", "  WARNING: h is above the explicit Euler limit: the fastest mode grows by %.6g per step", g));
+    PetscCall(PetscViewerASCIIPrintf(viewer, " (a factor e every %.3g steps; up to %.3g steps in this run). drape stops the run when the growth shows in the energy, which can be late or never for slow growth\n", (double) (1 / PetscLogReal(g)),
+                                     (double) steps));
   } else if (symplectic && dt > s->limits.symplectic) {
     PetscCall(PetscViewerASCIIPrintf(viewer, "  WARNING: h is above the symplectic Euler limit: the run will diverge (drape stops it with a message)\n"));
   } else if (symplectic && dt > 0.8 * s->limits.symplectic) {
@@ -1002,74 +952,14 @@ static PetscErrorCode SimulationSolverTypes(Simulation s, SNESType *st, KSPType 
   PetscFunctionReturn(0);
 }
 
-static PetscErrorCode SimulationViewStart(Simulation s)
+/* The cloth's numbers by name (what ClothView prints for people). */
+static PetscErrorCode SimulationReportCloth(Simulation s)
 {
-  PetscViewer viewer = PETSC_VIEWER_STDOUT_(s->comm);
-  TSType      type;
-  PetscReal   dt, tmax;
-  const char *name = NULL;
-  ClothInfo   info;
+  Report    r = s->report;
+  ClothInfo info;
 
   PetscFunctionBeginUser;
   PetscCall(ClothGetInfo(s->cloth, &info));
-  PetscCall(TSGetType(s->ts, &type));
-  PetscCall(TSGetTimeStep(s->ts, &dt));
-  PetscCall(TSGetMaxTime(s->ts, &tmax));
-  PetscCall(PetscViewerASCIIPrintf(viewer, "drape %s: %s\n", DRAPE_VERSION, "fabric by the particle method"));
-  PetscCall(ClothView(s->cloth, viewer));
-  PetscCall(SolidView(s->solid, viewer));
-  if (s->contact) PetscCall(ContactView(s->contact, viewer));
-  if (s->self) PetscCall(SelfContactView(s->self, viewer));
-  if (s->stability_its > 0) {
-    PetscCall(PetscViewerASCIIPrintf(viewer, "Stability (estimated at t = 0, %" PetscInt_FMT " Lanczos steps): Omega_max = %.4e rad/s\n", s->limits.iterations, (double) s->limits.omega));
-    PetscCall(PetscViewerASCIIPrintf(viewer, "  symplectic Euler: stable for h < %.4e s (2/Omega_max, reduced by damping)\n", (double) s->limits.symplectic));
-    if (s->limits.euler > 0)
-      PetscCall(PetscViewerASCIIPrintf(viewer, "  explicit Euler: stable for h < %.4e s at damping %g 1/s (c/Omega_max^2)\n", (double) s->limits.euler, (double) info.damping));
-    else
-      PetscCall(PetscViewerASCIIPrintf(viewer, "  explicit Euler: unstable at every step without damping (energy grows by 1 + (Omega h)^2 per step)\n"));
-    PetscCall(PetscViewerASCIIPrintf(viewer, "  backward Euler: no step limit for the linearised problem (a single linearisation, -snes_type ksponly, can still fail at very large steps on stiff fabric)\n"));
-  }
-  if (!strcmp(type, TSBASICSYMPLECTIC)) PetscCall(TSBasicSymplecticGetType(s->ts, (TSBasicSymplecticType *) &name));
-  PetscCall(PetscViewerASCIIPrintf(viewer, "Integrator: -ts_type %s%s%s, h = %g s", type, name ? " -ts_basicsymplectic_type " : "", name ? name : "", (double) dt));
-  if (s->stability_its > 0) {
-    PetscBool explicit_euler;
-    PetscCall(PetscStrcmp(type, TSEULER, &explicit_euler));
-    if (explicit_euler && s->limits.euler > 0 && s->limits.euler < PETSC_INFINITY)
-      PetscCall(PetscViewerASCIIPrintf(viewer, " (%.3g x the explicit Euler limit)", (double) (dt / s->limits.euler)));
-    else if (!explicit_euler && s->limits.symplectic < PETSC_INFINITY)
-      PetscCall(PetscViewerASCIIPrintf(viewer, " (%.3g x the symplectic limit)", (double) (dt / s->limits.symplectic)));
-  }
-  PetscCall(PetscViewerASCIIPrintf(viewer, ", to t = %g s\n", (double) tmax));
-  if (s->stability_its > 0) PetscCall(WarnStepLimit(s, viewer, type, dt, tmax));
-  if (!strcmp(type, TSDRAPEBE)) {
-    SNESType st;
-    KSPType  kt;
-    PCType   pt;
-    MatType  mt;
-    PetscCall(SimulationSolverTypes(s, &st, &kt, &pt, &mt));
-    PetscCall(PetscViewerASCIIPrintf(viewer, "  solver: SNES %s, KSP %s, PC %s on an assembled %s matrix (block size 3)\n", st, kt, pt, mt));
-  }
-  PetscFunctionReturn(0);
-}
-
-/* The start-up numbers by name (report.h): lattice, material, stability limits,
- * integrator and, for drapebe, its solver. */
-static PetscErrorCode SimulationReportStart(Simulation s)
-{
-  Report      r = s->report;
-  ClothInfo   info;
-  TSType      type;
-  PetscReal   dt, tmax;
-  PetscMPIInt size;
-
-  PetscFunctionBeginUser;
-  PetscCall(ClothGetInfo(s->cloth, &info));
-  PetscCallMPI(MPI_Comm_size(s->comm, &size));
-  PetscCall(TSGetType(s->ts, &type));
-  PetscCall(TSGetTimeStep(s->ts, &dt));
-  PetscCall(TSGetMaxTime(s->ts, &tmax));
-  PetscCall(ReportSetString(r, "drape_version", DRAPE_VERSION));
-  PetscCall(ReportSetInt(r, "ranks", size));
   PetscCall(ReportSetInt(r, "lattice_mx", info.Mx));
   PetscCall(ReportSetInt(r, "lattice_my", info.My));
   PetscCall(ReportSetInt(r, "particles", info.nparticles));
@@ -1110,41 +1000,166 @@ static PetscErrorCode SimulationReportStart(Simulation s)
   PetscCall(ReportSetReal(r, "imperfection", info.imperfection[0]));
   PetscCall(ReportSetReal(r, "imperfection_wavelength", info.imperfection[1]));
   PetscCall(ReportSetInt(r, "imperfection_seed", info.imperfection_seed));
+  PetscFunctionReturn(0);
+}
+
+/* The start-up numbers, for people on viewer and by name in the report, each from
+ * one call: the scene, the stability estimate, the integrator and drapebe's solver. */
+static PetscErrorCode SimulationViewStart(Simulation s, PetscViewer viewer)
+{
+  Report      r    = s->report;
+  const char *name = NULL;
+  TSType      type;
+  PetscReal   dt, tmax;
+  ClothInfo   info;
+  PetscMPIInt size;
+
+  PetscFunctionBeginUser;
+  PetscCall(ClothGetInfo(s->cloth, &info));
+  PetscCall(TSGetType(s->ts, &type));
+  PetscCall(TSGetTimeStep(s->ts, &dt));
+  PetscCall(TSGetMaxTime(s->ts, &tmax));
+  PetscCallMPI(MPI_Comm_size(s->comm, &size));
+  PetscCall(ReportViewString(r, viewer, "drape_version", "drape %s: fabric by the particle method\n", DRAPE_VERSION));
+  PetscCall(ReportSetInt(r, "ranks", size));
+  PetscCall(SimulationReportCloth(s));
+  PetscCall(ClothView(s->cloth, viewer));
+  PetscCall(SolidView(s->solid, viewer));
+  if (s->contact) PetscCall(ContactView(s->contact, viewer));
+  if (s->self) PetscCall(SelfContactView(s->self, viewer));
+  if (s->stability_its > 0) PetscCall(StabilityView(&s->limits, info.damping, r, viewer));
+  if (!strcmp(type, TSBASICSYMPLECTIC)) PetscCall(TSBasicSymplecticGetType(s->ts, (TSBasicSymplecticType *) &name));
+  PetscCall(ReportViewString(r, viewer, "ts_type", "Integrator: -ts_type %s", type));
+  if (name) PetscCall(PetscViewerASCIIPrintf(viewer, " -ts_basicsymplectic_type %s", name));
+  PetscCall(ReportViewReal(r, viewer, "dt", ", h = %g s", dt));
   if (s->stability_its > 0) {
-    PetscCall(ReportSetReal(r, "omega_max", s->limits.omega));
-    PetscCall(ReportSetReal(r, "symplectic_limit", s->limits.symplectic));
-    PetscCall(ReportSetReal(r, "euler_limit", s->limits.euler)); /* 0: unstable at every step */
+    PetscBool explicit_euler;
+    PetscCall(PetscStrcmp(type, TSEULER, &explicit_euler));
+    if (explicit_euler && s->limits.euler > 0 && s->limits.euler < PETSC_INFINITY)
+      PetscCall(PetscViewerASCIIPrintf(viewer, " (%.3g x the explicit Euler limit)", (double) (dt / s->limits.euler)));
+    else if (!explicit_euler && s->limits.symplectic < PETSC_INFINITY)
+      PetscCall(PetscViewerASCIIPrintf(viewer, " (%.3g x the symplectic limit)", (double) (dt / s->limits.symplectic)));
   }
-  PetscCall(ReportSetString(r, "ts_type", type));
-  PetscCall(ReportSetReal(r, "dt", dt));
-  PetscCall(ReportSetReal(r, "t_max", tmax));
+  PetscCall(ReportViewReal(r, viewer, "t_max", ", to t = %g s\n", tmax));
+  if (s->stability_its > 0) PetscCall(WarnStepLimit(s, viewer, type, dt, tmax));
   if (!strcmp(type, TSDRAPEBE)) {
     SNESType st;
     KSPType  kt;
     PCType   pt;
     MatType  mt;
     PetscCall(SimulationSolverTypes(s, &st, &kt, &pt, &mt));
-    PetscCall(ReportSetString(r, "snes_type", st));
-    PetscCall(ReportSetString(r, "ksp_type", kt));
-    PetscCall(ReportSetString(r, "pc_type", pt));
-    PetscCall(ReportSetString(r, "mat_type", mt));
+    PetscCall(ReportViewString(r, viewer, "snes_type", "  solver: SNES %s", st));
+    PetscCall(ReportViewString(r, viewer, "ksp_type", ", KSP %s", kt));
+    PetscCall(ReportViewString(r, viewer, "pc_type", ", PC %s", pt));
+    PetscCall(ReportViewString(r, viewer, "mat_type", " on an assembled %s matrix (block size 3)\n", mt));
+  }
+  PetscFunctionReturn(0);
+}
+
+/* The end of the run, for people on viewer (NULL: no summary line) and by name in
+ * the report, each number from one call. */
+static PetscErrorCode SimulationViewSummary(Simulation s, PetscViewer viewer, PetscLogDouble wall_loop, PetscLogDouble cpu_loop)
+{
+  const PetscReal mywall = (PetscReal) wall_loop, mycpu = (PetscReal) cpu_loop;
+  Report          r = s->report;
+  PetscInt        steps, run, its, solves, rejected;
+  PetscReal       t, wall, cpu, cpu_max, psteps;
+  ClothInfo       info;
+
+  PetscFunctionBeginUser;
+  PetscCall(ClothGetInfo(s->cloth, &info));
+  PetscCall(TSGetStepNumber(s->ts, &steps));
+  PetscCall(TSGetTime(s->ts, &t));
+  PetscCall(TSGetKSPIterations(s->ts, &its));
+  PetscCall(TSDrapeBEGetStatistics(s->ts, &solves, &rejected, NULL));
+  run = steps - s->step0;                                                     /* steps taken by this run */
+  PetscCall(MPIU_Allreduce(&mywall, &wall, 1, MPIU_REAL, MPIU_MAX, s->comm)); /* the job's, the same on every rank */
+  /* CPU time of the time loop: the sum over ranks (the CPU seconds the job used; MPI's
+   * waits count, as Open MPI spins in them) and the busiest rank's */
+  PetscCall(MPIU_Allreduce(&mycpu, &cpu, 1, MPIU_REAL, MPIU_SUM, s->comm));
+  PetscCall(MPIU_Allreduce(&mycpu, &cpu_max, 1, MPIU_REAL, MPIU_MAX, s->comm));
+  psteps = (PetscReal) run * info.nparticles;
+  PetscCall(ReportViewInt(r, viewer, "steps", "Summary: %" PetscInt_FMT " steps", run));
+  PetscCall(ReportSetInt(r, "step", steps));
+  PetscCall(ReportViewReal(r, viewer, "t", " to t = %g s", t));
+  PetscCall(ReportViewReal(r, viewer, "wall", " in %.3f s wall", wall));
+  PetscCall(ReportViewReal(r, viewer, "particle_steps_per_s", ", %.4e particle-steps/s", wall > 0 ? psteps / wall : 0));
+  PetscCall(ReportViewReal(r, viewer, "cpu", "; %.3f s CPU (all ranks)", cpu));
+  PetscCall(ReportSetReal(r, "cpu_rank_max", cpu_max));
+  PetscCall(ReportViewReal(r, viewer, "particle_steps_per_cpu_s", ", %.4e particle-steps per CPU second", cpu > 0 ? psteps / cpu : 0));
+  PetscCall(ReportViewReal(r, its > 0 ? viewer : NULL, "cg_per_step", ", %.2f CG iterations per step", (PetscReal) its / PetscMax(run, 1)));
+  PetscCall(ReportViewReal(r, solves > run ? viewer : NULL, "solves_per_step", ", %.2f solves per step", (PetscReal) solves / PetscMax(run, 1)));
+  PetscCall(ReportViewInt(r, rejected ? viewer : NULL, "steps_retried", ", %" PetscInt_FMT " steps retried at a smaller step", rejected));
+  if (PetscIsNanReal(s->strain_last)) {
+    PetscCall(ReportSetReal(r, "strain_max", s->strain_last));
+    if (viewer) PetscCall(PetscViewerASCIIPrintf(viewer, "; no stretch edges\n"));
+  } else
+    PetscCall(ReportViewPercent(r, viewer, "strain_max", "; largest edge strain %.3g %%\n", s->strain_last));
+  if (info.hysteresis[0] > 0 || info.hysteresis[1] > 0) {
+    PetscInt np;
+    PetscCall(ClothGetPlasticCount(s->cloth, &np));
+    PetscCall(ReportSetInt(r, "hysteresis_plastic_triples", np)); /* triples whose yarns slid and stayed */
+  }
+  PetscCall(ReportSetString(r, "stopped_by", SignalName((int) s->interrupted)));
+  PetscCall(ReportSetBool(r, "self_contact", (PetscBool) !!s->self));
+  if (s->self) {
+    SelfContactStats st;
+    PetscCall(SelfContactGetStats(s->self, &st));
+    PetscCall(ReportSetReal(r, "self_contact_thickness", st.thickness));
+    PetscCall(ReportSetInt(r, "self_contact_pairs", st.pairs));
+    PetscCall(ReportSetInt(r, "self_collisions", st.collisions));
+    PetscCall(ReportSetInt(r, "self_failsafe", st.failsafe));
+    PetscCall(ReportSetInt(r, "self_broad_phases", st.broad_phases));
+    PetscCall(ReportSetInt(r, "self_near_lists", st.near_lists));
+    PetscCall(ReportSetInt(r, "self_unfiltered", st.unfiltered));
+    PetscCall(ReportSetInt(r, "self_halo_max", st.halo));
+    PetscCall(ReportSetInt(r, "self_gathered", st.gathered));
+    PetscCall(ReportSetInt(r, "self_failsafe_steps", st.failsafe_steps));
+    PetscCall(ReportSetInt(r, "self_solve_pairs_max", st.solve_pairs_max));
+  }
+  PetscFunctionReturn(0);
+}
+
+/* TSSolve ended: a failed step is an error with the reason; the last state is
+ * checked and written as a frame if it is not one yet. */
+static PetscErrorCode SimulationEndLoop(Simulation s)
+{
+  TSConvergedReason  reason;
+  const char        *failure;
+  const PetscScalar *u;
+  PetscReal          t;
+  PetscInt           steps, last;
+  PetscBool          enabled;
+
+  PetscFunctionBeginUser;
+  PetscCall(TSGetConvergedReason(s->ts, &reason));
+  PetscCall(TSGetTime(s->ts, &t));
+  PetscCall(TSDrapeBEGetStatistics(s->ts, NULL, NULL, &failure));
+  PetscCheck(reason >= 0, s->comm, PETSC_ERR_NOT_CONVERGED, "The run stopped at t = %g s: %s%s (%s). Reduce -ts_dt, or allow more retries at smaller steps with -ts_max_reject and -ts_max_snes_failures", (double) t,
+             failure && failure[0] ? failure : "a step failed", failure && failure[0] ? ", and so did its retries at smaller steps" : "", TSConvergedReasons[reason]);
+  PetscCall(TSGetStepNumber(s->ts, &steps));
+  PetscCall(OutputLastStep(s->output, &last));
+  PetscCall(OutputEnabled(s->output, &enabled));
+  PetscCall(VecGetArrayRead(s->U, &u));
+  PetscCall(CheckDivergence(s, s->ts, steps, t, u, PETSC_TRUE));
+  if (enabled && last != steps) PetscCall(SimulationWriteFrame(s, steps, t, u));
+  PetscCall(VecRestoreArrayRead(s->U, &u));
+  if (s->progress) {
+    PetscCall(ProgressLine(s, s->ts, steps, t, PETSC_TRUE));
+    PetscCall(PetscPrintf(s->comm, "\n"));
   }
   PetscFunctionReturn(0);
 }
 
 PetscErrorCode SimulationRun(Simulation s)
 {
-  PetscLogDouble     t1, cpu0, cpu1; /* wall clock at the loop's end; this rank's CPU time at its start and end */
+  PetscViewer        viewer = PETSC_VIEWER_STDOUT_(s->comm);
+  PetscLogDouble     wall1, cpu0, cpu1; /* wall clock at the loop's end; this rank's CPU time at its start and end */
   const PetscScalar *u;
-  PetscInt           steps, last, its;
-  PetscReal          t;
-  ClothInfo          info;
-  PetscBool          enabled;
+  PetscBool          enabled, at_rest;
 
   PetscFunctionBeginUser;
-  PetscCall(ClothGetInfo(s->cloth, &info));
-  PetscCall(SimulationViewStart(s));
-  PetscCall(SimulationReportStart(s));
+  PetscCall(SimulationViewStart(s, viewer));
   PetscCall(DrapeCheckUnusedOptions(s->comm));
   if (s->help) PetscFunctionReturn(0);
   PetscCall(OutputEnabled(s->output, &enabled));
@@ -1160,118 +1175,24 @@ PetscErrorCode SimulationRun(Simulation s)
   PetscCall(PetscLogStagePush(drape_log.timeloop));
   PetscCall(TSSolve(s->ts, s->U));
   PetscCall(PetscLogStagePop());
-  {
-    TSConvergedReason reason;
-    const char       *failure;
-    PetscReal         tnow;
-    PetscCall(TSGetConvergedReason(s->ts, &reason));
-    PetscCall(TSGetTime(s->ts, &tnow));
-    PetscCall(TSDrapeBEGetStatistics(s->ts, NULL, NULL, &failure));
-    PetscCheck(reason >= 0, s->comm, PETSC_ERR_NOT_CONVERGED, "The run stopped at t = %g s: %s%s (%s). Reduce -ts_dt, or allow more retries at smaller steps with -ts_max_reject and -ts_max_snes_failures", (double) tnow,
-               failure && failure[0] ? failure : "a step failed", failure && failure[0] ? ", and so did its retries at smaller steps" : "", TSConvergedReasons[reason]);
-  }
-  PetscCall(PetscTime(&t1));
+  PetscCall(PetscTime(&wall1));
   PetscCall(ReportCPUTime(&cpu1));
-  PetscCall(TSGetStepNumber(s->ts, &steps));
-  PetscCall(TSGetTime(s->ts, &t));
-  PetscCall(OutputLastStep(s->output, &last));
-  PetscCall(VecGetArrayRead(s->U, &u));
-  PetscCall(CheckDivergence(s, s->ts, steps, t, u, PETSC_TRUE));
-  if (enabled && last != steps) PetscCall(SimulationWriteFrame(s, steps, t, u));
-  PetscCall(VecRestoreArrayRead(s->U, &u));
-  if (s->progress) {
-    PetscCall(ProgressLine(s, s->ts, steps, t, PETSC_TRUE));
-    PetscCall(PetscPrintf(s->comm, "\n"));
-  }
+  PetscCall(SimulationEndLoop(s));
   SignalsCatch(PETSC_FALSE);
+  PetscCall(RestTestView(s->rest, s->report, viewer));
   if (s->interrupted) {
-    char      file[PETSC_MAX_PATH_LEN] = "";
-    PetscBool restartable              = PETSC_TRUE;
-    PetscCall(PetscOptionsGetString(NULL, NULL, "-output_file", file, sizeof file, NULL));
-    PetscCall(SimulationRestartable(s, &restartable));
-    if (enabled && !restartable)
-      PetscCall(PetscPrintf(s->comm,
-                            "Stopped by %s after step %" PetscInt_FMT
-                            " at t = %g s; the frames so far are in %s, but -restart cannot continue a run with -cloth_bend_hysteresis (the frames do not hold the bending friction's plastic curvature): run it again from the start\n",
-                            SignalName((int) s->interrupted), steps, (double) t, file));
-    else if (enabled)
-      PetscCall(PetscPrintf(s->comm, "Stopped by %s after step %" PetscInt_FMT " at t = %g s; the state is the last frame of %s: continue with -restart %s\n", SignalName((int) s->interrupted), steps, (double) t, file, file));
-    else
-      PetscCall(PetscPrintf(s->comm, "Stopped by %s after step %" PetscInt_FMT " at t = %g s; without -output_file there is nothing to restart from\n", SignalName((int) s->interrupted), steps, (double) t));
+    PetscInt  step;
+    PetscReal t;
+    PetscCall(TSGetStepNumber(s->ts, &step));
+    PetscCall(TSGetTime(s->ts, &t));
+    PetscCall(RestartViewStop(s->restart, s->cloth, s->output, viewer, SignalName((int) s->interrupted), step, t));
   }
-  if (s->cusick_radius > 0) {
-    PetscReal dc;
-    PetscInt  folds;
-    PetscCall(VecGetArrayRead(s->U, &u));
-    PetscCall(CusickAnalyse(s->cloth, u, s->x0, s->cusick_radius, s->cusick_center, &dc, &folds));
-    PetscCall(VecRestoreArrayRead(s->U, &u));
-    PetscCall(PetscPrintf(s->comm, "Cusick drape test: drape coefficient DC = %.4f, %" PetscInt_FMT " folds (pedestal radius %g m)%s\n", (double) dc, folds, (double) s->cusick_radius,
-                          s->at_rest ? "" : "; WARNING: the run ended before the cloth came to rest (set -drape_rest_tol and a longer -ts_max_time)"));
-    PetscCall(ReportSetReal(s->report, "drape_coefficient", dc));
-    PetscCall(ReportSetInt(s->report, "drape_folds", folds));
-  }
-  {
-    const PetscReal mywall = (PetscReal) (t1 - s->wall0), mycpu = (PetscReal) (cpu1 - cpu0);
-    const PetscInt  run = steps - s->restart_step; /* steps taken by this run */
-    PetscReal       wall, cpu, cpu_max, psteps;
-    PetscInt        solves, rejected;
-    Report          r = s->report;
-    PetscCall(MPIU_Allreduce(&mywall, &wall, 1, MPIU_REAL, MPIU_MAX, s->comm)); /* the job's, the same on every rank */
-    /* CPU time of the time loop: the sum over ranks (the CPU seconds the job used; MPI's
-     * waits count, as Open MPI spins in them) and the busiest rank's */
-    PetscCall(MPIU_Allreduce(&mycpu, &cpu, 1, MPIU_REAL, MPIU_SUM, s->comm));
-    PetscCall(MPIU_Allreduce(&mycpu, &cpu_max, 1, MPIU_REAL, MPIU_MAX, s->comm));
-    psteps = (PetscReal) run * info.nparticles;
-    PetscCall(TSGetKSPIterations(s->ts, &its));
-    PetscCall(TSDrapeBEGetStatistics(s->ts, &solves, &rejected, NULL));
-    PetscCall(ReportSetInt(r, "steps", run));
-    PetscCall(ReportSetInt(r, "step", steps));
-    PetscCall(ReportSetReal(r, "t", t));
-    PetscCall(ReportSetReal(r, "wall", wall));
-    PetscCall(ReportSetReal(r, "particle_steps_per_s", wall > 0 ? psteps / wall : 0));
-    PetscCall(ReportSetReal(r, "cpu", cpu));
-    PetscCall(ReportSetReal(r, "cpu_rank_max", cpu_max));
-    PetscCall(ReportSetReal(r, "particle_steps_per_cpu_s", cpu > 0 ? psteps / cpu : 0));
-    PetscCall(ReportSetReal(r, "cg_per_step", (PetscReal) its / PetscMax(run, 1)));
-    PetscCall(ReportSetReal(r, "solves_per_step", (PetscReal) solves / PetscMax(run, 1)));
-    PetscCall(ReportSetInt(r, "steps_retried", rejected));
-    PetscCall(ReportSetReal(r, "strain_max", s->strain_last));
-    PetscCall(ReportSetBool(r, "at_rest", s->at_rest));
-    if (info.hysteresis[0] > 0 || info.hysteresis[1] > 0) {
-      PetscInt np;
-      PetscCall(ClothGetPlasticCount(s->cloth, &np));
-      PetscCall(ReportSetInt(r, "hysteresis_plastic_triples", np)); /* triples whose yarns slid and stayed */
-    }
-    PetscCall(ReportSetString(r, "stopped_by", SignalName((int) s->interrupted)));
-    PetscCall(ReportSetBool(r, "self_contact", (PetscBool) !!s->self));
-    if (s->self) {
-      SelfContactStats st;
-      PetscCall(SelfContactGetStats(s->self, &st));
-      PetscCall(ReportSetReal(r, "self_contact_thickness", st.thickness));
-      PetscCall(ReportSetInt(r, "self_contact_pairs", st.pairs));
-      PetscCall(ReportSetInt(r, "self_collisions", st.collisions));
-      PetscCall(ReportSetInt(r, "self_failsafe", st.failsafe));
-      PetscCall(ReportSetInt(r, "self_broad_phases", st.broad_phases));
-      PetscCall(ReportSetInt(r, "self_near_lists", st.near_lists));
-      PetscCall(ReportSetInt(r, "self_unfiltered", st.unfiltered));
-      PetscCall(ReportSetInt(r, "self_halo_max", st.halo));
-      PetscCall(ReportSetInt(r, "self_gathered", st.gathered));
-      PetscCall(ReportSetInt(r, "self_failsafe_steps", st.failsafe_steps));
-      PetscCall(ReportSetInt(r, "self_solve_pairs_max", st.solve_pairs_max));
-    }
-    if (s->summary) {
-      PetscCall(PetscPrintf(s->comm, "Summary: %" PetscInt_FMT " steps to t = %g s in %.3f s wall, %.4e particle-steps/s; %.3f s CPU (all ranks), %.4e particle-steps per CPU second", run, (double) t, (double) wall,
-                            wall > 0 ? (double) (psteps / wall) : 0.0, (double) cpu, cpu > 0 ? (double) (psteps / cpu) : 0.0));
-      if (its > 0) PetscCall(PetscPrintf(s->comm, ", %.2f CG iterations per step", (double) its / PetscMax(run, 1)));
-      if (solves > run) PetscCall(PetscPrintf(s->comm, ", %.2f solves per step", (double) solves / PetscMax(run, 1)));
-      if (rejected) PetscCall(PetscPrintf(s->comm, ", %" PetscInt_FMT " steps retried at a smaller step", rejected));
-      if (PetscIsNanReal(s->strain_last))
-        PetscCall(PetscPrintf(s->comm, "; no stretch edges\n"));
-      else
-        PetscCall(PetscPrintf(s->comm, "; largest edge strain %.3g %%\n", (double) (100 * s->strain_last)));
-    }
-    if (enabled) PetscCall(OutputWriteReport(s->output, r));
-    if (s->json) PetscCall(ReportPrintJSON(r));
-  }
+  PetscCall(RestTestAtRest(s->rest, &at_rest));
+  PetscCall(VecGetArrayRead(s->U, &u));
+  PetscCall(CusickView(s->cusick, s->cloth, u, at_rest, s->report, viewer));
+  PetscCall(VecRestoreArrayRead(s->U, &u));
+  PetscCall(SimulationViewSummary(s, s->summary ? viewer : NULL, wall1 - s->wall0, cpu1 - cpu0));
+  if (enabled) PetscCall(OutputWriteReport(s->output, s->report));
+  if (s->json) PetscCall(ReportPrintJSON(s->report));
   PetscFunctionReturn(0);
 }

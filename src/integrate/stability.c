@@ -17,7 +17,7 @@
  *   explicit Euler    h <= c / Omega^2 if the top mode is underdamped (c < 2 Omega),
  *                     h <= 2 / (c/2 + sqrt(c^2/4 - Omega^2)) otherwise; no step at c = 0.
  */
-#include <simulation.h>
+#include <stability.h>
 #include <drape.h>
 
 #ifndef STABILITY_RTOL
@@ -226,5 +226,21 @@ PetscErrorCode StabilityEstimate(Cloth cloth, const PetscScalar *x, PetscInt ite
     lim->euler      = c > 0 ? 2 / c : PETSC_INFINITY;
   }
   PetscCall(PetscLogEventEnd(drape_log.stability, 0, 0, 0, 0));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode StabilityView(const StabilityLimits *lim, PetscReal damping, Report r, PetscViewer viewer)
+{
+  PetscFunctionBeginUser;
+  if (viewer) PetscCall(PetscViewerASCIIPrintf(viewer, "Stability (estimated at t = 0, %" PetscInt_FMT " Lanczos steps):", lim->iterations));
+  PetscCall(ReportViewReal(r, viewer, "omega_max", " Omega_max = %.4e rad/s\n", lim->omega));
+  PetscCall(ReportViewReal(r, viewer, "symplectic_limit", "  symplectic Euler: stable for h < %.4e s (2/Omega_max, reduced by damping)\n", lim->symplectic));
+  PetscCall(ReportViewReal(r, lim->euler > 0 ? viewer : NULL, "euler_limit", "  explicit Euler: stable for h < %.4e s", lim->euler)); /* 0: unstable at every step */
+  if (!viewer) PetscFunctionReturn(0);
+  if (lim->euler > 0)
+    PetscCall(PetscViewerASCIIPrintf(viewer, " at damping %g 1/s (c/Omega_max^2)\n", (double) damping));
+  else
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  explicit Euler: unstable at every step without damping (energy grows by 1 + (Omega h)^2 per step)\n"));
+  PetscCall(PetscViewerASCIIPrintf(viewer, "  backward Euler: no step limit for the linearised problem (a single linearisation, -snes_type ksponly, can still fail at very large steps on stiff fabric)\n"));
   PetscFunctionReturn(0);
 }

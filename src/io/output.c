@@ -142,7 +142,8 @@ PetscErrorCode OutputSetFromOptions(Output o)
 
   PetscFunctionBeginUser;
   PetscOptionsBegin(o->comm, NULL, "Output", "Output");
-  PetscCall(PetscOptionsString("-output_file", "HDF5 file for the frames (nothing is written without it)", "OutputSetFromOptions", o->file, o->file, sizeof o->file, &o->enabled));
+  PetscCall(PetscOptionsString("-output_file", "HDF5 file for the frames (nothing is written without it)", "OutputSetFromOptions", o->file, o->file, sizeof o->file, &flg));
+  o->enabled = (PetscBool) (o->enabled || flg); /* or OutputSetDefaultFile's */
   PetscCall(PetscOptionsReal("-output_interval", "Simulated time between frames (s); 0: use -output_steps", "OutputSetFromOptions", o->interval, &o->interval, NULL));
   PetscCall(PetscOptionsInt("-output_steps", "Steps between frames (0: use -output_interval)", "OutputSetFromOptions", o->every, &o->every, &flg));
   PetscOptionsEnd();
@@ -194,6 +195,21 @@ PetscErrorCode OutputSetAppend(Output o, const char file[], PetscInt nframes, co
   PetscCall(PetscMalloc1(o->nalloc, &o->times));
   PetscCall(PetscArraycpy(o->times, times, nframes));
   PetscCall(OutputScheduleAfter(o, times[nframes - 1]));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode OutputSetDefaultFile(Output o, const char file[])
+{
+  PetscFunctionBeginUser;
+  PetscCall(PetscStrncpy(o->file, file, sizeof o->file));
+  o->enabled = PETSC_TRUE;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode OutputGetFileName(Output o, const char **file)
+{
+  PetscFunctionBeginUser;
+  *file = o->enabled ? o->given : NULL;
   PetscFunctionReturn(0);
 }
 

@@ -109,6 +109,38 @@ PetscErrorCode ReportSetString(Report r, const char name[], const char value[])
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode ReportViewReal(Report r, PetscViewer viewer, const char name[], const char format[], PetscReal value)
+{
+  PetscFunctionBeginUser;
+  PetscCall(ReportSetReal(r, name, value));
+  if (viewer) PetscCall(PetscViewerASCIIPrintf(viewer, format, (double) value));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ReportViewPercent(Report r, PetscViewer viewer, const char name[], const char format[], PetscReal fraction)
+{
+  PetscFunctionBeginUser;
+  PetscCall(ReportSetReal(r, name, fraction));
+  if (viewer) PetscCall(PetscViewerASCIIPrintf(viewer, format, (double) (100 * fraction)));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ReportViewInt(Report r, PetscViewer viewer, const char name[], const char format[], PetscInt value)
+{
+  PetscFunctionBeginUser;
+  PetscCall(ReportSetInt(r, name, value));
+  if (viewer) PetscCall(PetscViewerASCIIPrintf(viewer, format, value));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ReportViewString(Report r, PetscViewer viewer, const char name[], const char format[], const char value[])
+{
+  PetscFunctionBeginUser;
+  PetscCall(ReportSetString(r, name, value));
+  if (viewer) PetscCall(PetscViewerASCIIPrintf(viewer, format, value ? value : ""));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode ReportGetSize(Report r, PetscInt *n)
 {
   PetscFunctionBeginUser;

@@ -258,7 +258,7 @@ static const char *const startup_only[] = {"-malloc_debug",
 
 /* The cloth's material and geometry: its frames hold that cloth, so a restart takes
  * them from the file (-cloth_size 2 on a 1 m cloth's restart ran at 20 % strain). The
- * lattice is compared in RestartLoad. */
+ * lattice is compared in RestartReadLastFrame. */
 static const char *const model_options[] = {"-cloth_size", "-cloth_shape", "-cloth_outline", "-cloth_fabric", "-cloth_model", "-cloth_density", "-cloth_stretch", "-cloth_shear", "-cloth_bend", "-cloth_bend_table", "-cloth_bend_table_samples", NULL};
 
 /* One value of an option: a boolean's spellings as one, numbers by value. */
@@ -328,6 +328,7 @@ static PetscErrorCode RestartCheckModel(MPI_Comm comm, const char file[], const 
   for (const char *const *name = model_options; *name; name++) {
     char      was[1024] = "", now[1024] = "", why[1200] = "";
     PetscBool was_set, now_set;
+    /* raw: the values as given, stored and now, are compared before any component reads them */
     PetscCall(PetscOptionsGetString(stored, NULL, *name, was, sizeof was, &was_set));
     PetscCall(PetscOptionsGetString(NULL, NULL, *name, now, sizeof now, &now_set));
     if (!now_set || (was_set && SameValue(was, now)) || (!was_set && SameAsFileDefault(*name, now, r))) continue;
@@ -348,7 +349,9 @@ static PetscErrorCode RestartCheckModel(MPI_Comm comm, const char file[], const 
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode RestartInsertOptions(MPI_Comm comm, const char file[])
+/* The options stored in the file into the options database under the command
+ * line's own (the command line wins). */
+static PetscErrorCode RestartInsertOptions(MPI_Comm comm, const char file[])
 {
   PetscMPIInt rank;
   PetscInt    len = 0;
@@ -370,12 +373,16 @@ PetscErrorCode RestartInsertOptions(MPI_Comm comm, const char file[])
   PetscCallMPI(MPI_Bcast(r.options, (PetscMPIInt) len + 1, MPI_CHAR, 0, comm));
   /* the stored run's options, less those PETSc acts on as it starts (memory
    * tracing, logging, debugging: too late now, and -options_left would call them
-   * unused), then the command line again: it wins */
+   * unused) and its -output_file (the frames go on in the file restarted from, the
+   * output's default: a copy's options name the original, which a new run would
+   * truncate), then the command line again: it wins. The database is written here
+   * because the stored options are every component's, read by their SetFromOptions. */
   PetscCall(PetscOptionsInsertString(NULL, r.options));
   for (size_t k = 0; k < sizeof(startup_only) / sizeof(startup_only[0]); k++) PetscCall(PetscOptionsClearValue(NULL, startup_only[k]));
+  PetscCall(PetscOptionsClearValue(NULL, "-output_file"));
   PetscCall(PetscGetArgs(&argc, &argv));
   PetscCall(PetscOptionsInsert(NULL, &argc, &argv, NULL));
-  for (size_t k = 0; k < sizeof(startup_only) / sizeof(startup_only[0]); k++) { /* given now: PetscInitialize() used them */
+  for (size_t k = 0; k < sizeof(startup_only) / sizeof(startup_only[0]); k++) { /* raw: marks those given now used (PetscInitialize() used them; no component reads them) */
     PetscBool given;
     PetscCall(PetscOptionsHasName(NULL, NULL, startup_only[k], &given));
   }
@@ -423,7 +430,9 @@ static PetscErrorCode RestartReadFrame(void *ctx)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode RestartLoad(MPI_Comm comm, const char file[], Cloth cloth, PetscScalar *x, PetscScalar *v, PetscReal *t, PetscInt *step, PetscInt *nframes, PetscReal **times)
+/* The last complete frame into x, v (owned order), with its time and step, and the
+ * times of all complete frames (caller frees). */
+static PetscErrorCode RestartReadLastFrame(MPI_Comm comm, const char file[], Cloth cloth, PetscScalar *x, PetscScalar *v, PetscReal *t, PetscInt *step, PetscInt *nframes, PetscReal **times)
 {
   PetscMPIInt  rank;
   PetscInt     sizes[3];
@@ -460,5 +469,103 @@ PetscErrorCode RestartLoad(MPI_Comm comm, const char file[], Cloth cloth, PetscS
   *times   = r.times; /* the caller's now */
   r.times  = NULL;
   PetscCall(RestartInfoDestroy(&r));
+  PetscFunctionReturn(0);
+}
+
+struct _p_Restart {
+  MPI_Comm  comm;
+  char      file[PETSC_MAX_PATH_LEN]; /* -restart, as PETSc's viewer opens it */
+  PetscBool enabled;
+  PetscReal t;    /* time of the frame restarted from */
+  PetscInt  step; /* its step */
+};
+
+PetscErrorCode RestartCreate(MPI_Comm comm, Restart *restart)
+{
+  PetscFunctionBeginUser;
+  PetscCall(PetscNew(restart));
+  (*restart)->comm = comm;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode RestartDestroy(Restart *restart)
+{
+  PetscFunctionBeginUser;
+  PetscCall(PetscFree(*restart));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode RestartSetFromOptions(Restart r, Output output)
+{
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(r->comm, NULL, "Restart", "Restart");
+  PetscCall(PetscOptionsString("-restart", "Continue the run stored in this drape HDF5 file from its last complete frame (its options apply; the command line overrides them)", "RestartLoad", r->file, r->file, sizeof r->file, &r->enabled));
+  PetscOptionsEnd();
+  if (!r->enabled) PetscFunctionReturn(0);
+  PetscCall(DrapeCheckPathLength(r->comm, "-restart", r->file, sizeof r->file));
+  PetscCheck(r->file[0], r->comm, PETSC_ERR_USER_INPUT, "-restart needs a file name");
+  PetscCall(DrapeFileName("-restart", r->file, r->file, sizeof r->file)); /* the file PETSc's viewer reads */
+  PetscCall(DrapeCheckInputPath(r->comm, "-restart", r->file, "restart file"));
+  PetscCall(RestartInsertOptions(r->comm, r->file));
+  PetscCall(OutputSetDefaultFile(output, r->file));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode RestartEnabled(Restart r, PetscBool *enabled)
+{
+  PetscFunctionBeginUser;
+  *enabled = r->enabled;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode RestartSupported(Cloth cloth, PetscBool *supported)
+{
+  ClothInfo info;
+
+  PetscFunctionBeginUser;
+  PetscCall(ClothGetInfo(cloth, &info));
+  *supported = (PetscBool) !(info.hysteresis[0] > 0 || info.hysteresis[1] > 0);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode RestartLoad(Restart r, Cloth cloth, Output output, PetscScalar *x, PetscScalar *v)
+{
+  PetscInt   nframes;
+  PetscReal *times;
+  PetscBool  supported;
+
+  PetscFunctionBeginUser;
+  if (!r->enabled) PetscFunctionReturn(0);
+  PetscCall(RestartSupported(cloth, &supported));
+  PetscCheck(supported, r->comm, PETSC_ERR_USER_INPUT, "-restart cannot continue a run with -cloth_bend_hysteresis: the frames hold positions and velocities, not the plastic curvature that the bending friction remembers; run it from the start");
+  PetscCall(RestartReadLastFrame(r->comm, r->file, cloth, x, v, &r->t, &r->step, &nframes, &times));
+  PetscCall(OutputSetAppend(output, r->file, nframes, times));
+  PetscCall(PetscFree(times));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode RestartGetStart(Restart r, PetscReal *t, PetscInt *step)
+{
+  PetscFunctionBeginUser;
+  if (t) *t = r->t;
+  if (step) *step = r->step;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode RestartViewStop(Restart r, Cloth cloth, Output output, PetscViewer viewer, const char signal[], PetscInt step, PetscReal t)
+{
+  const char *file;
+  PetscBool   supported;
+
+  PetscFunctionBeginUser;
+  PetscCall(OutputGetFileName(output, &file));
+  PetscCall(RestartSupported(cloth, &supported));
+  PetscCall(PetscViewerASCIIPrintf(viewer, "Stopped by %s after step %" PetscInt_FMT " at t = %g s; ", signal, step, (double) t));
+  if (file && !supported)
+    PetscCall(PetscViewerASCIIPrintf(viewer, "the frames so far are in %s, but -restart cannot continue a run with -cloth_bend_hysteresis (the frames do not hold the bending friction's plastic curvature): run it again from the start\n", file));
+  else if (file)
+    PetscCall(PetscViewerASCIIPrintf(viewer, "the state is the last frame of %s: continue with -restart %s\n", file, file));
+  else
+    PetscCall(PetscViewerASCIIPrintf(viewer, "without -output_file there is nothing to restart from\n"));
   PetscFunctionReturn(0);
 }

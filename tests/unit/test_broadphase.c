@@ -3,7 +3,7 @@ static const char help[] = "Unit tests of the self-contact broad phases (src/sel
                            "same order, on folded, crumpled and partly exploded lattices.\n";
 
 #include <petscsys.h>
-#include "../../src/selfcontact/selfcontactimpl.h"
+#include <selfcontact/selfcontactimpl.h>
 
 static PetscInt npassed = 0;
 

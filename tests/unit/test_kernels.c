@@ -3,7 +3,7 @@ static const char help[] = "Unit tests of the element kernels in src/cloth/kerne
                            "Options: -seed <int> (random configurations)\n\n";
 
 #include <petscsys.h>
-#include "../../src/cloth/kernels.h"
+#include <cloth/kernels.h>
 
 /* Every check group that passes is counted here; the first failing check raises
  * an error (PETSC_ERR_PLIB) with a message that names the element and the numbers. */

@@ -3,7 +3,7 @@ static const char help[] = "Unit tests of the self-contact narrow phase (src/sel
                            "known answers, and random sweeps checked against a dense sampling of the motion.\n";
 
 #include <petscsys.h>
-#include "../../src/selfcontact/proximity.h"
+#include <selfcontact/proximity.h>
 
 static PetscInt npassed = 0;
 

@@ -1,0 +1,44 @@
+/* The TS type "drapebe" (src/integrate/drapebe.c): drape's backward Euler in the
+ * paper's form (scheme 4: A dv = b, SNES + KSP CG on an assembled matrix, contact
+ * as constraints of the step). PETSc's own "beuler" integrates a first-order system
+ * through an IFunction and keeps its meaning.
+ *
+ * The setters and getters do nothing on a TS of another type (the impulse and the
+ * statistics are then zero), except TSDrapeBESetCloth, which the TS keeps whatever
+ * its type, so that it can be given before TSSetFromOptions chooses the type. */
+#pragma once
+
+#include <petscts.h>
+#include <cloth.h>
+#include <contactsolve.h>
+#include <selfcontact.h>
+
+#define TSDRAPEBE "drapebe"
+
+/* Register the type with TSRegister() (again: no harm). Not collective. */
+PETSC_EXTERN PetscErrorCode DrapeTSRegister(void);
+/* The cloth whose motion the TS integrates (required by TSSetUp). Give it before
+ * TSSetFromOptions: its defaults follow the cloth (-snes_type newtonls with bending
+ * friction), and the options override them. Logically collective on TS. */
+PETSC_EXTERN PetscErrorCode TSDrapeBESetCloth(TS, Cloth);
+/* Contact with the solid as constraints of the step (include/contactsolve.h; NULL:
+ * none), set up by TSSetUp. Logically collective on TS. */
+PETSC_EXTERN PetscErrorCode TSDrapeBESetContact(TS, ContactSolve);
+/* Self-contact's close pairs in the step's solve (include/selfcontact.h; NULL:
+ * none). Logically collective on TS. */
+PETSC_EXTERN PetscErrorCode TSDrapeBESetSelfContact(TS, SelfContact);
+/* Omega_max of the cloth at the start (rad/s): with (h Omega_max)^2 the default
+ * preconditioner is chosen (block Jacobi/ICC or algebraic multigrid); without it
+ * the TS estimates Omega_max itself. Logically collective on TS (the same value on
+ * every rank). */
+PETSC_EXTERN PetscErrorCode TSDrapeBESetStiffness(TS, PetscReal);
+/* The state was changed after the last step by more than the landing on the solid
+ * (the self-contact filter): the energy check of the next step starts from it.
+ * Logically collective on TS. */
+PETSC_EXTERN PetscErrorCode TSDrapeBEStateChanged(TS);
+/* Impulse (N s) the contact constraints gave this rank's particles in the last
+ * step. Not collective. */
+PETSC_EXTERN PetscErrorCode TSDrapeBEGetContactImpulse(TS, PetscReal[3]);
+/* Solves made and steps rejected so far, and the last failed solve in words (NULL
+ * or empty: none). Not collective (the same on every rank). */
+PETSC_EXTERN PetscErrorCode TSDrapeBEGetStatistics(TS, PetscInt *solves, PetscInt *rejected, const char **failure);
