@@ -267,10 +267,10 @@ static PetscBool InsideOutline(Cloth c, PetscReal x, PetscReal y)
  * - a rank's element lists: up to 12 entries per local particle (4 shear corners of
  *   3 and 4 bending triples of 3 each), so a rank holds at most (2^31 - 1) / 12 =
  *   178 956 970 particles, owned and ghost (this binds only on fewer than 5 ranks);
- * - the implicit matrix of drapebe, per rank: 9 entries per block and up to 25 blocks
- *   per particle's row (the 5 x 5 particles an element reaches; 17 without
- *   self-contact pairs), so a rank owns at most (2^31 - 1) / 225 = 9 544 371
- *   particles (ClothSetUpImplicit);
+ * - the implicit matrix of drapebe, per rank: 9 entries per block and 25 blocks per
+ *   particle's row (the 5 x 5 particles its elements reach; SBAIJ keeps the upper
+ *   13), so a rank owns at most (2^31 - 1) / 225 = 9 544 371 particles
+ *   (ClothSetUpImplicit);
  * - serial METIS: 12 links per particle in its idx_t (partition.c).
  * A 64-bit PetscInt lifts all but METIS's; memory then bounds the lattice. */
 #define CLOTH_LIST_ENTRIES   12  /* per local particle, in a rank's longest element list */
