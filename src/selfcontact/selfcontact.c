@@ -268,11 +268,11 @@ static PetscErrorCode DirectoryLookup(SelfContact sc, PetscInt n, const PetscInt
 }
 
 /* The rank that owns global number g, and g's index there. */
-static void OwnerOf(SelfContact sc, PetscInt g, PetscMPIInt *rank, PetscInt *index)
+static void OwnerOf(SelfContact sc, PetscInt g, PetscInt *rank, PetscInt *index)
 {
-  PetscMPIInt lo = 0, hi = sc->size - 1; /* the last r with gstart[r] <= g */
+  PetscInt lo = 0, hi = sc->size - 1; /* the last r with gstart[r] <= g */
   while (lo < hi) {
-    const PetscMPIInt mid = (lo + hi + 1) / 2;
+    const PetscInt mid = (lo + hi + 1) / 2;
     if (sc->gstart[mid] <= g)
       lo = mid;
     else
