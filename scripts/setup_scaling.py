@@ -26,12 +26,16 @@ Per run:
   max_over_share  (rank_max - fixed) / ((total - P fixed) / P): 1 when every rank
                   holds its share of the lattice and no more
 
-Output in --out (default out/setup_scaling): setup_scaling.csv, setup_scaling.md.
+Output in --out (default out/setup_scaling): setup_scaling.csv, setup_scaling.md,
+setup_scaling.png (per-rank memory and set-up time against the ranks).
+--from-csv A.csv,B.csv makes the table and plot of earlier runs' rows instead
+of measuring (the machine's load then is theirs).
 
     python3 scripts/setup_scaling.py --sizes 2048 --partitions dmda,ptscotch,metis   # 1-8 ranks: about 7 minutes here
     python3 scripts/setup_scaling.py --quick --out /tmp/ss           # smoke run, seconds
 """
 import argparse
+import csv
 import os
 import re
 import subprocess
@@ -87,6 +91,7 @@ def main():
     p.add_argument("--timeout", type=float, default=1200, help="seconds per run")
     p.add_argument("--out", default=str(ROOT / "out" / "setup_scaling"))
     p.add_argument("--quick", action="store_true", help="smoke run: 64^2 on 1 and 2 ranks")
+    p.add_argument("--from-csv", default="", help="comma-separated setup_scaling.csv files: table and plot of their rows, nothing run")
     a = p.parse_args()
     if a.quick:
         a.sizes, a.ranks = "64", "1,2"
@@ -102,6 +107,15 @@ def main():
     out.mkdir(parents=True, exist_ok=True)
 
     rows = []
+    if a.from_csv:
+        for name in a.from_csv.split(","):
+            try:
+                with open(name, newline="") as f:
+                    rows += list(csv.DictReader(f))
+            except OSError as e:
+                fail(PROG, f"cannot read {name}: {e}")
+        rows.sort(key=lambda r: (int(r["N"]), r["partition"] != "dmda", r["partition"], int(r["ranks"])))
+        ranks = []
     for np_ in ranks:
         fixed = {}
         for part in parts:
@@ -138,6 +152,36 @@ def main():
     text = "\n".join(md) + "\n"
     (out / "setup_scaling.md").write_text(text)
     print(text)
+    if rows:
+        plot(rows, out / "setup_scaling.png")
+
+
+def plot(rows, path):
+    """Per-rank peak memory (and the fixed cost plus the one-rank run's share, the
+    ideal) and the Setup stage's time, against the ranks, one line per N and partition."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.5))
+    for key in sorted({(int(r["N"]), r["partition"]) for r in rows}):
+        mine = sorted((r for r in rows if (int(r["N"]), r["partition"]) == key), key=lambda r: int(r["ranks"]))
+        ranks = [int(r["ranks"]) for r in mine]
+        line, = a1.loglog(ranks, [float(r["rank_max_mib"]) for r in mine], "o-", label=f"{key[0]}² {key[1]}")
+        one = [r for r in mine if int(r["ranks"]) == 1]
+        if key[1] == "dmda" and one:
+            share = float(one[0]["rank_max_mib"]) - float(one[0]["fixed_mib"])
+            a1.loglog(ranks, [float(r["fixed_mib"]) + share / int(r["ranks"]) for r in mine], ":", color=line.get_color(), label=f"{key[0]}²: fixed + share")
+        a2.loglog(ranks, [float(r["setup_stage_s"]) for r in mine if r["setup_stage_s"]], "o-", color=line.get_color(), label=f"{key[0]}² {key[1]}")
+    a1.set_ylabel("peak memory of the largest rank (MiB)")
+    a2.set_ylabel("Setup stage (s, slowest rank)")
+    for ax in (a1, a2):
+        ax.set_xlabel("ranks (past 2 oversubscribed on 2 cores)")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle("drape: set-up of a disc in an N x N lattice on many ranks")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
 
 
 if __name__ == "__main__":

@@ -259,17 +259,40 @@ static PetscBool InsideOutline(Cloth c, PetscReal x, PetscReal y)
  * refused before anything is allocated, with the limit named. Memory: a lower bound
  * (about 400 bytes per particle of the rank's share for the explicit schemes, and
  * with -cloth_partition metis the whole graph on rank 0) against what a node has. */
+/* How large a lattice PetscInt can index: the one place that says it (docs/cluster.md
+ * and docs/options.md quote it). Past these a 32-bit PetscInt would wrap:
+ * - the unknowns: 3 per particle, so vectors of 3 N entries and global indices up to
+ *   3 N (the DMDA's vectors, the state, the matrix's rows, self-contact's keys of
+ *   primitives): N <= (2^31 - 1) / 3 = 715 827 882 particles, 26 754 x 26 754;
+ * - a rank's element lists: up to 12 entries per local particle (4 shear corners of
+ *   3 and 4 bending triples of 3 each), so a rank holds at most (2^31 - 1) / 12 =
+ *   178 956 970 particles, owned and ghost (this binds only on fewer than 5 ranks);
+ * - the implicit matrix of drapebe, per rank: 9 entries per block and 25 blocks per
+ *   particle's row (the 5 x 5 particles its elements reach; SBAIJ keeps the upper
+ *   13), so a rank owns at most (2^31 - 1) / 225 = 9 544 371 particles
+ *   (ClothSetUpImplicit);
+ * - serial METIS: 12 links per particle in its idx_t (partition.c).
+ * A 64-bit PetscInt lifts all but METIS's; memory then bounds the lattice. */
+#define CLOTH_LIST_ENTRIES   12  /* per local particle, in a rank's longest element list */
+#define CLOTH_MATRIX_ENTRIES 225 /* per owned particle, in a rank's implicit matrix: 25 blocks of 9 */
+/* drapebe's memory per particle, measured (BENCHMARKS.md: 3171 bytes with ICC, more
+ * with ML): what a rank needs at least on top of the explicit schemes' */
+#define CLOTH_IMPLICIT_BYTES 3100.0
+
+/* Does PetscInt index a lattice of Mx x My, and does the memory each rank has hold
+ * it? Refused with a sentence before anything of its size is allocated. */
 static PetscErrorCode ClothCheckLatticeSize(Cloth c, PetscInt Mx, PetscInt My)
 {
-  const PetscInt64 N = (PetscInt64) Mx * (PetscInt64) My, most = PETSC_MAX_INT / 128;
+  const PetscInt64 N = (PetscInt64) Mx * (PetscInt64) My, most = PETSC_MAX_INT / 3;
   PetscMPIInt      size, rank, local;
   MPI_Comm         node;
   PetscLogDouble   need, node_bytes, process_bytes;
   PetscBool        fits;
 
   PetscFunctionBeginUser;
-  PetscCheck(N <= most, c->comm, PETSC_ERR_USER_INPUT, "A %" PetscInt_FMT " x %" PetscInt_FMT " lattice (%.4g particles) is larger than drape can index with this PETSc build (%d-bit PetscInt): at most %" PetscInt64_FMT " particles (e.g. %d x %d)%s",
-             Mx, My, (double) N, (int) (8 * sizeof(PetscInt)), most, (int) PetscFloorReal(PetscSqrtReal((PetscReal) most)), (int) PetscFloorReal(PetscSqrtReal((PetscReal) most)),
+  PetscCheck(N <= most, c->comm, PETSC_ERR_USER_INPUT,
+             "A %" PetscInt_FMT " x %" PetscInt_FMT " lattice (%.4g particles) has more unknowns (3 per particle) than this PETSc build's %d-bit PetscInt indexes: at most %" PetscInt64_FMT " particles (e.g. %d x %d)%s", Mx, My, (double) N,
+             (int) (8 * sizeof(PetscInt)), most, (int) PetscFloorReal(PetscSqrtReal((PetscReal) most)), (int) PetscFloorReal(PetscSqrtReal((PetscReal) most)),
              sizeof(PetscInt) < 8 ? "; build PETSc with --with-64-bit-indices for larger lattices" : "");
   PetscCallMPI(MPI_Comm_size(c->comm, &size));
   PetscCallMPI(MPI_Comm_rank(c->comm, &rank));
@@ -288,6 +311,16 @@ static PetscErrorCode ClothCheckLatticeSize(Cloth c, PetscInt Mx, PetscInt My)
   PetscCheck(fits, c->comm, PETSC_ERR_USER_INPUT,
              "A %" PetscInt_FMT " x %" PetscInt_FMT " lattice needs at least %.1f GB per rank (%.1f GB on a node running %d ranks), more than this machine gives a run (%.1f GB per node%s): use a smaller lattice, or more nodes", Mx, My, need / 1e9,
              need * local / 1e9, (int) local, node_bytes / 1e9, process_bytes < node_bytes ? ", less per process" : "");
+  PetscFunctionReturn(0);
+}
+
+/* The largest n over the ranks: does n times per fit PetscInt on every rank?
+ * Collective. */
+static PetscErrorCode ClothCheckRankIndex(Cloth c, PetscInt n, PetscInt per, PetscInt *nmax, PetscBool *fits)
+{
+  PetscFunctionBeginUser;
+  PetscCall(MPIU_Allreduce(&n, nmax, 1, MPIU_INT, MPI_MAX, c->comm));
+  *fits = (PetscBool) ((PetscInt64) *nmax * per <= PETSC_MAX_INT);
   PetscFunctionReturn(0);
 }
 
@@ -1165,6 +1198,15 @@ PetscErrorCode ClothSetUp(Cloth c)
     c->pinned[k] = (PetscBool) (IsPinned(c, i, j) || !c->active[k]);
     if (c->active[k]) mass += c->mass[k];
   }
+  {
+    PetscInt  nmax;
+    PetscBool fits;
+    PetscCall(ClothCheckRankIndex(c, c->nlocal, CLOTH_LIST_ENTRIES, &nmax, &fits));
+    PetscCheck(fits, c->comm, PETSC_ERR_USER_INPUT,
+               "A rank holds %" PetscInt_FMT " particles of the %" PetscInt_FMT " x %" PetscInt_FMT " lattice, more than this PETSc build's %d-bit PetscInt indexes in its element lists (%d entries per particle: at most %" PetscInt_FMT
+               "): run on more ranks%s",
+               nmax, c->Mx, c->My, (int) (8 * sizeof(PetscInt)), CLOTH_LIST_ENTRIES, PETSC_MAX_INT / CLOTH_LIST_ENTRIES, sizeof(PetscInt) < 8 ? ", or build PETSc with --with-64-bit-indices" : "");
+  }
   PetscCall(ClothBuildElements(c, &map));
   PetscCall(PetscFree(map.l));
   PetscCall(ClothLatticeSetUp(c));
@@ -1204,6 +1246,29 @@ PetscErrorCode ClothSetUpImplicit(Cloth c)
   PetscFunctionBeginUser;
   PetscCheck(c->setup, c->comm, PETSC_ERR_ORDER, "ClothSetUpImplicit needs ClothSetUp first");
   if (c->Zl) PetscFunctionReturn(0);
+  { /* before the matrix: its indices per rank, and the memory the implicit step needs */
+    PetscInt       nmax;
+    PetscBool      fits;
+    PetscMPIInt    local;
+    MPI_Comm       node;
+    PetscLogDouble need, node_bytes, process_bytes;
+    PetscCall(ClothCheckRankIndex(c, c->nowned, CLOTH_MATRIX_ENTRIES, &nmax, &fits));
+    PetscCheck(fits, c->comm, PETSC_ERR_USER_INPUT,
+               "A rank owns %" PetscInt_FMT " particles of the %" PetscInt_FMT " x %" PetscInt_FMT " lattice, more than this PETSc build's %d-bit PetscInt indexes in the implicit matrix's entries (up to %d per particle: at most %" PetscInt_FMT
+               "): run on more ranks%s",
+               nmax, c->Mx, c->My, (int) (8 * sizeof(PetscInt)), CLOTH_MATRIX_ENTRIES, PETSC_MAX_INT / CLOTH_MATRIX_ENTRIES, sizeof(PetscInt) < 8 ? ", or build PETSc with --with-64-bit-indices" : "");
+    PetscCallMPI(MPI_Comm_split_type(c->comm, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node));
+    PetscCallMPI(MPI_Comm_size(node, &local));
+    PetscCallMPI(MPI_Comm_free(&node));
+    PetscCall(DrapeMemoryAvailable(&node_bytes, &process_bytes));
+    need = CLOTH_IMPLICIT_BYTES * (PetscLogDouble) nmax;
+    fits = (PetscBool) (need * local <= node_bytes && need <= process_bytes);
+    PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &fits, 1, MPIU_BOOL, MPI_LAND, c->comm));
+    PetscCheck(fits, c->comm, PETSC_ERR_USER_INPUT,
+               "The implicit step (drapebe) on a %" PetscInt_FMT " x %" PetscInt_FMT " lattice needs at least %.1f GB per rank (%.0f bytes per particle, %" PetscInt_FMT
+               " particles on the largest rank; %.1f GB on a node running %d ranks), more than this machine gives a run (%.1f GB per node%s): use an explicit scheme (-ts_type basicsymplectic), a smaller lattice, or more nodes",
+               c->Mx, c->My, need / 1e9, CLOTH_IMPLICIT_BYTES, nmax, need * local / 1e9, (int) local, node_bytes / 1e9, process_bytes < node_bytes ? ", less per process" : "");
+  }
   if (!c->ghost) PetscCall(ClothBuildGhostScatter(c));
   PetscCall(ClothSetUpGhosts(c));
   PetscCall(VecCreateSeq(PETSC_COMM_SELF, 3 * c->nlocal, &c->Zl));

@@ -241,6 +241,12 @@ PETSC_INTERN PetscErrorCode ClothLatticeComputeForce(Cloth, const PetscScalar *x
 PETSC_INTERN PetscErrorCode ClothLatticeComputeAcceleration(Cloth, const PetscScalar *x, const PetscScalar *v, PetscScalar *a);
 PETSC_INTERN PetscErrorCode ClothLatticeKickDrift(Cloth, PetscScalar *x, PetscScalar *v, PetscReal kick, PetscReal drift);
 PETSC_INTERN PetscErrorCode ClothLatticeEnergies(Cloth, const PetscScalar *x, PetscReal energy[3], PetscReal *strain);
+/* The ghosts' positions alone (3 each, local particle nowned + g at xg + 3 g), from
+ * their owners, where the lattice kernel is set up (c->lattice): what a loop over the
+ * element lists needs without the whole local copy of ClothScatterPositions.
+ * Collective. */
+PETSC_INTERN PetscErrorCode ClothLatticeGetGhosts(Cloth, const PetscScalar *x, const PetscScalar **xg);
+PETSC_INTERN PetscErrorCode ClothLatticeRestoreGhosts(Cloth, const PetscScalar **xg);
 
 /* fabrics.c: the measured fabrics of -cloth_fabric */
 PETSC_INTERN PetscErrorCode ClothSetFabric(Cloth, const char *);

@@ -300,22 +300,31 @@ PetscErrorCode ClothWindowDestroy(ClothWindow *w)
  * tension stiffens the cloth most. Collective; the same on any partition. */
 PetscErrorCode ClothStretchHotSpot(Cloth c, const PetscScalar *x, PetscInt *natural)
 {
-  const PetscScalar   *xl;
+  const PetscScalar   *xl = NULL, *xg = NULL;
   const ClothElements *el    = &c->stretch_el;
   PetscReal            best  = -1, gbest;
   PetscInt             where = PETSC_MAX_INT, gwhere;
 
   PetscFunctionBeginUser;
-  PetscCall(ClothScatterPositions(c, x, &xl));
+  /* with the lattice kernel, only the ghosts' positions travel: the whole local copy
+   * (its vector and scatter, about 85 bytes a particle) is then never made */
+  if (c->lattice)
+    PetscCall(ClothLatticeGetGhosts(c, x, &xg));
+  else
+    PetscCall(ClothScatterPositions(c, x, &xl));
   for (PetscInt e = 0; e < el->n; e++) {
     const PetscInt  *p = el->p + 2 * e;
-    const PetscReal *a = xl + 3 * p[0], *b = xl + 3 * p[1];
+    const PetscReal *a = xl ? xl + 3 * p[0] : (p[0] < c->nowned ? x + 3 * p[0] : xg + 3 * (p[0] - c->nowned));
+    const PetscReal *b = xl ? xl + 3 * p[1] : (p[1] < c->nowned ? x + 3 * p[1] : xg + 3 * (p[1] - c->nowned));
     const PetscReal  l = PetscSqrtReal(PetscSqr(b[0] - a[0]) + PetscSqr(b[1] - a[1]) + PetscSqr(b[2] - a[2]));
     const PetscReal  v = ElemCoef(el, e) * (1 + PetscMax(0, 1 - ElemRest(el, e) / l));
     const PetscInt   n = c->natural[p[0]];
     if (v > best || (v == best && n < where)) best = v, where = n;
   }
-  PetscCall(ClothEndScatter(c, &xl));
+  if (c->lattice)
+    PetscCall(ClothLatticeRestoreGhosts(c, &xg));
+  else
+    PetscCall(ClothEndScatter(c, &xl));
   PetscCall(MPIU_Allreduce(&best, &gbest, 1, MPIU_REAL, MPIU_MAX, c->comm));
   if (best != gbest) where = PETSC_MAX_INT;
   PetscCall(MPIU_Allreduce(&where, &gwhere, 1, MPIU_INT, MPI_MIN, c->comm));

@@ -366,6 +366,20 @@ static PetscErrorCode LatticeGhosts(Cloth c, const PetscScalar *x, const PetscSc
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode ClothLatticeGetGhosts(Cloth c, const PetscScalar *x, const PetscScalar **xg)
+{
+  PetscFunctionBeginUser;
+  PetscCall(LatticeGhosts(c, x, xg));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ClothLatticeRestoreGhosts(Cloth c, const PetscScalar **xg)
+{
+  PetscFunctionBeginUser;
+  PetscCall(VecRestoreArrayRead(c->lattice->G, xg));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode ClothLatticeComputeForce(Cloth c, const PetscScalar *x, PetscScalar *f)
 {
   LatticeSweep S = {x, NULL, NULL, NULL, NULL, NULL, 0, 0, 0, f, NULL};

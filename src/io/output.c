@@ -274,14 +274,17 @@ static PetscErrorCode OutputCreateFile(void *ctx)
     PetscCall(PetscFree(xyz));
   }
   {
-    /* the cloth's own particles, so that a reader need not redo the cut of the outline */
+    /* the cloth's own particles, so that a reader need not redo the cut of the outline:
+     * each rank fills a contiguous range of the natural order (PETSc's split), so no
+     * rank holds the whole lattice's flags */
     Vec          A;
     PetscScalar *a;
-    PetscCall(VecCreateMPI(o->comm, rank ? 0 : o->Mx * o->My, o->Mx * o->My, &A));
+    PetscInt     lo, hi;
+    PetscCall(VecCreateMPI(o->comm, PETSC_DECIDE, o->Mx * o->My, &A));
     PetscCall(PetscObjectSetName((PetscObject) A, "active"));
+    PetscCall(VecGetOwnershipRange(A, &lo, &hi));
     PetscCall(VecGetArray(A, &a));
-    if (!rank)
-      for (PetscInt n = 0; n < o->Mx * o->My; n++) a[n] = ClothIsActive(c->cloth, n % o->Mx, n / o->Mx) ? 1.0 : 0.0;
+    for (PetscInt n = lo; n < hi; n++) a[n - lo] = ClothIsActive(c->cloth, n % o->Mx, n / o->Mx) ? 1.0 : 0.0;
     PetscCall(VecRestoreArray(A, &a));
     PetscCall(VecView(A, o->viewer));
     PetscCall(VecDestroy(&A));

@@ -97,9 +97,13 @@ static PetscInt FeatureTriangles(SelfContact sc, const Pair *pr)
   for (PetscInt i = 1; i < 4; i++)
     if (-pr->w[i] > SELF_SOLVE_FEATURE) f[nf++] = s->nat[pr->p[i]];
   if (nf == 3) return 1;
-  for (PetscInt a = sc->tri_ptr[f[0]]; a < sc->tri_ptr[f[0] + 1]; a++) {
-    const PetscInt *T = sc->mesh.tri + 3 * sc->tri_adj[a];
-    if (nf == 1 || T[0] == f[1] || T[1] == f[1] || T[2] == f[1]) count++;
+  {
+    PetscInt key[6], nt = SelfParticleTriangles(sc, f[0], key);
+    for (PetscInt a = 0; a < nt; a++) {
+      PetscInt T[3];
+      SelfTriangleParticles(sc->Mx, key[a], T);
+      if (nf == 1 || T[0] == f[1] || T[1] == f[1] || T[2] == f[1]) count++;
+    }
   }
   return PetscMax(count, 1);
 }
@@ -241,8 +245,7 @@ PetscErrorCode SelfContactSolveBegin(SelfContact sc, PetscReal h, const PetscSca
     q->ns = s->n;
   }
   for (PetscInt k = 0; k < s->n; k++) {
-    const PetscInt p = s->nat[k];
-    q->gid[k]        = sc->gstart[sc->owner[p]] + sc->owner_idx[p];
+    q->gid[k] = s->gid[k];
     for (PetscInt i = 0; i < 9; i++) q->S[9 * k + i] = i % 4 == 0;
   }
   q->n = 0;

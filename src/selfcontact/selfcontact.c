@@ -116,58 +116,76 @@ PetscErrorCode SelfContactEnabled(SelfContact sc, PetscBool *enabled)
   PetscFunctionReturn(0);
 }
 
-/* The cloth's surface: two triangles per lattice cell whose four corners are cloth;
- * their edges once (warp, weft and the cell's diagonal). */
-static PetscErrorCode SelfMeshCreate(Cloth cloth, PetscInt Mx, PetscInt My, SelfMesh *m)
+/* The cloth's surface: two triangles per lattice cell whose four corners are cloth,
+ * their edges (warp, weft and the cell's diagonal) and their particles, named by
+ * keys (selfcontactimpl.h) and found from (i, j), never listed for the whole cloth. */
+static PetscBool CellAt(SelfContact sc, PetscInt i, PetscInt j)
 {
-  PetscInt  nc = 0, *isvert, ne = 0;
-  PetscInt *edges;
+  if (i < 0 || j < 0 || i + 1 >= sc->Mx || j + 1 >= sc->My) return PETSC_FALSE;
+  return (PetscBool) (ClothIsActive(sc->cloth, i, j) && ClothIsActive(sc->cloth, i + 1, j) && ClothIsActive(sc->cloth, i, j + 1) && ClothIsActive(sc->cloth, i + 1, j + 1));
+}
 
-  PetscFunctionBeginUser;
-  for (PetscInt j = 0; j + 1 < My; j++)
-    for (PetscInt i = 0; i + 1 < Mx; i++)
-      if (ClothIsActive(cloth, i, j) && ClothIsActive(cloth, i + 1, j) && ClothIsActive(cloth, i, j + 1) && ClothIsActive(cloth, i + 1, j + 1)) nc++;
-  m->nt = 2 * nc;
-  PetscCall(PetscMalloc1(3 * m->nt + 1, &m->tri));
-  PetscCall(PetscMalloc1(10 * nc + 1, &edges));
-  PetscCall(PetscCalloc1(Mx * My, &isvert));
-  nc = 0;
-  for (PetscInt j = 0; j + 1 < My; j++)
-    for (PetscInt i = 0; i + 1 < Mx; i++) {
-      const PetscInt a = j * Mx + i, b = a + 1, c = a + Mx, d = c + 1; /* (i,j) (i+1,j) (i,j+1) (i+1,j+1) */
-      if (!(ClothIsActive(cloth, i, j) && ClothIsActive(cloth, i + 1, j) && ClothIsActive(cloth, i, j + 1) && ClothIsActive(cloth, i + 1, j + 1))) continue;
-      const PetscInt t[6] = {a, b, d, a, d, c}, e[10] = {a, b, a, c, a, d, c, d, b, d};
-      for (PetscInt k = 0; k < 6; k++) m->tri[6 * nc + k] = t[k];
-      for (PetscInt k = 0; k < 10; k++) edges[ne * 2 + k] = e[k];
-      ne += 5;
-      isvert[a] = isvert[b] = isvert[c] = isvert[d] = 1;
-      nc++;
-    }
-  /* unique edges: an edge is shared by at most two cells; key min * N + max */
-  {
-    PetscInt64 *key;
-    PetscInt    n = 0;
-    PetscCall(PetscMalloc1(ne + 1, &key));
-    for (PetscInt k = 0; k < ne; k++) key[k] = (PetscInt64) PetscMin(edges[2 * k], edges[2 * k + 1]) * (Mx * My) + PetscMax(edges[2 * k], edges[2 * k + 1]);
-    PetscCall(PetscSortInt64(ne, key));
-    for (PetscInt k = 0; k < ne; k++)
-      if (k == 0 || key[k] != key[k - 1]) {
-        edges[2 * n]     = (PetscInt) (key[k] / (Mx * My));
-        edges[2 * n + 1] = (PetscInt) (key[k] % (Mx * My));
-        n++;
-      }
-    m->ne   = n;
-    m->edge = edges;
-    PetscCall(PetscFree(key));
+PetscBool SelfCellIsCloth(SelfContact sc, PetscInt a) { return CellAt(sc, a % sc->Mx, a / sc->Mx); }
+
+/* The cells with corner p: at (i - 1, j - 1), (i, j - 1), (i - 1, j), (i, j). */
+static void CellsAround(SelfContact sc, PetscInt p, PetscBool cell[4])
+{
+  const PetscInt i = p % sc->Mx, j = p / sc->Mx;
+  cell[0] = CellAt(sc, i - 1, j - 1), cell[1] = CellAt(sc, i, j - 1), cell[2] = CellAt(sc, i - 1, j), cell[3] = CellAt(sc, i, j);
+}
+
+PetscInt SelfParticleTriangles(SelfContact sc, PetscInt p, PetscInt key[6])
+{
+  const PetscInt Mx = sc->Mx;
+  PetscBool      cell[4];
+  PetscInt       n = 0;
+
+  CellsAround(sc, p, cell);
+  if (cell[0]) key[n++] = 2 * (p - Mx - 1), key[n++] = 2 * (p - Mx - 1) + 1; /* p its far corner: both */
+  if (cell[1]) key[n++] = 2 * (p - Mx) + 1;                                  /* p its corner (i, j + 1): the second */
+  if (cell[2]) key[n++] = 2 * (p - 1);                                       /* p its corner (i + 1, j): the first */
+  if (cell[3]) key[n++] = 2 * p, key[n++] = 2 * p + 1;
+  return n;
+}
+
+static inline void EdgeParticles(PetscInt Mx, PetscInt key, PetscInt E[2])
+{
+  const PetscInt code = key % 3;
+  E[0]                = key / 3;
+  E[1]                = E[0] + (code == 0 ? 1 : code == 1 ? Mx : Mx + 1);
+}
+
+/* The keys of the triangles (tri) or edges whose first particle (smallest natural
+ * index) is p, ascending: each primitive has one. */
+static PetscInt FirstPrimitives(SelfContact sc, PetscBool tri, PetscInt p, PetscInt key[3])
+{
+  PetscBool cell[4];
+  PetscInt  n = 0;
+
+  if (tri) {
+    if (CellAt(sc, p % sc->Mx, p / sc->Mx)) key[n++] = 2 * p, key[n++] = 2 * p + 1;
+    return n;
   }
-  m->nv = 0;
-  for (PetscInt p = 0; p < Mx * My; p++) m->nv += isvert[p];
-  PetscCall(PetscMalloc1(m->nv + 1, &m->vert));
-  m->nv = 0;
-  for (PetscInt p = 0; p < Mx * My; p++)
-    if (isvert[p]) m->vert[m->nv++] = p;
-  PetscCall(PetscFree(isvert));
-  PetscFunctionReturn(0);
+  CellsAround(sc, p, cell);
+  if (cell[1] || cell[3]) key[n++] = 3 * p;
+  if (cell[2] || cell[3]) key[n++] = 3 * p + 1;
+  if (cell[3]) key[n++] = 3 * p + 2;
+  return n;
+}
+
+/* Is particle p a corner of a cell of the cloth? */
+static PetscBool IsVertex(SelfContact sc, PetscInt p)
+{
+  PetscBool cell[4];
+  CellsAround(sc, p, cell);
+  return (PetscBool) (cell[0] || cell[1] || cell[2] || cell[3]);
+}
+
+/* Index in the local set of natural particle nat, -1 if it is not there. */
+static inline PetscInt LocalOf(SelfContact sc, PetscInt nat)
+{
+  const khiter_t it = kh_get(HMapI, sc->local_of, nat);
+  return it != kh_end(sc->local_of) ? kh_val(sc->local_of, it) : -1;
 }
 
 /* ---- the local set: the rank's own particles with their halo ---- */
@@ -194,32 +212,74 @@ static PetscErrorCode SetFreeMesh(SelfMesh *m)
   PetscFunctionReturn(0);
 }
 
-/* The primitives (global indices adj[ptr[p]..ptr[p+1]) of each particle p, nper
- * particles each in prim) whose particles are all in the local set: sorted, unique,
- * as indices into the set. */
-static PetscErrorCode LocalPrimitives(SelfContact sc, const PetscInt *ptr, const PetscInt *adj, const PetscInt *prim, PetscInt nper, PetscInt *n, PetscInt **out, PetscInt **gid)
+/* The triangles (tri) or edges of the local set's particles whose particles are all
+ * in the set: their keys, ascending, and their particles as indices into the set. */
+static PetscErrorCode LocalPrimitives(SelfContact sc, PetscBool tri, PetscInt *n, PetscInt **out, PetscInt **gid)
 {
-  const SelfSet *s = &sc->local;
-  PetscInt       m = 0, *ids, *loc;
+  const SelfSet *s    = &sc->local;
+  const PetscInt nper = tri ? 3 : 2;
+  PetscInt       m    = 0, *ids, *loc;
 
   PetscFunctionBeginUser;
-  for (PetscInt k = 0; k < s->n; k++) m += ptr[s->nat[k] + 1] - ptr[s->nat[k]];
-  PetscCall(PetscMalloc1(m + 1, &ids));
-  m = 0;
-  for (PetscInt k = 0; k < s->n; k++)
-    for (PetscInt a = ptr[s->nat[k]]; a < ptr[s->nat[k] + 1]; a++) {
+  PetscCall(PetscMalloc1(3 * s->n + 1, &ids));
+  for (PetscInt k = 0; k < s->n; k++) { /* each primitive from its first particle: once */
+    PetscInt key[3], nk = FirstPrimitives(sc, tri, s->nat[k], key);
+    for (PetscInt a = 0; a < nk; a++) {
+      PetscInt  P[3];
       PetscBool all = PETSC_TRUE;
-      for (PetscInt c = 0; c < nper; c++) all = (PetscBool) (all && sc->local_of[prim[nper * adj[a] + c]] >= 0);
-      if (all) ids[m++] = adj[a];
+      if (tri)
+        SelfTriangleParticles(sc->Mx, key[a], P);
+      else
+        EdgeParticles(sc->Mx, key[a], P);
+      for (PetscInt c = 1; c < nper; c++) all = (PetscBool) (all && LocalOf(sc, P[c]) >= 0);
+      if (all) ids[m++] = key[a];
     }
-  PetscCall(PetscSortRemoveDupsInt(&m, ids));
+  }
+  PetscCall(PetscSortInt(m, ids));
   PetscCall(PetscMalloc1(nper * m + 1, &loc));
-  for (PetscInt i = 0; i < m; i++)
-    for (PetscInt c = 0; c < nper; c++) loc[nper * i + c] = sc->local_of[prim[nper * ids[i] + c]];
+  for (PetscInt i = 0; i < m; i++) {
+    PetscInt P[3];
+    if (tri)
+      SelfTriangleParticles(sc->Mx, ids[i], P);
+    else
+      EdgeParticles(sc->Mx, ids[i], P);
+    for (PetscInt c = 0; c < nper; c++) loc[nper * i + c] = LocalOf(sc, P[c]);
+  }
   *n   = m;
   *out = loc;
   *gid = ids;
   PetscFunctionReturn(0);
+}
+
+/* The global numbers gid[0..n) of natural particles nat[0..n) (other ranks' too),
+ * from the directory (its part of the naturals on each rank). Collective. */
+static PetscErrorCode DirectoryLookup(SelfContact sc, PetscInt n, const PetscInt *nat, PetscInt *gid)
+{
+  PetscSF sf;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscSFCreate(sc->comm, &sf));
+  PetscCall(PetscSFSetGraphLayout(sf, sc->dir_layout, n, NULL, PETSC_COPY_VALUES, nat));
+  PetscCall(PetscSFBcastBegin(sf, MPIU_INT, sc->dir, gid, MPI_REPLACE));
+  PetscCall(PetscSFBcastEnd(sf, MPIU_INT, sc->dir, gid, MPI_REPLACE));
+  PetscCall(PetscSFDestroy(&sf));
+  for (PetscInt k = 0; k < n; k++) PetscCheck(gid[k] >= 0, PETSC_COMM_SELF, PETSC_ERR_PLIB, "Self-contact: particle %" PetscInt_FMT " has no owner", nat[k]);
+  PetscFunctionReturn(0);
+}
+
+/* The rank that owns global number g, and g's index there. */
+static void OwnerOf(SelfContact sc, PetscInt g, PetscInt *rank, PetscInt *index)
+{
+  PetscInt lo = 0, hi = sc->size - 1; /* the last r with gstart[r] <= g */
+  while (lo < hi) {
+    const PetscInt mid = (lo + hi + 1) / 2;
+    if (sc->gstart[mid] <= g)
+      lo = mid;
+    else
+      hi = mid - 1;
+  }
+  *rank  = lo;
+  *index = g - sc->gstart[lo];
 }
 
 /* The local set: the own particles (their state kept) and the halo halo[0..nhalo)
@@ -230,51 +290,56 @@ static PetscErrorCode LocalSetBuild(SelfContact sc, PetscInt nhalo, const PetscI
   SelfSet        *s    = &sc->local;
   const PetscInt  nown = sc->nowned, n = nown + nhalo;
   const PetscInt *natural;
-  PetscInt       *nat, *vert, nvert = 0;
-  PetscReal      *invm, *x0, *x1, *v, *lo, *hi;
+  PetscInt       *nat, *gid, *vert, nvert = 0;
+  PetscReal      *invm0, *invm, *x0, *x1, *v, *lo, *hi;
   PetscSFNode    *remote;
 
   PetscFunctionBeginUser;
   PetscCall(ClothGetNatural(sc->cloth, &natural));
-  if (s->nat)
-    for (PetscInt k = 0; k < s->n; k++) sc->local_of[s->nat[k]] = -1;
   PetscCall(PetscMalloc7(n + 1, &nat, n + 1, &invm, 3 * n + 1, &x0, 3 * n + 1, &x1, 3 * n + 1, &v, 3 * n + 1, &lo, 3 * n + 1, &hi));
+  PetscCall(PetscMalloc2(n + 1, &gid, n + 1, &invm0));
   if (s->x0) {
     PetscCall(PetscArraycpy(x0, s->x0, 3 * nown));
     PetscCall(PetscArraycpy(x1, s->x1, 3 * nown));
     PetscCall(PetscArraycpy(v, s->v, 3 * nown));
   }
   PetscCall(PetscFree7(s->nat, s->invm, s->x0, s->x1, s->v, s->lo, s->hi));
-  s->nat = nat, s->invm = invm, s->x0 = x0, s->x1 = x1, s->v = v, s->lo = lo, s->hi = hi;
+  PetscCall(PetscFree2(s->gid, s->invm0));
+  s->nat = nat, s->invm = invm, s->x0 = x0, s->x1 = x1, s->v = v, s->lo = lo, s->hi = hi, s->gid = gid, s->invm0 = invm0;
   s->n = n, s->nown = nown;
   for (PetscInt k = 0; k < nown; k++) nat[k] = natural[k];
   for (PetscInt k = 0; k < nhalo; k++) nat[nown + k] = halo[k];
-  for (PetscInt k = 0; k < n; k++) {
-    invm[k]              = sc->invm[nat[k]];
-    sc->local_of[nat[k]] = k;
-  }
+  PetscCall(PetscHMapIClear(sc->local_of));
+  PetscCall(PetscHMapIResize(sc->local_of, n));
+  for (PetscInt k = 0; k < n; k++) PetscCall(PetscHMapISet(sc->local_of, nat[k], k));
+  for (PetscInt k = 0; k < nown; k++) gid[k] = sc->gstart[sc->rank] + k, invm0[k] = sc->invm_own[k];
   if (sc->size > 1) {
+    /* the halo's owners from the directory, then the SF from them */
+    PetscCall(DirectoryLookup(sc, nhalo, nat + nown, gid + nown));
     PetscCall(PetscSFDestroy(&sc->sf));
     PetscCall(PetscMalloc1(nhalo + 1, &remote));
-    for (PetscInt k = 0; k < nhalo; k++) remote[k].rank = sc->owner[halo[k]], remote[k].index = sc->owner_idx[halo[k]];
+    for (PetscInt k = 0; k < nhalo; k++) OwnerOf(sc, gid[nown + k], &remote[k].rank, &remote[k].index);
     PetscCall(PetscSFCreate(sc->comm, &sc->sf));
     PetscCall(PetscSFSetGraph(sc->sf, nown, nhalo, NULL, PETSC_COPY_VALUES, remote, PETSC_OWN_POINTER));
     PetscCall(PetscSFSetUp(sc->sf));
+    PetscCall(PetscSFBcastBegin(sc->sf, MPIU_REAL, invm0, invm0 + nown, MPI_REPLACE));
+    PetscCall(PetscSFBcastEnd(sc->sf, MPIU_REAL, invm0, invm0 + nown, MPI_REPLACE));
   }
+  for (PetscInt k = 0; k < n; k++) invm[k] = invm0[k];
   PetscCall(SetFreeMesh(&s->mesh));
   PetscCall(PetscFree(s->vid));
   PetscCall(PetscFree(s->tid));
   PetscCall(PetscFree(s->eid));
   PetscCall(SetFreeList(s));
-  PetscCall(LocalPrimitives(sc, sc->tri_ptr, sc->tri_adj, sc->mesh.tri, 3, &s->mesh.nt, &s->mesh.tri, &s->tid));
-  PetscCall(LocalPrimitives(sc, sc->edge_ptr, sc->edge_adj, sc->mesh.edge, 2, &s->mesh.ne, &s->mesh.edge, &s->eid));
-  /* vertices in the order of the whole cloth's */
+  PetscCall(LocalPrimitives(sc, PETSC_TRUE, &s->mesh.nt, &s->mesh.tri, &s->tid));
+  PetscCall(LocalPrimitives(sc, PETSC_FALSE, &s->mesh.ne, &s->mesh.edge, &s->eid));
+  /* vertices in the order of the whole cloth's (their natural indices) */
   PetscCall(PetscMalloc1(n + 1, &s->vid));
   for (PetscInt k = 0; k < n; k++)
-    if (sc->vert_of[nat[k]] >= 0) s->vid[nvert++] = sc->vert_of[nat[k]];
+    if (IsVertex(sc, nat[k])) s->vid[nvert++] = nat[k];
   PetscCall(PetscSortInt(nvert, s->vid));
   PetscCall(PetscMalloc1(nvert + 1, &vert));
-  for (PetscInt i = 0; i < nvert; i++) vert[i] = sc->local_of[sc->mesh.vert[s->vid[i]]];
+  for (PetscInt i = 0; i < nvert; i++) vert[i] = LocalOf(sc, s->vid[i]);
   s->mesh.nv   = nvert;
   s->mesh.vert = vert;
   PetscCall(PetscFree2(sc->uf, sc->bnd));
@@ -305,7 +370,7 @@ static PetscErrorCode SetHeldMasses(SelfContact sc, PetscBool restore)
   SelfSet *s = &sc->local;
 
   PetscFunctionBeginUser;
-  for (PetscInt k = 0; k < s->n; k++) s->invm[k] = sc->invm[s->nat[k]];
+  for (PetscInt k = 0; k < s->n; k++) s->invm[k] = s->invm0[k];
   if (restore || !sc->use_held) PetscFunctionReturn(0);
   for (PetscInt k = 0; k < s->nown; k++)
     if (sc->held[k]) s->invm[k] = 0;
@@ -326,35 +391,13 @@ PetscErrorCode SelfContactSetHeld(SelfContact sc, const PetscBool held[])
   PetscFunctionReturn(0);
 }
 
-/* Incidence of the whole cloth's primitives (nper particles each): CSR by particle. */
-static PetscErrorCode Incidence(PetscInt N, PetscInt nprim, const PetscInt *prim, PetscInt nper, PetscInt **ptr, PetscInt **adj)
-{
-  PetscInt *p, *a, *fill;
-
-  PetscFunctionBeginUser;
-  PetscCall(PetscCalloc1(N + 1, &p));
-  for (PetscInt k = 0; k < nper * nprim; k++) p[prim[k] + 1]++;
-  for (PetscInt q = 0; q < N; q++) p[q + 1] += p[q];
-  PetscCall(PetscMalloc1(p[N] + 1, &a));
-  PetscCall(PetscMalloc1(N + 1, &fill));
-  PetscCall(PetscArraycpy(fill, p, N));
-  for (PetscInt k = 0; k < nprim; k++)
-    for (PetscInt c = 0; c < nper; c++) a[fill[prim[nper * k + c]]++] = k;
-  PetscCall(PetscFree(fill));
-  *ptr = p, *adj = a;
-  PetscFunctionReturn(0);
-}
-
 PetscErrorCode SelfContactSetUp(SelfContact sc)
 {
   ClothInfo        info;
   const PetscInt  *natural;
   const PetscReal *mass;
   const PetscBool *pinned;
-  PetscMPIInt      nown;
-  PetscMPIInt     *counts1, *displs1;
-  PetscReal       *mp, *recv;
-  PetscInt        *gather_nat;
+  PetscInt         count[2] = {0, 0};
 
   PetscFunctionBeginUser;
   if (!sc->enabled) PetscFunctionReturn(0);
@@ -365,56 +408,67 @@ PetscErrorCode SelfContactSetUp(SelfContact sc)
   sc->solve.mass      = info.mass / info.nparticles;
   sc->solve.k_cloth   = PetscMin(info.stretch[0], info.stretch[1]);
   sc->stats.thickness = sc->thickness;
+  sc->Mx              = info.Mx;
+  sc->My              = info.My;
   sc->N               = info.nparticles;
   sc->nowned          = info.nowned;
-  /* particles and primitives (up to 3 N edges) travel as reals when contacts are gathered */
+  /* particles and primitives (keys up to 3 N) travel as reals when contacts are gathered */
   PetscCheck(3 * (PetscReal) sc->N < 1 / PETSC_MACHINE_EPSILON, sc->comm, PETSC_ERR_SUP, "-contact_self sends particle indices as reals: %" PetscInt_FMT " particles are more than this precision counts exactly (at most %g)", sc->N,
              (double) (1 / (3 * PETSC_MACHINE_EPSILON)));
   PetscCallMPI(MPI_Comm_rank(sc->comm, &sc->rank));
   PetscCallMPI(MPI_Comm_size(sc->comm, &sc->size));
-  PetscCall(PetscMPIIntCast(sc->nowned, &nown));
-  PetscCall(PetscMalloc2(sc->size, &counts1, sc->size, &displs1));
-  PetscCallMPI(MPI_Allgather(&nown, 1, MPI_INT, counts1, 1, MPI_INT, sc->comm));
-  displs1[0] = 0;
-  for (PetscMPIInt r = 0; r < sc->size; r++) {
-    if (r > 0) displs1[r] = displs1[r - 1] + counts1[r - 1];
-  }
+  /* each rank's first global number (the cloth numbers each rank's particles in a row) */
   PetscCall(PetscMalloc1(sc->size + 1, &sc->gstart));
-  for (PetscMPIInt r = 0; r <= sc->size; r++) sc->gstart[r] = r == 0 ? 0 : sc->gstart[r - 1] + counts1[r - 1];
-  /* who owns each particle, and where (set-up; the topology is on every rank) */
-  PetscCall(PetscMalloc3(sc->N, &sc->owner, sc->N, &sc->owner_idx, sc->N, &sc->local_of));
-  PetscCall(PetscMalloc3(sc->N, &gather_nat, sc->N, &recv, sc->nowned + 1, &mp));
-  PetscCallMPI(MPI_Allgatherv(natural, nown, MPIU_INT, gather_nat, counts1, displs1, MPIU_INT, sc->comm));
-  for (PetscMPIInt r = 0; r < sc->size; r++)
-    for (PetscInt k = 0; k < counts1[r]; k++) {
-      const PetscInt p = gather_nat[displs1[r] + k];
-      sc->owner[p] = r, sc->owner_idx[p] = k;
-    }
-  for (PetscInt p = 0; p < sc->N; p++) sc->local_of[p] = -1;
-  /* 1/m by natural index (0: pinned, never moved by an impulse) */
-  PetscCall(PetscMalloc1(sc->N, &sc->invm));
-  for (PetscInt k = 0; k < sc->nowned; k++) mp[k] = pinned[k] || mass[k] <= 0 ? 0 : 1 / mass[k];
-  PetscCallMPI(MPI_Allgatherv(mp, nown, MPIU_REAL, recv, counts1, displs1, MPIU_REAL, sc->comm));
-  for (PetscInt k = 0; k < sc->N; k++) sc->invm[gather_nat[k]] = recv[k];
-  PetscCall(PetscFree3(gather_nat, recv, mp));
-  PetscCall(PetscFree2(counts1, displs1));
-  PetscCall(SelfMeshCreate(sc->cloth, info.Mx, info.My, &sc->mesh));
-  PetscCall(Incidence(sc->N, sc->mesh.nt, sc->mesh.tri, 3, &sc->tri_ptr, &sc->tri_adj));
-  PetscCall(Incidence(sc->N, sc->mesh.ne, sc->mesh.edge, 2, &sc->edge_ptr, &sc->edge_adj));
-  PetscCall(PetscMalloc1(sc->N, &sc->vert_of));
-  for (PetscInt p = 0; p < sc->N; p++) sc->vert_of[p] = -1;
-  for (PetscInt k = 0; k < sc->mesh.nv; k++) sc->vert_of[sc->mesh.vert[k]] = k;
+  sc->gstart[0] = 0;
+  PetscCallMPI(MPI_Allgather(&sc->nowned, 1, MPIU_INT, sc->gstart + 1, 1, MPIU_INT, sc->comm));
+  for (PetscMPIInt r = 0; r < sc->size; r++) sc->gstart[r + 1] += sc->gstart[r];
+  /* the directory: the global number of each natural index, PETSc's split of them
+   * over the ranks, so that a rank finds its halo's owners without an array of the
+   * whole lattice */
+  if (sc->size > 1) {
+    PetscSF   sf;
+    PetscInt *gid, nd;
+    PetscCall(PetscLayoutCreateFromSizes(sc->comm, PETSC_DECIDE, sc->N, 1, &sc->dir_layout));
+    PetscCall(PetscLayoutGetRange(sc->dir_layout, &sc->dir_start, &nd));
+    nd -= sc->dir_start;
+    PetscCall(PetscMalloc1(nd + 1, &sc->dir));
+    for (PetscInt k = 0; k < nd; k++) sc->dir[k] = -1;
+    PetscCall(PetscMalloc1(sc->nowned + 1, &gid));
+    for (PetscInt k = 0; k < sc->nowned; k++) gid[k] = sc->gstart[sc->rank] + k;
+    PetscCall(PetscSFCreate(sc->comm, &sf));
+    PetscCall(PetscSFSetGraphLayout(sf, sc->dir_layout, sc->nowned, NULL, PETSC_COPY_VALUES, natural));
+    PetscCall(PetscSFReduceBegin(sf, MPIU_INT, gid, sc->dir, MPI_REPLACE));
+    PetscCall(PetscSFReduceEnd(sf, MPIU_INT, gid, sc->dir, MPI_REPLACE));
+    PetscCall(PetscSFDestroy(&sf));
+    PetscCall(PetscFree(gid));
+  }
+  /* 1/m of the own particles (0: pinned, never moved by an impulse) */
+  PetscCall(PetscMalloc1(sc->nowned + 1, &sc->invm_own));
+  for (PetscInt k = 0; k < sc->nowned; k++) sc->invm_own[k] = pinned[k] || mass[k] <= 0 ? 0 : 1 / mass[k];
+  /* the whole cloth's triangles and edges, counted by the rank of their first particle */
+  for (PetscInt k = 0; k < sc->nowned; k++) {
+    PetscInt key[3];
+    count[0] += FirstPrimitives(sc, PETSC_TRUE, natural[k], key);
+    count[1] += FirstPrimitives(sc, PETSC_FALSE, natural[k], key);
+  }
+  PetscCall(MPIU_Allreduce(MPI_IN_PLACE, count, 2, MPIU_INT, MPI_SUM, sc->comm));
+  sc->nt = count[0], sc->ne = count[1];
   /* the fixed part of the halo: the other ranks' particles of the own particles' triangles */
+  PetscCall(PetscHMapICreate(&sc->local_of));
+  for (PetscInt k = 0; k < sc->nowned; k++) PetscCall(PetscHMapISet(sc->local_of, natural[k], k));
   {
     PetscInt m = 0;
-    for (PetscInt k = 0; k < sc->nowned; k++) m += 3 * (sc->tri_ptr[natural[k] + 1] - sc->tri_ptr[natural[k]]);
-    PetscCall(PetscMalloc1(m + 1, &sc->h1));
-    for (PetscInt k = 0; k < sc->nowned; k++)
-      for (PetscInt a = sc->tri_ptr[natural[k]]; a < sc->tri_ptr[natural[k] + 1]; a++)
-        for (PetscInt c = 0; c < 3; c++) {
-          const PetscInt q = sc->mesh.tri[3 * sc->tri_adj[a] + c];
-          if (sc->owner[q] != sc->rank) sc->h1[sc->nh1++] = q;
-        }
+    PetscCall(PetscMalloc1(18 * sc->nowned + 1, &sc->h1));
+    for (PetscInt k = 0; k < sc->nowned; k++) {
+      PetscInt key[6], nt = SelfParticleTriangles(sc, natural[k], key);
+      for (PetscInt a = 0; a < nt; a++) {
+        PetscInt T[3];
+        SelfTriangleParticles(sc->Mx, key[a], T);
+        for (PetscInt c = 0; c < 3; c++)
+          if (LocalOf(sc, T[c]) < 0) sc->h1[m++] = T[c];
+      }
+    }
+    sc->nh1 = m;
     PetscCall(PetscSortRemoveDupsInt(&sc->nh1, sc->h1));
   }
   PetscCallMPI(MPI_Type_contiguous(3, MPIU_REAL, &sc->unit3));
@@ -430,7 +484,7 @@ PetscErrorCode SelfContactView(SelfContact sc, PetscViewer viewer)
   PetscFunctionBeginUser;
   if (!sc->enabled) PetscFunctionReturn(0);
   PetscCall(PetscViewerASCIIPrintf(viewer, "Self-contact: thickness %g m, friction mu = %g, %" PetscInt_FMT " triangles, %" PetscInt_FMT " edges (each rank: its own particles and a halo of the cloth near them)\n", (double) sc->thickness,
-                                   (double) sc->mu, sc->mesh.nt, sc->mesh.ne));
+                                   (double) sc->mu, sc->nt, sc->ne));
   PetscFunctionReturn(0);
 }
 
@@ -440,20 +494,18 @@ PetscErrorCode SelfContactDestroy(SelfContact *self)
 
   PetscFunctionBeginUser;
   if (!sc) PetscFunctionReturn(0);
-  PetscCall(PetscFree3(sc->owner, sc->owner_idx, sc->local_of));
-  PetscCall(PetscFree(sc->invm));
+  if (sc->local_of) PetscCall(PetscHMapIDestroy(&sc->local_of));
+  PetscCall(PetscFree(sc->dir));
+  PetscCall(PetscLayoutDestroy(&sc->dir_layout));
+  PetscCall(PetscFree(sc->invm_own));
   PetscCall(PetscFree(sc->held));
-  PetscCall(PetscFree(sc->tri_ptr));
-  PetscCall(PetscFree(sc->tri_adj));
-  PetscCall(PetscFree(sc->edge_ptr));
-  PetscCall(PetscFree(sc->edge_adj));
-  PetscCall(PetscFree(sc->vert_of));
   PetscCall(PetscFree(sc->h1));
   PetscCall(PetscFree2(sc->uf, sc->bnd));
   PetscCall(PetscFree(sc->local.vid));
   PetscCall(PetscFree(sc->local.tid));
   PetscCall(PetscFree(sc->local.eid));
   PetscCall(PetscFree7(sc->local.nat, sc->local.invm, sc->local.x0, sc->local.x1, sc->local.v, sc->local.lo, sc->local.hi));
+  PetscCall(PetscFree2(sc->local.gid, sc->local.invm0));
   PetscCall(SetFreeMesh(&sc->local.mesh));
   PetscCall(SetFreeList(&sc->local));
   PetscCall(PetscFree(sc->local.xr));
@@ -462,7 +514,6 @@ PetscErrorCode SelfContactDestroy(SelfContact *self)
   if (sc->unit9 != MPI_DATATYPE_NULL) PetscCallMPI(MPI_Type_free(&sc->unit9));
   PetscCall(PetscFree(sc->gstart));
   PetscCall(SelfSolveDestroy(sc));
-  PetscCall(SetFreeMesh(&sc->mesh));
   PetscCall(PetscFree(*self));
   PetscFunctionReturn(0);
 }
@@ -624,15 +675,14 @@ static PetscErrorCode CheckFinite(SelfContact sc, PetscBool finite)
  * rank's particle, whose box reaches this rank's box: so both primitives of every
  * pair a rank evaluates are in its local set, and the local list is the whole
  * cloth's list restricted to the pairs with an own particle, in the same order. */
-/* The box of the whole cloth's triangle t over the local set's particle boxes. */
-static void TriangleBox(const SelfContact sc, PetscInt t, PetscReal lo[3], PetscReal hi[3])
+/* The box of the cloth's triangle T (natural indices) over the local set's particle boxes. */
+static void TriangleBox(const SelfContact sc, const PetscInt T[3], PetscReal lo[3], PetscReal hi[3])
 {
-  const SelfSet  *s = &sc->local;
-  const PetscInt *T = sc->mesh.tri + 3 * t;
+  const SelfSet *s = &sc->local;
 
   for (PetscInt d = 0; d < 3; d++) lo[d] = PETSC_MAX_REAL, hi[d] = -PETSC_MAX_REAL;
   for (PetscInt c = 0; c < 3; c++) {
-    const PetscInt q = sc->local_of[T[c]];
+    const PetscInt q = LocalOf(sc, T[c]);
     for (PetscInt d = 0; d < 3; d++) lo[d] = PetscMin(lo[d], s->lo[3 * q + d]), hi[d] = PetscMax(hi[d], s->hi[3 * q + d]);
   }
 }
@@ -649,21 +699,27 @@ static PetscErrorCode HaloRebuild(SelfContact sc)
 
   PetscFunctionBeginUser;
   for (PetscInt d = 0; d < 3; d++) mine[d] = PETSC_MAX_REAL, mine[3 + d] = -PETSC_MAX_REAL;
-  for (PetscInt k = 0; k < s->nown; k++)
-    for (PetscInt a = sc->tri_ptr[s->nat[k]]; a < sc->tri_ptr[s->nat[k] + 1]; a++) {
+  for (PetscInt k = 0; k < s->nown; k++) {
+    PetscInt tk[6], nt = SelfParticleTriangles(sc, s->nat[k], tk);
+    for (PetscInt a = 0; a < nt; a++) {
+      PetscInt  T[3];
       PetscReal lo[3], hi[3];
-      TriangleBox(sc, sc->tri_adj[a], lo, hi);
+      SelfTriangleParticles(sc->Mx, tk[a], T);
+      TriangleBox(sc, T, lo, hi);
       for (PetscInt d = 0; d < 3; d++) mine[d] = PetscMin(mine[d], lo[d] - grow), mine[3 + d] = PetscMax(mine[3 + d], hi[d] + grow);
     }
+  }
   PetscCall(PetscMalloc1(6 * sc->size, &boxes));
   PetscCallMPI(MPI_Allgather(mine, 6, MPIU_REAL, boxes, 6, MPIU_REAL, sc->comm));
   /* (rank, particle) keys to send */
   PetscCall(PetscMalloc4(sc->size, &scount, sc->size, &sdispl, sc->size, &rcount, sc->size, &rdispl));
-  for (PetscInt k = 0; k < s->nown; k++)
-    for (PetscInt a = sc->tri_ptr[s->nat[k]]; a < sc->tri_ptr[s->nat[k] + 1]; a++) {
-      const PetscInt *T = sc->mesh.tri + 3 * sc->tri_adj[a];
-      PetscReal       lo[3], hi[3];
-      TriangleBox(sc, sc->tri_adj[a], lo, hi);
+  for (PetscInt k = 0; k < s->nown; k++) {
+    PetscInt tk[6], nt = SelfParticleTriangles(sc, s->nat[k], tk);
+    for (PetscInt a = 0; a < nt; a++) {
+      PetscInt  T[3];
+      PetscReal lo[3], hi[3];
+      SelfTriangleParticles(sc->Mx, tk[a], T);
+      TriangleBox(sc, T, lo, hi);
       for (PetscMPIInt r = 0; r < sc->size; r++) {
         const PetscReal *B = boxes + 6 * r;
         if (r == sc->rank || lo[0] > B[3] || lo[1] > B[4] || lo[2] > B[5] || hi[0] < B[0] || hi[1] < B[1] || hi[2] < B[2]) continue;
@@ -674,6 +730,7 @@ static PetscErrorCode HaloRebuild(SelfContact sc)
         for (PetscInt c = 0; c < 3; c++) key[nkey++] = (PetscInt64) r * sc->N + T[c];
       }
     }
+  }
   PetscCall(PetscSortInt64(nkey, key));
   {
     PetscInt u = 0;
@@ -699,7 +756,7 @@ static PetscErrorCode HaloRebuild(SelfContact sc)
   nhalo = 0;
   halo  = recv;
   for (PetscInt i = 0; i < nrecv; i++)
-    if (sc->owner[recv[i]] != sc->rank) halo[nhalo++] = recv[i];
+    if (LocalOf(sc, recv[i]) < 0 || LocalOf(sc, recv[i]) >= s->nown) halo[nhalo++] = recv[i];
   for (PetscInt i = 0; i < sc->nh1; i++) halo[nhalo++] = sc->h1[i];
   PetscCall(PetscSortRemoveDupsInt(&nhalo, halo));
   PetscCall(MPIU_Allreduce(&nhalo, &sc->stats.halo, 1, MPIU_INT, MPI_MAX, sc->comm));
@@ -1155,7 +1212,7 @@ static PetscErrorCode TakeGathered(SelfContact sc, PetscBool proximity, PetscRea
     if (PairTake(sc, &mini, kind, &pr, proximity, h)) (*nacted)++;
   }
   for (PetscInt q = 0; q < m; q++) {
-    const PetscInt l = sc->local_of[nat[q]];
+    const PetscInt l = LocalOf(sc, nat[q]);
     if (l < 0) continue;
     for (PetscInt d = 0; d < 3; d++) s->x1[3 * l + d] = mini.x1[3 * q + d], s->v[3 * l + d] = mini.v[3 * q + d];
   }
@@ -1453,7 +1510,7 @@ static PetscErrorCode FailSafeZones(SelfContact sc, PetscReal h, PetscInt *count
     if (merged) {
       PetscCall(ZonesRigidify(&z, h, zone, xs, work, pinned, count));
       for (PetscInt q = 0; q < m; q++) {
-        const PetscInt l = sc->local_of[nat[q]];
+        const PetscInt l = LocalOf(sc, nat[q]);
         if (l < 0) continue;
         for (PetscInt d = 0; d < 3; d++) s->x1[3 * l + d] = z.x1[3 * q + d], s->v[3 * l + d] = z.v[3 * q + d];
       }

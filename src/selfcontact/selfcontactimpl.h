@@ -1,10 +1,21 @@
 /* Private to src/selfcontact/: the cloth's surface as triangles of lattice
- * particles, in natural lattice order (index j Mx + i) on every rank. */
+ * particles, named by natural lattice index (j Mx + i). No rank holds the whole
+ * surface: its primitives are functions of (i, j) and of which particles are cloth
+ * (ClothIsActive), named by keys in the order of the lattice:
+ *   vertex p                       key p (a particle of some cloth cell)
+ *   triangle s of the cell at a    key 2 a + s: s = 0 (a, a + 1, a + Mx + 1),
+ *                                  s = 1 (a, a + Mx + 1, a + Mx); a = j Mx + i its
+ *                                  corner (i, j), the cell's four corners cloth
+ *   edge (a, a + o)                key 3 a + code: o = 1, Mx, Mx + 1 for code 0, 1, 2
+ * So the keys order the primitives as the natural order of their first particle (the
+ * order every rank and partition agrees on), and are at most 3 N: within PetscInt
+ * wherever the lattice is (3 N unknowns), and exact as reals when gathered. */
 #pragma once
 
 #include <selfcontact.h>
 #include "proximity.h"
 #include <petscsf.h>
+#include <petsc/private/hashmapi.h>
 
 typedef struct {
   PetscInt  nv, nt, ne;
@@ -26,10 +37,12 @@ PETSC_EXTERN PetscErrorCode SelfBroadPhaseHash(const SelfMesh *, const PetscReal
 typedef struct {
   PetscInt   n, nown;                  /* particles; the first nown are the rank's own (gathered: all) */
   PetscInt  *nat;                      /* natural index of each */
-  PetscReal *invm, *x0, *x1, *v;       /* 1/m (0 pinned), start, end, velocity: 3 each */
+  PetscInt  *gid;                      /* global block number of each (the cloth's and the implicit matrix's; local set only) */
+  PetscReal *invm0;                    /* the cloth's 1/m of each, 0 pinned (local set only) */
+  PetscReal *invm, *x0, *x1, *v;       /* 1/m (0 pinned or held), start, end, velocity: 3 each */
   PetscReal *lo, *hi;                  /* each particle's box at the last broad phase */
   SelfMesh   mesh;                     /* primitives (indices into this set) in natural order */
-  PetscInt  *vid, *tid, *eid;          /* their indices in the whole cloth's */
+  PetscInt  *vid, *tid, *eid;          /* their keys (the whole cloth's order) */
   PetscInt   ncpt, ncee, *cpt, *cee;   /* candidate pairs (the broad phase's) with one of the first nown particles */
   PetscInt   nnpt, nnee, *npt_, *nee_; /* the near list: the candidates closer than SelfNearRadius at xr */
   PetscReal *xr;                       /* the local set's positions when the near list was made (3 each) */
@@ -81,28 +94,38 @@ struct _p_SelfContact {
   PetscReal        near;   /* radius of the near list, in thicknesses (0: none) */
   PetscBool        hash;   /* broad phase by the spatial hash (else CGAL) */
   PetscBool        zones;  /* fail-safe by rigid impact zones (else stop the particles) */
-  SelfMesh         mesh;   /* the whole cloth's primitives, natural indices (topology only) */
-  PetscInt         N, nowned;
-  PetscInt        *tri_ptr, *tri_adj;   /* triangles of each particle (natural; CSR) */
-  PetscInt        *edge_ptr, *edge_adj; /* edges of each particle */
-  PetscInt        *vert_of;             /* index in mesh.vert of each particle, -1 */
-  PetscMPIInt     *owner;               /* rank of each particle (natural) */
-  PetscInt        *owner_idx;           /* its index there */
-  PetscInt        *local_of;            /* scratch: natural -> index in the local set, -1 */
-  PetscReal       *invm;                /* 1/m, 0 pinned (natural) */
-  PetscBool       *held;                /* owned particles the solid holds in this filter (SelfContactSetHeld) */
-  PetscBool        use_held;            /* held given for the filter under way */
-  PetscInt         nh1, *h1;            /* the halo's fixed part: other ranks' particles of own particles' triangles */
-  SelfSet          local;               /* the rank's own particles and its halo */
-  PetscSF          sf;                  /* own particles (roots) -> the local set's halo (leaves) */
-  MPI_Datatype     unit3;               /* 3 reals */
-  PetscInt        *uf;                  /* union-find parents over the local set (-1: not in an active pair) */
-  PetscBool       *bnd;                 /* a group of active pairs reaches the halo (by root) */
-  PetscInt        *gstart;              /* global block index of each rank's first particle (size + 1) */
-  MPI_Datatype     unit9;               /* 9 reals */
+  PetscInt         Mx, My, N, nowned;
+  PetscInt         nt, ne;          /* the whole cloth's triangles and edges (counts) */
+  PetscHMapI       local_of;        /* natural -> index in the local set (absent: -1) */
+  PetscInt         dir_start, *dir; /* a directory: global number of naturals dir_start + k (PETSc's split of N), -1 none */
+  PetscLayout      dir_layout;
+  PetscReal       *invm_own; /* 1/m of the own particles, 0 pinned */
+  PetscBool       *held;     /* owned particles the solid holds in this filter (SelfContactSetHeld) */
+  PetscBool        use_held; /* held given for the filter under way */
+  PetscInt         nh1, *h1; /* the halo's fixed part: other ranks' particles of own particles' triangles */
+  SelfSet          local;    /* the rank's own particles and its halo */
+  PetscSF          sf;       /* own particles (roots) -> the local set's halo (leaves) */
+  MPI_Datatype     unit3;    /* 3 reals */
+  PetscInt        *uf;       /* union-find parents over the local set (-1: not in an active pair) */
+  PetscBool       *bnd;      /* a group of active pairs reaches the halo (by root) */
+  PetscInt        *gstart;   /* global block index of each rank's first particle (size + 1) */
+  MPI_Datatype     unit9;    /* 9 reals */
   SelfSolve        solve;
   SelfContactStats stats;
 };
+
+/* The lattice cell at a = j Mx + i (corners (i, j) to (i + 1, j + 1)) is cloth. */
+PETSC_INTERN PetscBool SelfCellIsCloth(SelfContact, PetscInt a);
+/* The keys of the triangles that hold particle p, ascending (at most 6). */
+PETSC_INTERN PetscInt SelfParticleTriangles(SelfContact, PetscInt p, PetscInt key[6]);
+/* The particles of triangle `key`. */
+static inline void SelfTriangleParticles(PetscInt Mx, PetscInt key, PetscInt T[3])
+{
+  const PetscInt a = key / 2;
+  T[0]             = a;
+  T[1]             = key % 2 ? a + Mx + 1 : a + 1;
+  T[2]             = key % 2 ? a + Mx : a + Mx + 1;
+}
 
 /* The particles of candidate (kind, k): the point and the triangle's three, or the two edges'. */
 static inline void PairParticles(const SelfSet *s, PetscInt kind, PetscInt k, PetscInt p[4])
