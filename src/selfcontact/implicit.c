@@ -28,9 +28,7 @@
  * thickness per step on a layer that holds still ends the step 1/(1 + this) of a
  * thickness into it (backward Euler: v+ = v / (1 + k h^2 / m)). Stiffer gains
  * little and costs CG iterations (the fast fold: 34 a step at k = Y (33), 12
- * without the penalties). At large steps the cloth pressing on a pair is stiffer
- * than its particle's inertia, m / h^2: the default is then the cloth's own
- * stretch rigidity (SelfContactSolveBegin). */
+ * without the penalties). */
 #define SELF_SOLVE_STIFFNESS 10.0
 #define SELF_SOLVE_FEATURE   1e-6
 /* Edge-edge pairs (-contact_self_solve_edges). Their stiffness tapers to nothing
@@ -226,12 +224,7 @@ PetscErrorCode SelfContactSolveBegin(SelfContact sc, PetscReal h, const PetscSca
 
   PetscFunctionBeginUser;
   PetscCall(PetscLogEventBegin(drape_log.self_contact, 0, 0, 0, 0));
-  /* the default is no softer than a lattice edge: a fold pushed by the tension
-   * of the cloth behind it is held at the stiffness that transmits that push (the
-   * sphere drop at 64^2 and 1e-2 s, where 10 m/h^2 is 3.7 N/m against 500 N/m of
-   * stretch, sank into itself, and the filter's impact zones after the step stored
-   * the overlap as elastic energy until the run diverged) */
-  q->k = q->k_set > 0 ? q->k_set : PetscMax(SELF_SOLVE_STIFFNESS * q->mass / (h * h), q->k_cloth);
+  q->k = q->k_set > 0 ? q->k_set : SELF_SOLVE_STIFFNESS * q->mass / (h * h);
   for (PetscInt k = 0; k < 3 * s->nown; k++) {
     s->x0[k] = PetscRealPart(x0[k]);
     s->v[k]  = PetscRealPart(v0[k]);

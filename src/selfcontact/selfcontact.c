@@ -96,13 +96,13 @@ PetscErrorCode SelfContactSetFromOptions(SelfContact sc)
                              &sc->solve.enabled, NULL));
   PetscCall(PetscOptionsBool("-contact_self_solve_edges", "With -contact_self_solve: the close edge-edge pairs whose closest points are inside both edges enter the solve too (else point-triangle pairs only)", "SelfContactSetFromOptions",
                              sc->solve.edges, &sc->solve.edges, NULL));
-  PetscCall(PetscOptionsReal("-contact_self_stiffness", "Stiffness of a pair's penalty in the solve (N/m; 0: the larger of 10 m/h^2, m the mean particle mass, and the cloth's smaller stretch rigidity)", "SelfContactSetFromOptions", sc->solve.k_set,
-                             &sc->solve.k_set, NULL));
+  PetscCall(PetscOptionsReal("-contact_self_stiffness", "Stiffness of a pair's penalty in the solve (N/m; 0: 10 m/h^2, m the mean particle mass: a pair approaching by a thickness a step sinks by a tenth of it)", "SelfContactSetFromOptions",
+                             sc->solve.k_set, &sc->solve.k_set, NULL));
   PetscCall(PetscOptionsInt("-contact_self_its", "Passes of collision impulses before the fail-safe takes the pairs still colliding", "SelfContactSetFromOptions", sc->its, &sc->its, NULL));
   PetscOptionsEnd();
   PetscCall(DrapeCheckReal(sc->comm, "-contact_self_thickness", 1, &sc->thickness, 0, 1, "m (0: a quarter of the lattice spacing)"));
   PetscCall(DrapeCheckReal(sc->comm, "-contact_self_friction", 1, &sc->mu, 0, 10, ""));
-  PetscCall(DrapeCheckReal(sc->comm, "-contact_self_stiffness", 1, &sc->solve.k_set, 0, 1e12, "N/m (0: the larger of 10 m/h^2 and the cloth's stretch rigidity)"));
+  PetscCall(DrapeCheckReal(sc->comm, "-contact_self_stiffness", 1, &sc->solve.k_set, 0, 1e12, "N/m (0: 10 m/h^2)"));
   PetscCall(DrapeCheckReal(sc->comm, "-contact_self_margin", 1, &sc->margin, 0, 100, "thicknesses"));
   PetscCall(DrapeCheckReal(sc->comm, "-contact_self_near_radius", 1, &sc->near, 0, 100, "thicknesses (0: no near list)"));
   PetscCall(DrapeCheckIntOption(sc->comm, "-contact_self_its"));
@@ -406,7 +406,6 @@ PetscErrorCode SelfContactSetUp(SelfContact sc)
   PetscCall(ClothGetMasses(sc->cloth, &mass, &pinned));
   if (sc->thickness == 0) sc->thickness = 0.25 * PetscMin(info.spacing[0], info.spacing[1]);
   sc->solve.mass      = info.mass / info.nparticles;
-  sc->solve.k_cloth   = PetscMin(info.stretch[0], info.stretch[1]);
   sc->stats.thickness = sc->thickness;
   sc->Mx              = info.Mx;
   sc->My              = info.My;

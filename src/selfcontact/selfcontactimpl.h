@@ -72,7 +72,6 @@ typedef struct {
   PetscBool  edges;    /* -contact_self_solve_edges: edge-edge pairs too */
   PetscReal  k, k_set; /* penalty stiffness of the step; -contact_self_stiffness (0: SELF_SOLVE_STIFFNESS m / h^2), N/m */
   PetscReal  mass;     /* mean particle mass, kg */
-  PetscReal  k_cloth;  /* the default's floor: the cloth's smaller stretch rigidity, N/m (a lattice edge's stiffness) */
   PetscInt   n, m;     /* the step's pairs, allocated */
   SolvePair *pair;
   PetscInt   ns;     /* local-set particles the arrays below hold */
