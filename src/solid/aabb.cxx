@@ -25,6 +25,7 @@
 
 typedef CGAL::Exact_predicates_inexact_constructions_kernel K;
 typedef K::Point_3                                          Point;
+typedef K::Segment_3                                        Segment;
 typedef CGAL::Surface_mesh<Point>                           Mesh;
 typedef CGAL::AABB_face_graph_triangle_primitive<Mesh>      Primitive;
 typedef CGAL::AABB_traits<K, Primitive>                     Traits;
@@ -193,6 +194,59 @@ PetscErrorCode SolidMeshQuery(SolidMesh m, const PetscReal p[3], PetscReal close
     SETERRQ(PETSC_COMM_SELF, PETSC_ERR_MEM, "Out of memory in a distance query to the solid mesh: this run needs more memory than the machine gives it; use a coarser mesh, or more memory");
   } catch (const std::exception &e) {
     SETERRQ(PETSC_COMM_SELF, PETSC_ERR_LIB, "CGAL query failed: %s", e.what());
+  }
+  PetscFunctionReturn(0);
+}
+
+// The first triangle the segment p0 -> p1 meets: the tree finds the triangles it
+// meets (exact predicates), the parameter along it and the triangle's normal are
+// computed here in double precision. A segment in a triangle's plane (a particle
+// sliding on a face) meets no triangle in this sense.
+PetscErrorCode SolidMeshSweep(SolidMesh m, const PetscReal p0[3], const PetscReal p1[3], PetscReal *t, PetscReal normal[3], PetscBool *hit)
+{
+  std::vector<Mesh::Face_index> faces;
+  bool                          memory = false, failed = false;
+
+  PetscFunctionBeginUser;
+  *hit = PETSC_FALSE;
+  *t   = 1;
+  if (p0[0] == p1[0] && p0[1] == p1[1] && p0[2] == p1[2]) PetscFunctionReturn(0);
+  try {
+    m->tree->all_intersected_primitives(Segment(Point(p0[0], p0[1], p0[2]), Point(p1[0], p1[1], p1[2])), std::back_inserter(faces));
+  } catch (const std::bad_alloc &) {
+    memory = true;
+  } catch (const std::exception &) {
+    failed = true;
+  }
+  PetscCheck(!memory, PETSC_COMM_SELF, PETSC_ERR_MEM, "Out of memory in a swept query to the solid mesh: this run needs more memory than the machine gives it; use a coarser mesh, or more memory");
+  PetscCheck(!failed, PETSC_COMM_SELF, PETSC_ERR_LIB, "CGAL failed in a swept query to the solid mesh");
+  for (auto f : faces) {
+    double a[3][3], e1[3], e2[3], n[3], dn = 0, an = 0;
+    int    c = 0;
+    for (auto v : CGAL::vertices_around_face(m->mesh.halfedge(f), m->mesh)) {
+      const Point &p = m->mesh.point(v);
+      a[c][0]        = p.x();
+      a[c][1]        = p.y();
+      a[c][2]        = p.z();
+      c++;
+    }
+    for (int i = 0; i < 3; i++) {
+      e1[i] = a[1][i] - a[0][i];
+      e2[i] = a[2][i] - a[0][i];
+    }
+    n[0] = e1[1] * e2[2] - e1[2] * e2[1];
+    n[1] = e1[2] * e2[0] - e1[0] * e2[2];
+    n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+    for (int i = 0; i < 3; i++) {
+      dn += n[i] * (p1[i] - p0[i]);
+      an += n[i] * (a[0][i] - p0[i]);
+    }
+    if (dn == 0) continue; /* in the triangle's plane */
+    double s = std::min(1.0, std::max(0.0, an / dn)), l = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    if (!(l > 0) || (*hit && s >= *t)) continue;
+    *hit = PETSC_TRUE;
+    *t   = s;
+    for (int i = 0; i < 3; i++) normal[i] = (dn > 0 ? -n[i] : n[i]) / l; /* against the motion */
   }
   PetscFunctionReturn(0);
 }
