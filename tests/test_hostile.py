@@ -100,6 +100,14 @@ CASES = [
     ("options-file-two-per-line", "-options_file two.opts", "Line 1 of the options file two.opts", {"two.opts": "-cloth_density 0.2 -cloth_damping 1\n"}),
     ("options-file-yaml", "-options_file scene.yaml", "YAML", {"scene.yaml": "cloth_density: 0.2\n"}),
     ("options-file-name-missing", "-options_file", "-options_file needs a file name", {}),
+    # old defects of earlier campaigns (issue 29's list)
+    ("mesh-flat", "-solid_file flat.off -cloth_center 0,0,2", "The solid flat.off encloses no volume: it (4 triangles, 1.414 m across) is flat",
+     {"flat.off": "OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 2 1\n3 0 1 3\n3 1 2 3\n3 0 3 2\n"}),
+    ("mesh-two-sided-sheet", "-solid_file sheet.off -cloth_center 0,0,2", "encloses no volume", {"sheet.off": "OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 2 1\n"}),
+    ("pin-corners-outside-disc", "-cloth_shape circle -cloth_pin corners", "-cloth_pin corners pins the lattice corner (0,0), which is outside the cloth (-cloth_shape circle", {}),
+    ("pin-list-outside-disc", "-cloth_shape circle -cloth_pin list -cloth_pin_list 1,1,3,0", "-cloth_pin_list entry (3,0) is outside the cloth", {}),
+    ("pin-edge-outside-disc", "-cloth_shape circle -cloth_pin edge", "-cloth_pin edge pins the last weft row (j = 3), which is outside the cloth", {}),
+    ("contact-thickness-1", "-contact_thickness 1 -solid_floor -1", "-contact_thickness must be zero or positive and finite, at most 0.05 m (the distance the cloth keeps from the solid", {}),
     # the outline reader
     ("outline-trailing-text", "-cloth_outline junk.txt", "Line 2 of the outline junk.txt is not 'x y'", {"junk.txt": "0 0\n1 0 junk\n1 1\n"}),
     ("outline-nan", "-cloth_outline nan.txt", "not finite", {"nan.txt": "0 0\n1 nan\n1 1\n"}),

@@ -595,6 +595,34 @@ static PetscBool IsPinned(Cloth c, PetscInt i, PetscInt j)
   return PETSC_FALSE;
 }
 
+/* A pin asked for on a lattice particle that a circle or an outline cuts away would
+ * silently pin nothing (a Cusick specimen pinned at its corners fell free). Every
+ * rank decides alike from the outline: no communication. */
+static PetscErrorCode ClothCheckPins(Cloth c)
+{
+  const char *shape = c->shape == CLOTH_CIRCLE ? "-cloth_shape circle: the disc inscribed in the lattice" : "the outline of -cloth_outline";
+
+  PetscFunctionBeginUser;
+  if (c->pin == CLOTH_PIN_LIST)
+    for (PetscInt p = 0; p < c->npin_list; p++) {
+      const PetscInt i = c->pin_list[2 * p], j = c->pin_list[2 * p + 1];
+      PetscCheck(Active(c, i, j), c->comm, PETSC_ERR_USER_INPUT, "-cloth_pin_list entry (%" PetscInt_FMT ",%" PetscInt_FMT ") is outside the cloth (%s); pin particles of the cloth, lattice indices inside it", i, j, shape);
+    }
+  if (c->pin == CLOTH_PIN_CORNERS || c->pin == CLOTH_PIN_EDGE_CORNERS)
+    for (PetscInt k = 0; k < 4; k++) {
+      const PetscInt i = k % 2 ? c->Mx - 1 : 0, j = k / 2 ? c->My - 1 : 0;
+      if (!IsPinned(c, i, j)) continue;
+      PetscCheck(Active(c, i, j), c->comm, PETSC_ERR_USER_INPUT, "-cloth_pin %s pins the lattice corner (%" PetscInt_FMT ",%" PetscInt_FMT "), which is outside the cloth (%s); pin particles of the cloth with -cloth_pin list", pin_names[c->pin], i, j,
+                 shape);
+    }
+  if (c->pin == CLOTH_PIN_EDGE) {
+    PetscBool any = PETSC_FALSE;
+    for (PetscInt i = 0; i < c->Mx && !any; i++) any = Active(c, i, c->My - 1);
+    PetscCheck(any, c->comm, PETSC_ERR_USER_INPUT, "-cloth_pin edge pins the last weft row (j = %" PetscInt_FMT "), which is outside the cloth (%s); pin particles of the cloth with -cloth_pin list", c->My - 1, shape);
+  }
+  PetscFunctionReturn(0);
+}
+
 /* Share of the lattice spacing that a boundary row/column carries (1/2). */
 /* Area weights from the lattice cells inside the cloth: cell (i, j) has corners (i, j),
  * (i+1, j), (i, j+1), (i+1, j+1) and belongs to the cloth when all four are active
@@ -1135,6 +1163,7 @@ PetscErrorCode ClothSetUp(Cloth c)
       for (PetscInt i = i0; i < i1; i++) nact += Active(c, i, j);
     PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &nact, 1, MPIU_INT, MPI_SUM, c->comm));
     PetscCheck(nact > 0, c->comm, PETSC_ERR_USER_INPUT, "No lattice particle lies inside the cloth's outline; check -cloth_outline against -cloth_size");
+    PetscCall(ClothCheckPins(c));
   }
   PetscCall(PetscMalloc1((i1 - i0) * (j1 - j0) + 1, &dest));
   PetscCall(PetscLogEventBegin(drape_log.partition, 0, 0, 0, 0));

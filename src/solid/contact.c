@@ -117,7 +117,10 @@ PetscErrorCode ContactSetFromOptions(Contact c)
   PetscCall(PetscOptionsReal("-contact_friction", "Coulomb friction coefficient mu (static = kinetic)", "ContactSetFromOptions", c->mu, &c->mu, NULL));
   PetscOptionsEnd();
   c->mode = (ContactMode) imode;
-  PetscCall(DrapeCheckReal(c->comm, "-contact_thickness", 1, &c->thickness, 0, 1, "m"));
+  /* the layer is the fabric's thickness (the distance the cloth keeps from the solid):
+   * a metre floated the cloth a metre above it, and moved a cloth that started within
+   * it there in one step */
+  PetscCall(DrapeCheckReal(c->comm, "-contact_thickness", 1, &c->thickness, 0, 0.05, "m (the distance the cloth keeps from the solid, a fabric's thickness)"));
   PetscCall(DrapeCheckReal(c->comm, "-contact_friction", 1, &c->mu, 0, 10, ""));
   PetscFunctionReturn(0);
 }
