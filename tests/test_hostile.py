@@ -769,6 +769,25 @@ def test_ranks_that_disagree_are_refused(tmp, case, message):
     assert "MPI_ABORT" not in res.stdout + res.stderr and snapshot(tmp) == before
 
 
+@pytest.mark.parametrize("option", ["-output_file", "-restart"])
+def test_path_longer_than_mpiio_takes_is_one_sentence(tmp, option):
+    """An old defect: an -output_file (or -restart) in a deep directory, each part of
+    its name short, ended in "*** buffer overflow detected ***" (SIGABRT) inside Open
+    MPI's MPI-IO, which names a lock file after it in 256 bytes. Now any such name
+    longer than 230 characters is refused before anything is opened; the file
+    restarted from is unchanged."""
+    deep = tmp / ("d" * 120) / ("e" * 120)
+    deep.mkdir(parents=True)
+    res = drape(TINY + ["-output_file", "run.h5"], tmp)
+    assert res.returncode == 0, res.stderr
+    shutil.copy(tmp / "run.h5", deep / "run.h5")
+    before = snapshot(tmp)
+    name = str((deep / "run.h5").relative_to(tmp))
+    res = drape(TINY + [option, name], tmp)
+    msg = refused(res, f"{option} names a file of {len(name)} characters, directory included")
+    assert "at most 230 characters" in msg and snapshot(tmp) == before
+
+
 # ---- Class 1 of issue 29: tunnelling ----
 
 PLATE = ("OFF\n8 12 0\n-0.5 -0.5 -0.0025\n0.5 -0.5 -0.0025\n0.5 0.5 -0.0025\n-0.5 0.5 -0.0025\n"
