@@ -726,11 +726,16 @@ def test_valid_mesh_with_a_bom_or_flipped_faces_is_read(tmp, name, text):
      "-contact_self_thickness 1 m is more than this lattice holds: it must be below 0.2357 m, the distance at rest from a particle to the diagonal of its cell (spacing 0.3333 x 0.3333 m)", {}),
     ("-cloth_density 1.000001e6", "-cloth_density must be positive and finite, from 0.0001 to 100 kg/m^2; got 1000001", {}),
     ("-cloth_density 1.0000000001e-5", "got 1.0000000001e-05", {}),
-], ids=["non-manifold-mesh", "self-thickness-beyond-lattice", "value-with-seven-digits", "value-with-eleven-digits"])
+    ("-cloth_bend 1.000001e-5,1e-5,1.0000001e-6", "the bias rigidity 1.0000001e-06 N m (what a strip cut at 45 degrees measures) must lie from (warp + weft)/4 = 5e-06 to 2e-05 N m for warp 1.000001e-05 and weft 1e-05 N m on this lattice (spacing 0.3333 x 0.3333 m", {}),
+    ("-cloth_imperfection 0.02000001,0.1", "-cloth_imperfection's amplitude 0.02000001 m is more than 5% of its wavelength 0.1 m", {}),
+    ("-cloth_imperfection 0.2", "-cloth_imperfection's amplitude 0.2 m is more than 5% of its wavelength 0.25 m", {}),
+], ids=["non-manifold-mesh", "self-thickness-beyond-lattice", "value-with-seven-digits", "value-with-eleven-digits", "bias-with-seven-digits", "imperfection-with-seven-digits", "imperfection-default-wavelength"])
 def test_refusals_say_what_is_wrong(tmp, args, message, files):
     """A non-manifold mesh is refused saying so; -contact_self_thickness 1 (within its
     documented range) ended in "Reduce -ts_dt": the sentence now says the maximum this
-    lattice holds and why; a refused 1.000001e6 was printed as 1e+06."""
+    lattice holds and why; a refused 1.000001e6 was printed as 1e+06, and so were the
+    values given to -cloth_bend and -cloth_imperfection in their own sentences (now
+    the fewest digits that read back, and C's %.4g for the limits drape derives)."""
     for name, text in files.items():
         (tmp / name).write_text(text)
     (tmp / "x.h5").write_bytes(b"earlier results")
