@@ -50,6 +50,13 @@ PETSC_EXTERN PetscErrorCode DrapeCheckUnusedOptions(MPI_Comm);
  * PETSc replaced its ${...}, is compared with rank 0's, at start-up, before any rank
  * builds its model. Collective. */
 PETSC_EXTERN PetscErrorCode DrapeCheckRanksAgree(MPI_Comm);
+/* Refuse a name of -output_file or -restart (the files MPI-IO opens, as PETSc names
+ * them) longer than DRAPE_MPIIO_NAME_MAX characters, directory included: Open MPI's
+ * MPI-IO names a lock file after it in a buffer of 256 bytes, and a longer name
+ * ended in "buffer overflow detected" (SIGABRT) before a frame was written.
+ * Collective. */
+#define DRAPE_MPIIO_NAME_MAX 230
+PETSC_EXTERN PetscErrorCode DrapeCheckMPIIONames(MPI_Comm);
 /* Refuse an input file option (-solid_file, -restart, -cloth_outline) whose file is
  * not a regular file (a FIFO, /dev/zero, a socket), before anything opens it; what
  * names it in the sentence. Missing files and directories are left to the reader.

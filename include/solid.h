@@ -17,7 +17,10 @@ PETSC_EXTERN PetscErrorCode  SolidMeshGetBoundingBox(SolidMesh, PetscReal lo[3],
 PETSC_EXTERN PetscErrorCode  SolidMeshGetSize(SolidMesh, PetscInt *nv, PetscInt *nt);
 PETSC_EXTERN PetscErrorCode  SolidMeshGetTriangles(SolidMesh, PetscReal *xyz); /* 9 per triangle */
 PETSC_EXTERN PetscErrorCode  SolidMeshQuery(SolidMesh, const PetscReal p[3], PetscReal closest[3], PetscBool *inside);
-PETSC_EXTERN PetscErrorCode  SolidMeshDestroy(SolidMesh *);
+/* The first triangle met on the segment p0 -> p1: p0 + t (p1 - p0), and the
+ * triangle's unit normal turned against the motion; *hit false if none. */
+PETSC_EXTERN PetscErrorCode SolidMeshSweep(SolidMesh, const PetscReal p0[3], const PetscReal p1[3], PetscReal *t, PetscReal normal[3], PetscBool *hit);
+PETSC_EXTERN PetscErrorCode SolidMeshDestroy(SolidMesh *);
 
 typedef struct _p_Solid    *Solid;
 PETSC_EXTERN PetscErrorCode SolidCreate(MPI_Comm, Solid *);
@@ -36,6 +39,11 @@ PETSC_EXTERN PetscErrorCode SolidIsEmpty(Solid, PetscBool *);
 PETSC_EXTERN PetscBool SolidBoxNear(Solid, const PetscReal lo[3], const PetscReal hi[3], PetscReal grow);
 /* Signed distance of p to the nearest body (< 0 inside) and the outward normal. */
 PETSC_EXTERN PetscErrorCode SolidQuery(Solid, const PetscReal p[3], PetscReal *distance, PetscReal normal[3]);
+/* The first point where the segment p0 -> p1 (a particle's step) enters a body or
+ * the plane from outside: p0 + t (p1 - p0), with the surface's unit normal there
+ * (turned against the motion on a mesh); *hit false if it enters none. mesh_only:
+ * the mesh body only. Not collective. */
+PETSC_EXTERN PetscErrorCode SolidSweep(Solid, const PetscReal p0[3], const PetscReal p1[3], PetscBool mesh_only, PetscReal *t, PetscReal normal[3], PetscBool *hit);
 /* Triangles of the mesh bodies for pictures (9 reals each; caller frees). */
 PETSC_EXTERN PetscErrorCode SolidGetTriangles(Solid, PetscInt *ntri, PetscReal **xyz);
 
@@ -73,7 +81,19 @@ PETSC_EXTERN PetscErrorCode ContactGetMode(Contact, ContactMode *, PetscReal *fr
  * particles sticky contact holds (in contact, velocity zero). Collective (the deepest
  * penetration and the count are reduced), as is ContactCheckInitial. */
 PETSC_EXTERN PetscErrorCode ContactProject(Contact, PetscInt n, PetscScalar *x, PetscScalar *v, const PetscReal *mass, const PetscBool *pinned, PetscReal h, PetscReal *depth, PetscInt *ncontact, PetscReal impulse[3], PetscBool *held);
-/* Refuse an initial state with particles inside the solid (one sentence). */
+/* Continuous contact for a particle's step p0 -> p1 (p0 outside the solid; clear: a
+ * lower bound of its distance there, 0 if unknown). The caller's answer at the end
+ * point (distance dist and the closest point's normal, taken as a contact when
+ * dist < limit: back onto the contact surface along that normal) misses a step
+ * through a thin part of the solid, or puts the particle out on its far side. Then
+ * *hit is true, with q where the step entered the solid and nf the surface's normal
+ * there: the particle belongs on the plane through q at the contact thickness. Not
+ * collective. */
+PETSC_EXTERN PetscErrorCode ContactSweep(Contact, const PetscReal p0[3], const PetscReal p1[3], PetscReal clear, PetscReal dist, const PetscReal normal[3], PetscReal limit, PetscBool *hit, PetscReal q[3], PetscReal nf[3]);
+/* Refuse an initial state with particles inside the solid (one sentence). It also
+ * records the positions the first step starts from: ContactProject tests each step
+ * from where the last one (or this) left the particles to where it ends, so that a
+ * particle cannot pass through a thin part of the solid in one step. */
 PETSC_EXTERN PetscErrorCode ContactCheckInitial(Contact, PetscInt n, const PetscScalar *x);
 /* Distance of owned particle k (of n) at x to the solid, as SolidQuery, through a
  * per-particle cache shared with ContactProject: a particle that moved less than its

@@ -565,6 +565,31 @@ static unsigned long long FileDigest(const char path[])
   return h;
 }
 
+PetscErrorCode DrapeCheckMPIIONames(MPI_Comm comm)
+{
+  static const char *const options[] = {"-output_file", "-restart"};
+
+  PetscFunctionBeginUser;
+  for (int k = 0; k < 2; k++) {
+    char        given[PETSC_MAX_PATH_LEN] = "", name[PETSC_MAX_PATH_LEN] = "";
+    const char *base;
+    PetscBool   set;
+    PetscMPIInt bad, any;
+    size_t      len;
+    PetscCall(PetscOptionsGetString(NULL, NULL, options[k], given, sizeof given, &set));
+    if (!set || !given[0]) continue;
+    PetscCall(DrapeFileName(options[k], given, name, sizeof name));
+    base = strrchr(name, '/') ? strrchr(name, '/') + 1 : name;
+    len  = strlen(name);
+    bad  = len > DRAPE_MPIIO_NAME_MAX && strlen(base) <= 200; /* a longer last part has its own sentence (the output's checks) */
+    PetscCallMPI(MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, comm));
+    PetscCheck(!any, comm, PETSC_ERR_USER_INPUT,
+               "%s names a file of %zu characters, directory included (%.40s...): MPI-IO, which %s it, takes names of at most %d characters; give a shorter path (a relative one, or through a symbolic link to the directory)%s", options[k], len, name,
+               k ? "appends to" : "writes", DRAPE_MPIIO_NAME_MAX, bad ? "" : " (on another rank)");
+  }
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode DrapeCheckRanksAgree(MPI_Comm comm)
 {
   static const char *const options[] = {NULL, "-solid_file", "-cloth_outline", "-restart", "-output_file"};

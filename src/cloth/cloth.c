@@ -124,10 +124,17 @@ static PetscErrorCode ClothBendCoefficients(Cloth c)
     c->bend[2]      = lo; /* the bias this model has */
     PetscFunctionReturn(0);
   }
-  PetscCheck(bb >= lo * (1 - 1e-12) && bb <= hi * (1 + 1e-12), c->comm, PETSC_ERR_USER_INPUT,
-             "-cloth_bend: the bias rigidity %g N m (what a strip cut at 45 degrees measures) must lie from (warp + weft)/4 = %g to %g N m for warp %g and weft %g N m on this lattice (spacing %g x %g m: cells nearer square allow more); give a bias "
-             "in that range, leave it out (drape then takes the nearest to (warp + weft)/2), or use -cloth_model paper, which drops the bias term",
-             (double) bb, (double) lo, (double) hi, (double) bw, (double) bf, (double) dx, (double) dy);
+  if (!(bb >= lo * (1 - 1e-12) && bb <= hi * (1 + 1e-12))) {
+    char sb[32], sw[32], sf[32], slo[32], shi[32], sx[32], sy[32]; /* given: the fewest digits that read back (DrapeFormatReal); derived: C's %.4g (PETSc's turns 1 into "1.") */
+    (void) snprintf(slo, sizeof slo, "%.4g", (double) lo);
+    (void) snprintf(shi, sizeof shi, "%.4g", (double) hi);
+    (void) snprintf(sx, sizeof sx, "%.4g", (double) dx);
+    (void) snprintf(sy, sizeof sy, "%.4g", (double) dy);
+    SETERRQ(c->comm, PETSC_ERR_USER_INPUT,
+            "-cloth_bend: the bias rigidity %s N m (what a strip cut at 45 degrees measures) must lie from (warp + weft)/4 = %s to %s N m for warp %s and weft %s N m on this lattice (spacing %s x %s m: cells nearer square allow more); give a bias "
+            "in that range, leave it out (drape then takes the nearest to (warp + weft)/2), or use -cloth_model paper, which drops the bias term",
+            DrapeFormatReal(bb, sb, sizeof sb), slo, shi, DrapeFormatReal(bw, sw, sizeof sw), DrapeFormatReal(bf, sf, sizeof sf), sx, sy);
+  }
   c->bend_coef[2] = PetscMax(d, 0);
   c->bend_coef[0] = PetscMax(bw - c->bend_coef[2] * r2, 0);
   c->bend_coef[1] = PetscMax(bf - c->bend_coef[2] / r2, 0);
@@ -343,11 +350,16 @@ static PetscErrorCode ClothImperfectionSetUp(Cloth c)
 
   PetscFunctionBeginUser;
   PetscCall(DrapeCheckReal(c->comm, "-cloth_imperfection (its amplitude)", 1, &c->imperfection[0], 0, 1, "m"));
-  if (c->imperfection[1] == 0) c->imperfection[1] = 0.25 * lo;
+  const PetscBool derived = (PetscBool) (c->imperfection[1] == 0); /* the wavelength */
+  if (derived) c->imperfection[1] = 0.25 * lo;
   PetscCall(DrapeCheckReal(c->comm, "-cloth_imperfection (its wavelength)", 1, &c->imperfection[1], 1e-4, 1e3, "m"));
-  PetscCheck(c->imperfection[0] <= 0.05 * c->imperfection[1], c->comm, PETSC_ERR_USER_INPUT,
-             "-cloth_imperfection's amplitude %g m is more than 5%% of its wavelength %g m: the initial sheet would no longer be nearly flat (its slopes reach about 2 pi sqrt(2) amplitude/wavelength); give a smaller amplitude or a longer wavelength",
-             (double) c->imperfection[0], (double) c->imperfection[1]);
+  if (c->imperfection[0] > 0.05 * c->imperfection[1]) {
+    char sa[32], sl[32]; /* given: the fewest digits that read back (DrapeFormatReal); derived: C's %.4g */
+    if (derived) (void) snprintf(sl, sizeof sl, "%.4g", (double) c->imperfection[1]);
+    SETERRQ(c->comm, PETSC_ERR_USER_INPUT,
+            "-cloth_imperfection's amplitude %s m is more than 5%% of its wavelength %s m: the initial sheet would no longer be nearly flat (its slopes reach about 2 pi sqrt(2) amplitude/wavelength); give a smaller amplitude or a longer wavelength",
+            DrapeFormatReal(c->imperfection[0], sa, sizeof sa), derived ? sl : DrapeFormatReal(c->imperfection[1], sl, sizeof sl));
+  }
   PetscCall(DrapeCheckIntOption(c->comm, "-cloth_imperfection_seed"));
   PetscCall(DrapeCheckInt(c->comm, "-cloth_imperfection_seed", c->imperfection_seed, 0, PETSC_MAX_INT));
   for (PetscInt m = 0; m < CLOTH_IMPERFECTION_MODES; m++) {
@@ -626,6 +638,34 @@ static PetscBool IsPinned(Cloth c, PetscInt i, PetscInt j)
       if (c->pin_list[2 * p] == i && c->pin_list[2 * p + 1] == j) return PETSC_TRUE;
   }
   return PETSC_FALSE;
+}
+
+/* A pin asked for on a lattice particle that a circle or an outline cuts away would
+ * silently pin nothing (a Cusick specimen pinned at its corners fell free). Every
+ * rank decides alike from the outline: no communication. */
+static PetscErrorCode ClothCheckPins(Cloth c)
+{
+  const char *shape = c->shape == CLOTH_CIRCLE ? "-cloth_shape circle: the disc inscribed in the lattice" : "the outline of -cloth_outline";
+
+  PetscFunctionBeginUser;
+  if (c->pin == CLOTH_PIN_LIST)
+    for (PetscInt p = 0; p < c->npin_list; p++) {
+      const PetscInt i = c->pin_list[2 * p], j = c->pin_list[2 * p + 1];
+      PetscCheck(Active(c, i, j), c->comm, PETSC_ERR_USER_INPUT, "-cloth_pin_list entry (%" PetscInt_FMT ",%" PetscInt_FMT ") is outside the cloth (%s); pin particles of the cloth, lattice indices inside it", i, j, shape);
+    }
+  if (c->pin == CLOTH_PIN_CORNERS || c->pin == CLOTH_PIN_EDGE_CORNERS)
+    for (PetscInt k = 0; k < 4; k++) {
+      const PetscInt i = k % 2 ? c->Mx - 1 : 0, j = k / 2 ? c->My - 1 : 0;
+      if (!IsPinned(c, i, j)) continue;
+      PetscCheck(Active(c, i, j), c->comm, PETSC_ERR_USER_INPUT, "-cloth_pin %s pins the lattice corner (%" PetscInt_FMT ",%" PetscInt_FMT "), which is outside the cloth (%s); pin particles of the cloth with -cloth_pin list", pin_names[c->pin], i, j,
+                 shape);
+    }
+  if (c->pin == CLOTH_PIN_EDGE) {
+    PetscBool any = PETSC_FALSE;
+    for (PetscInt i = 0; i < c->Mx && !any; i++) any = Active(c, i, c->My - 1);
+    PetscCheck(any, c->comm, PETSC_ERR_USER_INPUT, "-cloth_pin edge pins the last weft row (j = %" PetscInt_FMT "), which is outside the cloth (%s); pin particles of the cloth with -cloth_pin list", c->My - 1, shape);
+  }
+  PetscFunctionReturn(0);
 }
 
 /* Share of the lattice spacing that a boundary row/column carries (1/2). */
@@ -1168,6 +1208,7 @@ PetscErrorCode ClothSetUp(Cloth c)
       for (PetscInt i = i0; i < i1; i++) nact += Active(c, i, j);
     PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &nact, 1, MPIU_INT, MPI_SUM, c->comm));
     PetscCheck(nact > 0, c->comm, PETSC_ERR_USER_INPUT, "No lattice particle lies inside the cloth's outline; check -cloth_outline against -cloth_size");
+    PetscCall(ClothCheckPins(c));
   }
   PetscCall(PetscMalloc1((i1 - i0) * (j1 - j0) + 1, &dest));
   PetscCall(PetscLogEventBegin(drape_log.partition, 0, 0, 0, 0));

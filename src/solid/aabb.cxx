@@ -9,6 +9,7 @@
 #include <CGAL/boost/graph/IO/polygon_mesh_io.h>
 #include <CGAL/boost/graph/helpers.h>
 #include <CGAL/IO/polygon_soup_io.h>
+#include <CGAL/Polygon_mesh_processing/connected_components.h>
 #include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
 #include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
 
@@ -25,6 +26,7 @@
 
 typedef CGAL::Exact_predicates_inexact_constructions_kernel K;
 typedef K::Point_3                                          Point;
+typedef K::Segment_3                                        Segment;
 typedef CGAL::Surface_mesh<Point>                           Mesh;
 typedef CGAL::AABB_face_graph_triangle_primitive<Mesh>      Primitive;
 typedef CGAL::AABB_traits<K, Primitive>                     Traits;
@@ -38,6 +40,61 @@ struct _p_SolidMesh {
   double                lo[3], hi[3];
 };
 
+// Every closed part of the mesh must enclose a volume: a flat part (a tetrahedron
+// with its four corners in a plane, a sheet and its copy turned over) is closed, yet
+// has no inside: nothing would hold the cloth there but the contact layer. The
+// signed volume of each part (the divergence theorem over its triangles, about the
+// part's first vertex) against its box's size: refused below 1e-9 of the cube of the
+// box's diagonal (a 1 m plate 1 um thick is 4e-7).
+static PetscErrorCode SolidMeshCheckVolume(SolidMesh m, const char *what)
+{
+  std::vector<std::size_t> part_of;
+  std::size_t              nparts = 0;
+  bool                     memory = false;
+
+  PetscFunctionBeginUser;
+  try {
+    auto fcc = m->mesh.add_property_map<Mesh::Face_index, std::size_t>("f:drape_part", 0).first;
+    nparts   = CGAL::Polygon_mesh_processing::connected_components(m->mesh, fcc);
+    part_of.resize(m->mesh.number_of_faces());
+    for (auto f : m->mesh.faces()) part_of[(std::size_t) f] = fcc[f];
+    m->mesh.remove_property_map(fcc);
+  } catch (const std::bad_alloc &) {
+    memory = true;
+  }
+  PetscCheck(!memory, PETSC_COMM_SELF, PETSC_ERR_MEM, "Out of memory checking the solid %s: this run needs more memory than the machine gives it; use a coarser mesh, or more memory", what);
+  std::vector<double>      volume(nparts, 0.0), lo(3 * nparts, HUGE_VAL), hi(3 * nparts, -HUGE_VAL), origin(3 * nparts, 0.0);
+  std::vector<std::size_t> nfaces(nparts, 0);
+  for (auto f : m->mesh.faces()) {
+    const std::size_t c = part_of[(std::size_t) f];
+    double            a[3][3];
+    int               k = 0;
+    for (auto v : CGAL::vertices_around_face(m->mesh.halfedge(f), m->mesh)) {
+      const Point &p = m->mesh.point(v);
+      a[k][0]        = p.x();
+      a[k][1]        = p.y();
+      a[k][2]        = p.z();
+      k++;
+    }
+    if (!nfaces[c]++)
+      for (int d = 0; d < 3; d++) origin[3 * c + d] = a[0][d];
+    for (int i = 0; i < 3; i++)
+      for (int d = 0; d < 3; d++) {
+        lo[3 * c + d] = std::min(lo[3 * c + d], a[i][d]);
+        hi[3 * c + d] = std::max(hi[3 * c + d], a[i][d]);
+        a[i][d] -= origin[3 * c + d];
+      }
+    volume[c] += (a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])) / 6;
+  }
+  for (std::size_t c = 0; c < nparts; c++) {
+    const double diag = std::sqrt((hi[3 * c] - lo[3 * c]) * (hi[3 * c] - lo[3 * c]) + (hi[3 * c + 1] - lo[3 * c + 1]) * (hi[3 * c + 1] - lo[3 * c + 1]) + (hi[3 * c + 2] - lo[3 * c + 2]) * (hi[3 * c + 2] - lo[3 * c + 2]));
+    PetscCheck(std::fabs(volume[c]) > 1e-9 * diag * diag * diag, PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED,
+               "The solid %s encloses no volume: %s (%zu triangles, %.4g m across) is flat, a sheet or faces folded onto each other; drape needs a closed triangle mesh around a solid body", what, nparts > 1 ? "one of its parts" : "it", nfaces[c],
+               diag);
+  }
+  PetscFunctionReturn(0);
+}
+
 // Check that the mesh can tell inside from outside; build the tree.
 static PetscErrorCode SolidMeshFinish(SolidMesh m, const char *what)
 {
@@ -50,6 +107,7 @@ static PetscErrorCode SolidMeshFinish(SolidMesh m, const char *what)
     PetscCheck(std::fabs(p.x()) <= 1e6 && std::fabs(p.y()) <= 1e6 && std::fabs(p.z()) <= 1e6, PETSC_COMM_SELF, PETSC_ERR_FILE_UNEXPECTED,
                "The solid %s, as placed by -solid_scale, -solid_rotate and -solid_translate, has vertex coordinates that are not finite or beyond 1e6 m", what);
   }
+  PetscCall(SolidMeshCheckVolume(m, what));
   try {
     m->tree.reset(new Tree(faces(m->mesh).first, faces(m->mesh).second, m->mesh));
     m->tree->accelerate_distance_queries();
@@ -193,6 +251,59 @@ PetscErrorCode SolidMeshQuery(SolidMesh m, const PetscReal p[3], PetscReal close
     SETERRQ(PETSC_COMM_SELF, PETSC_ERR_MEM, "Out of memory in a distance query to the solid mesh: this run needs more memory than the machine gives it; use a coarser mesh, or more memory");
   } catch (const std::exception &e) {
     SETERRQ(PETSC_COMM_SELF, PETSC_ERR_LIB, "CGAL query failed: %s", e.what());
+  }
+  PetscFunctionReturn(0);
+}
+
+// The first triangle the segment p0 -> p1 meets: the tree finds the triangles it
+// meets (exact predicates), the parameter along it and the triangle's normal are
+// computed here in double precision. A segment in a triangle's plane (a particle
+// sliding on a face) meets no triangle in this sense.
+PetscErrorCode SolidMeshSweep(SolidMesh m, const PetscReal p0[3], const PetscReal p1[3], PetscReal *t, PetscReal normal[3], PetscBool *hit)
+{
+  std::vector<Mesh::Face_index> faces;
+  bool                          memory = false, failed = false;
+
+  PetscFunctionBeginUser;
+  *hit = PETSC_FALSE;
+  *t   = 1;
+  if (p0[0] == p1[0] && p0[1] == p1[1] && p0[2] == p1[2]) PetscFunctionReturn(0);
+  try {
+    m->tree->all_intersected_primitives(Segment(Point(p0[0], p0[1], p0[2]), Point(p1[0], p1[1], p1[2])), std::back_inserter(faces));
+  } catch (const std::bad_alloc &) {
+    memory = true;
+  } catch (const std::exception &) {
+    failed = true;
+  }
+  PetscCheck(!memory, PETSC_COMM_SELF, PETSC_ERR_MEM, "Out of memory in a swept query to the solid mesh: this run needs more memory than the machine gives it; use a coarser mesh, or more memory");
+  PetscCheck(!failed, PETSC_COMM_SELF, PETSC_ERR_LIB, "CGAL failed in a swept query to the solid mesh");
+  for (auto f : faces) {
+    double a[3][3], e1[3], e2[3], n[3], dn = 0, an = 0;
+    int    c = 0;
+    for (auto v : CGAL::vertices_around_face(m->mesh.halfedge(f), m->mesh)) {
+      const Point &p = m->mesh.point(v);
+      a[c][0]        = p.x();
+      a[c][1]        = p.y();
+      a[c][2]        = p.z();
+      c++;
+    }
+    for (int i = 0; i < 3; i++) {
+      e1[i] = a[1][i] - a[0][i];
+      e2[i] = a[2][i] - a[0][i];
+    }
+    n[0] = e1[1] * e2[2] - e1[2] * e2[1];
+    n[1] = e1[2] * e2[0] - e1[0] * e2[2];
+    n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+    for (int i = 0; i < 3; i++) {
+      dn += n[i] * (p1[i] - p0[i]);
+      an += n[i] * (a[0][i] - p0[i]);
+    }
+    if (dn == 0) continue; /* in the triangle's plane */
+    double s = std::min(1.0, std::max(0.0, an / dn)), l = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    if (!(l > 0) || (*hit && s >= *t)) continue;
+    *hit = PETSC_TRUE;
+    *t   = s;
+    for (int i = 0; i < 3; i++) normal[i] = (dn > 0 ? -n[i] : n[i]) / l; /* against the motion */
   }
   PetscFunctionReturn(0);
 }

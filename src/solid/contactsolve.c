@@ -37,6 +37,7 @@ struct _p_ContactSolve {
   PetscScalar     *z;           /* the velocity change that gives the prescribed velocity, 3 each */
   PetscInt        *released;    /* times released in this step */
   PetscBool       *lifted;      /* released, and not yet out of the contact layer */
+  PetscReal       *clear;       /* a lower bound of the distance to the solid at the start, m */
   ClothConstraint *ctype_pc;    /* the constraints when the preconditioner was last built */
   PetscBool        constrained; /* any constraint on any rank */
   const PetscReal *hdiag;       /* the Cloth's Hessian diagonal blocks of the last assembly */
@@ -47,7 +48,7 @@ struct _p_ContactSolve {
   PetscReal *fimp, *fblock; /* 3 and 9 each */
   PetscReal  impulse[3];    /* of the last accepted step, owned particles, N s */
   /* what View reports */
-  PetscInt constrained_max, joined, nreleased;
+  PetscInt constrained_max, joined, nreleased, swept;
 };
 
 PetscErrorCode ContactSolveCreate(MPI_Comm comm, Contact contact, Cloth cloth, ContactSolve *solve)
@@ -81,6 +82,7 @@ static PetscErrorCode ContactSolveFree(ContactSolve s)
   PetscCall(PetscFree4(s->dvlast, s->a, s->z, s->cnormal));
   PetscCall(PetscFree5(s->ctype, s->ctarget, s->released, s->lifted, s->ctype_pc));
   PetscCall(PetscFree5(s->fnormal, s->fdir, s->fspeed, s->fimp, s->fblock));
+  PetscCall(PetscFree(s->clear));
   PetscFunctionReturn(0);
 }
 
@@ -107,18 +109,22 @@ PetscErrorCode ContactSolveSetUp(ContactSolve s)
   PetscCall(PetscCalloc4(3 * m, &s->dvlast, 3 * m, &s->a, 3 * m, &s->z, 3 * m, &s->cnormal));
   PetscCall(PetscCalloc5(m, &s->ctype, m, &s->ctarget, m, &s->released, m, &s->lifted, m, &s->ctype_pc)); /* CLOTH_FREE, PETSC_FALSE */
   PetscCall(PetscCalloc5(m, &s->fnormal, 3 * m, &s->fdir, m, &s->fspeed, 3 * m, &s->fimp, 9 * m, &s->fblock));
+  PetscCall(PetscCalloc1(m, &s->clear));
   PetscFunctionReturn(0);
 }
 
 PetscErrorCode ContactSolveView(ContactSolve s, PetscViewer viewer)
 {
   PetscBool isascii;
+  PetscInt  swept;
 
   PetscFunctionBeginUser;
   PetscCall(PetscObjectTypeCompare((PetscObject) viewer, PETSCVIEWERASCII, &isascii));
   if (!isascii) PetscFunctionReturn(0);
+  PetscCall(MPIU_Allreduce(&s->swept, &swept, 1, MPIU_INT, MPI_SUM, s->comm));
   PetscCall(PetscViewerASCIIPrintf(viewer, "  contact with the solid as constraints of the step: at most %" PetscInt_FMT " particles constrained in a solve; after solves %" PetscInt_FMT " constraints added, %" PetscInt_FMT " released\n",
                                    s->constrained_max, s->joined, s->nreleased));
+  if (swept) PetscCall(PetscViewerASCIIPrintf(viewer, "  %" PetscInt_FMT " landings found along the step, not at its end (through a thin part of the solid)\n", swept));
   if (s->mode == CONTACT_FRICTION) PetscCall(PetscViewerASCIIPrintf(viewer, "  friction lagged by a step, static below %g m/s\n", (double) s->stick_velocity));
   PetscFunctionReturn(0);
 }
@@ -235,6 +241,27 @@ static void FrictionStart(ContactSolve s, PetscInt k)
   s->fspeed[k] = PetscMax(s->stick_velocity, s->h * (lt - s->mu * s->fnormal[k]) / m);
 }
 
+/* Continuous contact: free particle k's step from x0 to x (its end, predicted or
+ * solved), whose end point has distance *dist to the solid and closest-point normal
+ * nrm. Where the step enters the solid unseen by the end point (through a thin part
+ * of a mesh, or out on its far side), the landing is where it entered: *dist and nrm
+ * become the end point's against the plane of the surface there, so that the
+ * constraint ends the step on that plane's contact surface. */
+static PetscErrorCode LandingSwept(ContactSolve s, PetscInt k, const PetscReal x[3], PetscReal *dist, PetscReal nrm[3])
+{
+  const PetscReal *x0 = s->x0 + 3 * k;
+  PetscReal        q[3], nf[3];
+  PetscBool        hit;
+
+  PetscFunctionBeginUser;
+  PetscCall(ContactSweep(s->contact, x0, x, s->clear[k], *dist, nrm, s->thickness * (1 - CONTACT_SHALLOW), &hit, q, nf));
+  if (!hit) PetscFunctionReturn(0);
+  *dist = nf[0] * (x[0] - q[0]) + nf[1] * (x[1] - q[1]) + nf[2] * (x[2] - q[2]);
+  for (PetscInt d = 0; d < 3; d++) nrm[d] = nf[d];
+  s->swept++;
+  PetscFunctionReturn(0);
+}
+
 /* The constraints at the start of the step: particles within the contact layer
  * (but those released since they last left it: the edge of a contact region, whose
  * shallow contacts the projection after the step handles), and particles from
@@ -258,6 +285,7 @@ static PetscErrorCode InitialConstraints(ContactSolve s)
       continue;
     }
     PetscCall(ContactDistance(s->contact, k, s->m, x, &dist, nrm));
+    s->clear[k] = PetscMax(dist, 0);
     if (dist <= tol) {
       if (s->lifted[k])
         Unconstrain(s, k);
@@ -271,6 +299,7 @@ static PetscErrorCode InitialConstraints(ContactSolve s)
       s->lifted[k] = PETSC_FALSE;
       Unconstrain(s, k);
       PetscCall(ContactDistance(s->contact, k, s->m, xp, &dist, nrm));
+      PetscCall(LandingSwept(s, k, xp, &dist, nrm));
       if (dist < s->thickness * (1 - CONTACT_SHALLOW)) Constrain(s, k, nrm, nrm[0] * v[0] + nrm[1] * v[1] + nrm[2] * v[2] + (s->thickness - dist) / h);
     }
   }
@@ -389,6 +418,7 @@ static PetscErrorCode UpdateActiveSet(ContactSolve s, const PetscScalar *xt, con
     if (s->ctype[k] == CLOTH_FREE) {
       PetscReal dist, nrm[3];
       PetscCall(ContactDistance(s->contact, k, s->m, xt + 3 * k, &dist, nrm));
+      PetscCall(LandingSwept(s, k, xt + 3 * k, &dist, nrm));
       if (dist < s->thickness * (1 - CONTACT_SHALLOW)) {
         Constrain(s, k, nrm, nrm[0] * vt[0] + nrm[1] * vt[1] + nrm[2] * vt[2] + (s->thickness - dist) / h);
         s->lifted[k] = PETSC_FALSE;

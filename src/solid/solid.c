@@ -378,6 +378,114 @@ PetscBool SolidBoxNear(Solid s, const PetscReal lo[3], const PetscReal hi[3], Pe
   return PETSC_FALSE;
 }
 
+/* The primitive alone at world point p: signed distance and outward normal (world). */
+static inline void PrimitiveQuery(const Solid s, const PetscReal p[3], PetscReal *dist, PetscReal normal[3])
+{
+  PetscReal q[3], r[3], dl, nl[3];
+
+  for (PetscInt d = 0; d < 3; d++) r[d] = (p[d] - s->translate[d]) / s->scale;
+  for (PetscInt d = 0; d < 3; d++) q[d] = s->R[d] * r[0] + s->R[3 + d] * r[1] + s->R[6 + d] * r[2]; /* R^T r */
+  PrimitiveDistance(s, q, &dl, nl);
+  *dist = s->scale * dl;
+  for (PetscInt d = 0; d < 3; d++) normal[d] = s->R[3 * d] * nl[0] + s->R[3 * d + 1] * nl[1] + s->R[3 * d + 2] * nl[2];
+}
+
+/* The first point of the segment p0 -> p1 in the (convex) primitive, from outside:
+ * its signed distance f(t) along the segment is convex, so a golden-section search
+ * finds its minimum and a bisection the first root before it. */
+static void PrimitiveSweep(const Solid s, const PetscReal p0[3], const PetscReal p1[3], PetscReal *t, PetscReal normal[3], PetscBool *hit)
+{
+  const PetscReal L = PetscSqrtReal(PetscSqr(p1[0] - p0[0]) + PetscSqr(p1[1] - p0[1]) + PetscSqr(p1[2] - p0[2])), g = 0.5 * (PetscSqrtReal(5) - 1);
+  PetscReal       f0, f1, n[3], a = 0, b = 1;
+
+#define AT(tt, f)                                                                                                                                                                                                                                        \
+  do {                                                                                                                                                                                                                                                   \
+    const PetscReal u_ = (tt), p_[3] = {p0[0] + u_ * (p1[0] - p0[0]), p0[1] + u_ * (p1[1] - p0[1]), p0[2] + u_ * (p1[2] - p0[2])};                                                                                                                       \
+    PrimitiveQuery(s, p_, &(f), n);                                                                                                                                                                                                                      \
+  } while (0)
+  *hit = PETSC_FALSE;
+  AT(0, f0);
+  AT(1, f1);
+  if (f0 <= 0 || f0 + f1 > L) return; /* starts inside (no crossing), or too short to reach it (f is 1-Lipschitz in t L) */
+  if (f1 >= 0) {                      /* both ends outside: through it? */
+    PetscReal x1 = 1 - g, x2 = g, fx1, fx2;
+    AT(x1, fx1);
+    AT(x2, fx2);
+    for (PetscInt it = 0; it < 60 && fx1 >= 0 && fx2 >= 0; it++) {
+      if (fx1 < fx2) {
+        b   = x2;
+        x2  = x1;
+        fx2 = fx1;
+        x1  = b - g * (b - a);
+        AT(x1, fx1);
+      } else {
+        a   = x1;
+        x1  = x2;
+        fx1 = fx2;
+        x2  = a + g * (b - a);
+        AT(x2, fx2);
+      }
+    }
+    if (fx1 >= 0 && fx2 >= 0) return;
+    b = fx1 < 0 ? x1 : x2;
+    a = 0;
+  }
+  for (PetscInt it = 0; it < 60; it++) { /* f(a) > 0 >= f(b) */
+    const PetscReal m = 0.5 * (a + b);
+    PetscReal       fm;
+    AT(m, fm);
+    if (fm > 0)
+      a = m;
+    else
+      b = m;
+  }
+#undef AT
+  {
+    const PetscReal p[3] = {p0[0] + a * (p1[0] - p0[0]), p0[1] + a * (p1[1] - p0[1]), p0[2] + a * (p1[2] - p0[2])};
+    PetscReal       f;
+    PrimitiveQuery(s, p, &f, normal);
+  }
+  *t   = a;
+  *hit = PETSC_TRUE;
+}
+
+PetscErrorCode SolidSweep(Solid s, const PetscReal p0[3], const PetscReal p1[3], PetscBool mesh_only, PetscReal *t, PetscReal normal[3], PetscBool *hit)
+{
+  PetscReal lo[3], hi[3], tb, nb[3];
+  PetscBool apart = PETSC_FALSE, hb;
+
+  PetscFunctionBeginUser;
+  *hit = PETSC_FALSE;
+  *t   = 1;
+  if (mesh_only && !s->mesh) PetscFunctionReturn(0);
+  for (PetscInt d = 0; d < 3; d++) {
+    lo[d] = PetscMin(p0[d], p1[d]);
+    hi[d] = PetscMax(p0[d], p1[d]);
+    apart = (PetscBool) (apart || lo[d] > s->hi[d] || hi[d] < s->lo[d]);
+  }
+  if (s->has_plane && !mesh_only) {
+    const PetscReal d0 = s->plane[0] * p0[0] + s->plane[1] * p0[1] + s->plane[2] * p0[2] - s->plane[3];
+    const PetscReal d1 = s->plane[0] * p1[0] + s->plane[1] * p1[1] + s->plane[2] * p1[2] - s->plane[3];
+    if (d0 > 0 && d1 < 0) {
+      *hit = PETSC_TRUE;
+      *t   = d0 / (d0 - d1);
+      for (PetscInt d = 0; d < 3; d++) normal[d] = s->plane[d];
+    }
+  }
+  if (s->type == SOLID_NONE || apart) PetscFunctionReturn(0);
+  hb = PETSC_FALSE;
+  if (s->mesh)
+    PetscCall(SolidMeshSweep(s->mesh, p0, p1, &tb, nb, &hb));
+  else if (!mesh_only)
+    PrimitiveSweep(s, p0, p1, &tb, nb, &hb);
+  if (hb && (!*hit || tb < *t)) {
+    *hit = PETSC_TRUE;
+    *t   = tb;
+    for (PetscInt d = 0; d < 3; d++) normal[d] = nb[d];
+  }
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode SolidQuery(Solid s, const PetscReal p[3], PetscReal *distance, PetscReal normal[3])
 {
   PetscFunctionBeginUser;
@@ -387,13 +495,11 @@ PetscErrorCode SolidQuery(Solid s, const PetscReal p[3], PetscReal *distance, Pe
     for (PetscInt d = 0; d < 3; d++) normal[d] = s->plane[d];
   }
   if (s->type != SOLID_NONE && s->type != SOLID_MESH) {
-    PetscReal q[3], r[3], dl, nl[3];
-    for (PetscInt d = 0; d < 3; d++) r[d] = (p[d] - s->translate[d]) / s->scale;
-    for (PetscInt d = 0; d < 3; d++) q[d] = s->R[d] * r[0] + s->R[3 + d] * r[1] + s->R[6 + d] * r[2]; /* R^T r */
-    PrimitiveDistance(s, q, &dl, nl);
-    if (s->scale * dl < *distance) {
-      *distance = s->scale * dl;
-      for (PetscInt d = 0; d < 3; d++) normal[d] = s->R[3 * d] * nl[0] + s->R[3 * d + 1] * nl[1] + s->R[3 * d + 2] * nl[2];
+    PetscReal dl, nl[3];
+    PrimitiveQuery(s, p, &dl, nl);
+    if (dl < *distance) {
+      *distance = dl;
+      for (PetscInt d = 0; d < 3; d++) normal[d] = nl[d];
     }
   }
   if (s->mesh) {
