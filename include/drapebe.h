@@ -42,3 +42,8 @@ PETSC_EXTERN PetscErrorCode TSDrapeBEGetContactImpulse(TS, PetscReal[3]);
 /* Solves made and steps rejected so far, and the last failed solve in words (NULL
  * or empty: none). Not collective (the same on every rank). */
 PETSC_EXTERN PetscErrorCode TSDrapeBEGetStatistics(TS, PetscInt *solves, PetscInt *rejected, const char **failure);
+/* The step at which drape's block Jacobi/ICC(0) gave way to multigrid (-1: it did
+ * not, or the options chose the preconditioner), and the steps TSAdapt rejected for
+ * their local error (-ts_adapt_type basic). Not collective (the same on every
+ * rank). */
+PETSC_EXTERN PetscErrorCode TSDrapeBEGetStepHistory(TS, PetscInt *pc_switched, PetscInt *error_rejected);

@@ -260,6 +260,7 @@ def test_tsadapt_chooses_the_backward_euler_step(tmp):
         fr = drape_h5.load(out)
         assert fr.time[-1] == pytest.approx(0.3)
         steps[tol], err[tol] = res.report["steps"], np.abs(fr.positions[-1] - ref).max()
+        assert res.report["steps_rejected_error"] >= 0
     assert steps[1e-3] != 30 and steps[1e-5] > 4 * steps[1e-3], steps
     assert err[1e-5] < err[1e-3] / 3, err
 

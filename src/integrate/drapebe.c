@@ -848,6 +848,25 @@ PetscErrorCode TSDrapeBEGetContactImpulse(TS ts, PetscReal impulse[3])
   PetscFunctionReturn(0);
 }
 
+static PetscErrorCode TSDrapeBEGetStepHistory_DrapeBE(TS ts, PetscInt *pc_switched, PetscInt *error_rejected)
+{
+  TS_DrapeBE *be = (TS_DrapeBE *) ts->data;
+
+  PetscFunctionBeginUser;
+  if (pc_switched) *pc_switched = be->pc_switched;
+  if (error_rejected) *error_rejected = be->nlte;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode TSDrapeBEGetStepHistory(TS ts, PetscInt *pc_switched, PetscInt *error_rejected)
+{
+  PetscFunctionBeginUser;
+  if (pc_switched) *pc_switched = -1;
+  if (error_rejected) *error_rejected = 0;
+  PetscTryMethod(ts, "TSDrapeBEGetStepHistory_C", (TS, PetscInt *, PetscInt *), (ts, pc_switched, error_rejected));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode TSDrapeBEGetStatistics(TS ts, PetscInt *solves, PetscInt *rejected, const char **failure)
 {
   PetscFunctionBeginUser;
@@ -870,7 +889,7 @@ static PetscErrorCode TSDrapeBEGetCloth(TS ts, Cloth *cloth)
   PetscFunctionReturn(0);
 }
 
-static const char *const methods[] = {"TSDrapeBESetContact_C", "TSDrapeBESetSelfContact_C", "TSDrapeBESetStiffness_C", "TSDrapeBEGetContactImpulse_C", "TSDrapeBEGetStatistics_C", "TSDrapeBEStateChanged_C"};
+static const char *const methods[] = {"TSDrapeBESetContact_C", "TSDrapeBESetSelfContact_C", "TSDrapeBESetStiffness_C", "TSDrapeBEGetContactImpulse_C", "TSDrapeBEGetStatistics_C", "TSDrapeBEGetStepHistory_C", "TSDrapeBEStateChanged_C"};
 
 static PetscErrorCode TSDestroy_DrapeBE(TS ts)
 {
@@ -956,6 +975,7 @@ static PetscErrorCode TSCreate_DrapeBE(TS ts)
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBESetStiffness_C", TSDrapeBESetStiffness_DrapeBE));
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBEGetContactImpulse_C", TSDrapeBEGetContactImpulse_DrapeBE));
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBEGetStatistics_C", TSDrapeBEGetStatistics_DrapeBE));
+  PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBEGetStepHistory_C", TSDrapeBEGetStepHistory_DrapeBE));
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBEStateChanged_C", TSDrapeBEStateChanged_DrapeBE));
   /* drape's defaults; -snes_type, -ksp_type, -pc_type ... override them */
   PetscCall(TSGetSNES(ts, &snes));

@@ -1090,6 +1090,14 @@ static PetscErrorCode SimulationViewSummary(Simulation s, PetscViewer viewer, Pe
   PetscCall(ReportViewReal(r, its > 0 ? viewer : NULL, "cg_per_step", ", %.2f CG iterations per step", (PetscReal) its / PetscMax(run, 1)));
   PetscCall(ReportViewReal(r, solves > run ? viewer : NULL, "solves_per_step", ", %.2f solves per step", (PetscReal) solves / PetscMax(run, 1)));
   PetscCall(ReportViewInt(r, rejected ? viewer : NULL, "steps_retried", ", %" PetscInt_FMT " steps retried at a smaller step", rejected));
+  {
+    PetscInt  switched, error_rejected;
+    PetscBool implicit;
+    PetscCall(PetscObjectTypeCompare((PetscObject) s->ts, TSDRAPEBE, &implicit));
+    PetscCall(TSDrapeBEGetStepHistory(s->ts, &switched, &error_rejected));
+    if (implicit) PetscCall(ReportSetInt(r, "pc_switched_step", switched)); /* -1: block Jacobi/ICC(0) throughout, or the options' choice */
+    PetscCall(ReportViewInt(r, error_rejected ? viewer : NULL, "steps_rejected_error", ", %" PetscInt_FMT " steps rejected for their local error", error_rejected));
+  }
   if (PetscIsNanReal(s->strain_last)) {
     PetscCall(ReportSetReal(r, "strain_max", s->strain_last));
     if (viewer) PetscCall(PetscViewerASCIIPrintf(viewer, "; no stretch edges\n"));
