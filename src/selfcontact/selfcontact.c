@@ -675,15 +675,22 @@ static PetscErrorCode CheckFinite(SelfContact sc, PetscBool finite)
  * pair a rank evaluates are in its local set, and the local list is the whole
  * cloth's list restricted to the pairs with an own particle, in the same order. */
 /* The box of the cloth's triangle T (natural indices) over the local set's particle boxes. */
-static void TriangleBox(const SelfContact sc, const PetscInt T[3], PetscReal lo[3], PetscReal hi[3])
+/* The triangles of particle p (natural index), their particles and their boxes
+ * (the union of their particles' sweeps); returns how many. */
+static PetscInt ParticleTriangleBoxes(const SelfContact sc, PetscInt p, PetscInt T[6][3], PetscReal lo[6][3], PetscReal hi[6][3])
 {
   const SelfSet *s = &sc->local;
+  PetscInt       tk[6], nt = SelfParticleTriangles(sc, p, tk);
 
-  for (PetscInt d = 0; d < 3; d++) lo[d] = PETSC_MAX_REAL, hi[d] = -PETSC_MAX_REAL;
-  for (PetscInt c = 0; c < 3; c++) {
-    const PetscInt q = LocalOf(sc, T[c]);
-    for (PetscInt d = 0; d < 3; d++) lo[d] = PetscMin(lo[d], s->lo[3 * q + d]), hi[d] = PetscMax(hi[d], s->hi[3 * q + d]);
+  for (PetscInt a = 0; a < nt; a++) {
+    SelfTriangleParticles(sc->Mx, tk[a], T[a]);
+    for (PetscInt d = 0; d < 3; d++) lo[a][d] = PETSC_MAX_REAL, hi[a][d] = -PETSC_MAX_REAL;
+    for (PetscInt c = 0; c < 3; c++) {
+      const PetscInt q = LocalOf(sc, T[a][c]);
+      for (PetscInt d = 0; d < 3; d++) lo[a][d] = PetscMin(lo[a][d], s->lo[3 * q + d]), hi[a][d] = PetscMax(hi[a][d], s->hi[3 * q + d]);
+    }
   }
+  return nt;
 }
 
 static PetscErrorCode HaloRebuild(SelfContact sc)
@@ -699,34 +706,29 @@ static PetscErrorCode HaloRebuild(SelfContact sc)
   PetscFunctionBeginUser;
   for (PetscInt d = 0; d < 3; d++) mine[d] = PETSC_MAX_REAL, mine[3 + d] = -PETSC_MAX_REAL;
   for (PetscInt k = 0; k < s->nown; k++) {
-    PetscInt tk[6], nt = SelfParticleTriangles(sc, s->nat[k], tk);
-    for (PetscInt a = 0; a < nt; a++) {
-      PetscInt  T[3];
-      PetscReal lo[3], hi[3];
-      SelfTriangleParticles(sc->Mx, tk[a], T);
-      TriangleBox(sc, T, lo, hi);
-      for (PetscInt d = 0; d < 3; d++) mine[d] = PetscMin(mine[d], lo[d] - grow), mine[3 + d] = PetscMax(mine[3 + d], hi[d] + grow);
-    }
+    PetscInt  T[6][3];
+    PetscReal lo[6][3], hi[6][3];
+    PetscInt  nt = ParticleTriangleBoxes(sc, s->nat[k], T, lo, hi);
+    for (PetscInt a = 0; a < nt; a++)
+      for (PetscInt d = 0; d < 3; d++) mine[d] = PetscMin(mine[d], lo[a][d] - grow), mine[3 + d] = PetscMax(mine[3 + d], hi[a][d] + grow);
   }
   PetscCall(PetscMalloc1(6 * sc->size, &boxes));
   PetscCallMPI(MPI_Allgather(mine, 6, MPIU_REAL, boxes, 6, MPIU_REAL, sc->comm));
   /* (rank, particle) keys to send */
   PetscCall(PetscMalloc4(sc->size, &scount, sc->size, &sdispl, sc->size, &rcount, sc->size, &rdispl));
   for (PetscInt k = 0; k < s->nown; k++) {
-    PetscInt tk[6], nt = SelfParticleTriangles(sc, s->nat[k], tk);
+    PetscInt  T[6][3];
+    PetscReal lo[6][3], hi[6][3];
+    PetscInt  nt = ParticleTriangleBoxes(sc, s->nat[k], T, lo, hi);
     for (PetscInt a = 0; a < nt; a++) {
-      PetscInt  T[3];
-      PetscReal lo[3], hi[3];
-      SelfTriangleParticles(sc->Mx, tk[a], T);
-      TriangleBox(sc, T, lo, hi);
       for (PetscMPIInt r = 0; r < sc->size; r++) {
         const PetscReal *B = boxes + 6 * r;
-        if (r == sc->rank || lo[0] > B[3] || lo[1] > B[4] || lo[2] > B[5] || hi[0] < B[0] || hi[1] < B[1] || hi[2] < B[2]) continue;
+        if (r == sc->rank || lo[a][0] > B[3] || lo[a][1] > B[4] || lo[a][2] > B[5] || hi[a][0] < B[0] || hi[a][1] < B[1] || hi[a][2] < B[2]) continue;
         if (nkey + 3 > mkey) {
           mkey = 2 * mkey + 64;
           PetscCall(PetscRealloc(mkey * sizeof(*key), &key));
         }
-        for (PetscInt c = 0; c < 3; c++) key[nkey++] = (PetscInt64) r * sc->N + T[c];
+        for (PetscInt c = 0; c < 3; c++) key[nkey++] = (PetscInt64) r * sc->N + T[a][c];
       }
     }
   }
