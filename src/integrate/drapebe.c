@@ -538,7 +538,7 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
 {
   TS_DrapeBE        *be = (TS_DrapeBE *) ts->data;
   const PetscScalar *u0;
-  PetscBool          ok = PETSC_FALSE, accept = PETSC_FALSE;
+  PetscBool          ok = PETSC_FALSE, accept = PETSC_FALSE, failed;
   PetscInt           rejections = 0;
 
   PetscFunctionBeginUser;
@@ -553,38 +553,32 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
     /* a failed solve: TSAdapt cuts the step (scale_solve_failed), or stops the run
      * after -ts_max_snes_failures failures */
     PetscCall(TSAdaptCheckStage(ts->adapt, ts, ts->ptime + ts->time_step, ts->vec_sol, &accept));
+    failed = (PetscBool) !accept;
     if (accept && be->adaptive) { /* the solve succeeded: TSAdapt weighs its local error and chooses the next step */
-      PetscInt  scheme;
-      PetscReal next_h;
-      PetscCall(TSAdaptChoose(ts->adapt, ts, ts->time_step, &scheme, &next_h, &accept));
-      be->next_h = next_h;
+      PetscInt scheme;
+      PetscCall(TSAdaptChoose(ts->adapt, ts, ts->time_step, &scheme, &be->next_h, &accept));
       if (!accept) { /* too large for the tolerances: again, at the step TSAdapt chose */
-        ts->time_step = next_h;
-        ts->reject++;
+        ts->time_step = be->next_h;
         be->nlte++;
-        if (!ts->reason && ts->max_reject >= 0 && ++rejections > ts->max_reject) ts->reason = TS_DIVERGED_STEP_REJECTED;
-        if (ts->reason) {
-          PetscCall(VecRestoreArrayRead(be->U0, &u0));
-          PetscFunctionReturn(0);
-        }
-        continue;
       }
     }
     if (accept) break;
     ts->reject++;
-    be->nrejected++;
-    be->accepted = 0;
-    if (be->h < be->h_failed)
-      be->h_failed = be->h; /* be->h: the step that failed; TSAdapt has cut ts->time_step */
-    else
-      be->wait = PetscMin(2 * be->wait, 1024); /* it failed again at that size */
-    be->pc_stale = PETSC_TRUE;                 /* the failed preconditioner is no start for the smaller step */
+    if (failed) {
+      be->nrejected++;
+      be->accepted = 0;
+      if (be->h < be->h_failed)
+        be->h_failed = be->h; /* be->h: the step that failed; TSAdapt has cut ts->time_step */
+      else
+        be->wait = PetscMin(2 * be->wait, 1024); /* it failed again at that size */
+      be->pc_stale = PETSC_TRUE;                 /* the failed preconditioner is no start for the smaller step */
+    }
     if (!ts->reason && ts->max_reject >= 0 && ++rejections > ts->max_reject) ts->reason = TS_DIVERGED_STEP_REJECTED;
     if (ts->reason) {
       PetscCall(VecRestoreArrayRead(be->U0, &u0));
       PetscFunctionReturn(0);
     }
-    if (be->nrejected == 1) PetscCall(PetscPrintf(PetscObjectComm((PetscObject) ts), "note: %s; the step is retried at h = %g s (further retries are counted in the summary)\n", be->failure, (double) ts->time_step));
+    if (failed && be->nrejected == 1) PetscCall(PetscPrintf(PetscObjectComm((PetscObject) ts), "note: %s; the step is retried at h = %g s (further retries are counted in the summary)\n", be->failure, (double) ts->time_step));
   }
   PetscCall(BEAccept(ts, be));
   be->energy      = be->energy_trial;
