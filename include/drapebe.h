@@ -14,8 +14,13 @@
 #include <selfcontact.h>
 
 #define TSDRAPEBE "drapebe"
+/* drapebe's default PC type: a placeholder meaning "drape chooses" (block
+ * Jacobi/ICC(0), giving way to multigrid), replaced at TSSetUp; -pc_type gives
+ * another. Registered by DrapeTSRegister. */
+#define PCDRAPE "drape"
 
-/* Register the type with TSRegister() (again: no harm). Not collective. */
+/* Register the TS type with TSRegister() and PCDRAPE with PCRegister() (again: no
+ * harm). Not collective. */
 PETSC_EXTERN PetscErrorCode DrapeTSRegister(void);
 /* The cloth whose motion the TS integrates (required by TSSetUp). Give it before
  * TSSetFromOptions: its defaults follow the cloth (-snes_type newtonls with bending

@@ -278,3 +278,29 @@ def test_failed_step_is_retried_at_a_smaller_step(tmp):
     bad = run(f"{args} -ts_max_reject 0", check=False)
     lines = [l for l in bad.stderr.splitlines() if l.strip()]
     assert bad.returncode != 0 and len(lines) == 1 and "failed: SNES DIVERGED_LINEAR_SOLVE, KSP DIVERGED_INDEFINITE_PC" in lines[0], bad.stderr
+
+
+def test_solver_options_win_over_drapebe_defaults(tmp):
+    """drapebe sets its solver defaults on the objects and the options override
+    them, with no question to the options database about what was typed (issue 29,
+    item 3): CG's absolute tolerance (the weight's impulse, unpreconditioned norm),
+    Newton's, the matrix type for block Jacobi's blocks, ML's threshold 0.02 where
+    drape chooses ML; and -pc_type drape, the placeholder, is refused."""
+    base = f"-options_file runs/hang.opts -da_grid_x 8 -da_grid_y 8 -ts_max_steps 1 -output_file {tmp / 'o.h5'}"
+    def outer(args, view):  # the outer solver's absolute tolerance and norm, as -ksp_view/-snes_view print them first
+        out = run(f"{base} {view} {args}").stdout
+        return re.search(r"absolute=([-+.e0-9]+),", out).group(1), re.search(r"using (\w+) norm type", out).group(1) if "ksp" in view else None
+    atol, norm = outer("", "-ksp_view")
+    assert norm == "UNPRECONDITIONED" and float(atol) > 1e-20, (atol, norm)
+    assert outer("-ksp_atol 1e-9", "-ksp_view") == ("1e-09", "PRECONDITIONED")
+    assert outer("-ksp_norm_type natural", "-ksp_view") == ("1e-50", "NATURAL")
+    assert outer("-snes_type newtonls", "-snes_view")[0] == atol  # Newton stops where CG does
+    assert outer("-snes_type newtonls -snes_atol 1e-12", "-snes_view")[0] == "1e-12"
+    assert run(base).report["mat_type"] == "seqsbaij"
+    assert run(f"{base} -sub_pc_type lu").report["mat_type"] == "seqaij"
+    # ML from the start ((h Omega_max)^2 > 5e4): drape's threshold, unless given
+    ml = "-options_file runs/hang.opts -da_grid_x 16 -da_grid_y 16 -ts_dt 0.2 -ts_max_time 1 -output_interval 1"
+    cg = {o: run(f"{ml} {o} -output_file {tmp / 'm.h5'}").report for o in ("", "-pc_ml_Threshold 0.02", "-pc_ml_Threshold 0")}
+    assert cg[""]["pc_type"] == "ml" and cg[""]["cg_per_step"] == cg["-pc_ml_Threshold 0.02"]["cg_per_step"] != cg["-pc_ml_Threshold 0"]["cg_per_step"], cg
+    bad = run(f"{base} -pc_type drape", check=False)
+    assert bad.returncode != 0 and "-pc_type drape is drapebe's default" in bad.stderr and "PETSC ERROR" not in bad.stdout + bad.stderr, bad.stderr
