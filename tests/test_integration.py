@@ -304,3 +304,18 @@ def test_solver_options_win_over_drapebe_defaults(tmp):
     assert cg[""]["pc_type"] == "ml" and cg[""]["cg_per_step"] == cg["-pc_ml_Threshold 0.02"]["cg_per_step"] != cg["-pc_ml_Threshold 0"]["cg_per_step"], cg
     bad = run(f"{base} -pc_type drape", check=False)
     assert bad.returncode != 0 and "-pc_type drape is drapebe's default" in bad.stderr and "PETSC ERROR" not in bad.stdout + bad.stderr, bad.stderr
+
+
+def test_drape_tsadapt_grows_a_cut_step_back(tmp):
+    """drapebe's default TSAdapt (type drape, src/integrate/adapt.c) owns the step: a
+    step cut to a quarter after a failed solve (block Jacobi/ICC(0), asked for, at
+    h = 0.1 s) doubles back after 4 accepted steps, up to -ts_dt; -ts_adapt_monitor
+    shows TSAdaptChoose choosing it. With -ts_adapt_type none the cut step stays."""
+    args = (f"-options_file runs/fall.opts -drape_rest_tol 0 -da_grid_x 56 -da_grid_y 56 -ts_max_time 1.3 "
+            f"-ts_type drapebe -ts_dt 0.1 -pc_type bjacobi -output_file {tmp / 'g.h5'}")
+    res = run(f"{args} -ts_adapt_monitor")
+    taken = [float(h) for h in re.findall(r"TSAdapt drape drapebe 0: step +\d+ accepted t=\S+ *\+ *(\S+)", res.stdout)]
+    assert "retrying with dt=2.500e-02" in res.stdout, res.stdout
+    assert taken[:9] == [0.025] * 4 + [0.05] * 4 + [0.1] and set(taken[9:]) == {0.1}, taken
+    assert res.report["steps"] == len(taken) == 18
+    assert run(f"{args} -ts_adapt_type none").report["steps"] == 52  # 1.3 s at 0.025 s

@@ -24,10 +24,11 @@
  *
  * A step whose solve fails (SNES or KSP diverged) is rejected and retried at a
  * quarter of the step through TSAdaptCheckStage (-ts_max_reject rejections per
- * step, -ts_max_snes_failures failures per run, unlimited by default); after
- * four accepted steps the step doubles again, up to the -ts_dt asked for, but
- * back to a size that failed only after 8, 16, ... 1024 steps, doubling with each
- * failure at that size. */
+ * step, -ts_max_snes_failures failures per run, unlimited by default); TSAdapt
+ * chooses the next step (TSAdaptChoose): drape's type (TSADAPTDRAPE, the
+ * default, src/integrate/adapt.c) doubles it again after four accepted steps, up to
+ * the -ts_dt asked for, but back to a size that failed only after 8, 16, ... 1024
+ * steps; -ts_adapt_type basic chooses it from the local error. */
 #include <petsc/private/tsimpl.h>
 #include <petsc/private/kspimpl.h> /* KSP's norm type as the options left it (KSPGetNormType resolves the default) */
 #include <drapebe.h>
@@ -64,19 +65,14 @@ typedef struct {
   PetscInt  pc_switched; /* the step at which it gave way (-1: never) */
   PetscInt  lits;        /* CG iterations of the last solve */
   PetscInt  max_its;     /* -ksp_max_it (ICC(0) chosen by drape stops at BE_ICC_MAX_ITS) */
-  /* step control */
-  PetscReal dt_nominal;                                           /* the step asked for */
+  /* step control: TSAdapt's (src/integrate/adapt.c: TSADAPTDRAPE, the default) */
   PetscReal next_h;                                               /* TSAdapt's choice for the next step */
-  PetscInt  accepted;                                             /* accepted steps since the step was last cut or grown */
   PetscReal ksp_atol, snes_atol;                                  /* drape's defaults of the absolute tolerances (TSCreate_DrapeBE) */
   PetscBool snes_atol_set;                                        /* the options changed SNES's absolute tolerance: drape does not set it */
   PetscReal energy, energy_free, energy_trial, energy_free_trial; /* BECheckEnergy */
   PetscReal energy_scale;                                         /* M g L */
   PetscBool have_energy;
-  PetscReal h_failed; /* the smallest step that failed since a step that large last succeeded */
-  PetscInt  wait;     /* accepted steps before the step grows back to h_failed or beyond */
-  PetscBool adaptive; /* a TSAdapt other than none chooses the step from the local error (TSEvaluateWLTE_DrapeBE) */
-  Vec       E;        /* work vector of the local error estimate */
+  Vec       E; /* work vector of the local error estimate (TSEvaluateWLTE_DrapeBE) */
   /* statistics */
   PetscInt nsolves, nrejected, nlte; /* nlte: steps rejected by TSAdapt for their local error */
   char     failure[512];             /* the last failed solve, for the error message */
@@ -579,7 +575,7 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
      * after -ts_max_snes_failures failures */
     PetscCall(TSAdaptCheckStage(ts->adapt, ts, ts->ptime + ts->time_step, ts->vec_sol, &accept));
     failed = (PetscBool) !accept;
-    if (accept && be->adaptive) { /* the solve succeeded: TSAdapt weighs its local error and chooses the next step */
+    if (accept) { /* the solve succeeded: TSAdapt chooses the next step (drape's: growth after a failure; basic: from the local error, and may reject this one) */
       PetscInt scheme;
       PetscCall(TSAdaptChoose(ts->adapt, ts, ts->time_step, &scheme, &be->next_h, &accept));
       if (!accept) { /* too large for the tolerances: again, at the step TSAdapt chose */
@@ -591,12 +587,7 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
     ts->reject++;
     if (failed) {
       be->nrejected++;
-      be->accepted = 0;
-      if (be->h < be->h_failed)
-        be->h_failed = be->h; /* be->h: the step that failed; TSAdapt has cut ts->time_step */
-      else
-        be->wait = PetscMin(2 * be->wait, 1024); /* it failed again at that size */
-      be->pc_stale = PETSC_TRUE;                 /* the failed preconditioner is no start for the smaller step */
+      be->pc_stale = PETSC_TRUE; /* the failed preconditioner is no start for the smaller step */
     }
     if (!ts->reason && ts->max_reject >= 0 && ++rejections > ts->max_reject) ts->reason = TS_DIVERGED_STEP_REJECTED;
     if (ts->reason) {
@@ -611,21 +602,7 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
   PetscCall(VecRestoreArrayRead(be->U0, &u0));
   ts->ptime += ts->time_step;
   PetscCall(TSPostStage(ts, ts->ptime, 0, &ts->vec_sol));
-  if (be->adaptive) { /* TSAdapt owns the step */
-    ts->time_step = be->next_h;
-    PetscFunctionReturn(0);
-  }
-  /* a step cut after a failure grows back, doubling after four accepted steps; back
-   * to a size that failed only after be->wait steps, which doubles with every failure
-   * there (a step that cannot be taken is not tried again every few steps) */
-  if (ts->time_step >= be->h_failed) {
-    be->h_failed = PETSC_MAX_REAL;
-    be->wait     = 4;
-  }
-  if (ts->time_step < be->dt_nominal && ++be->accepted >= (2 * ts->time_step >= be->h_failed ? be->wait : 4)) {
-    ts->time_step = PetscMin(2 * ts->time_step, be->dt_nominal);
-    be->accepted  = 0;
-  }
+  ts->time_step = be->next_h; /* TSAdapt owns the step */
   PetscFunctionReturn(0);
 }
 
@@ -662,7 +639,6 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
   SNES        snes;
   ClothInfo   info;
   TSAdapt     adapt;
-  PetscBool   none;
 
   PetscFunctionBeginUser;
   PetscCall(TSDrapeBEGetCloth(ts, &be->cloth));
@@ -673,14 +649,10 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
   be->n            = 3 * info.nowned;
   be->nparticles   = info.nparticles;
   be->g            = PetscSqrtReal(PetscSqr(info.gravity[0]) + PetscSqr(info.gravity[1]) + PetscSqr(info.gravity[2]));
-  be->dt_nominal   = ts->time_step;
-  be->h_failed     = PETSC_MAX_REAL;
-  be->wait         = 4;
   be->energy_scale = info.mass * be->g * PetscMax(info.size[0], info.size[1]);
   be->have_energy  = PETSC_FALSE;
   PetscCall(TSGetAdapt(ts, &adapt));
-  PetscCall(PetscObjectTypeCompare((PetscObject) adapt, TSADAPTNONE, &none));
-  be->adaptive = (PetscBool) !none;
+  PetscCall(TSAdaptDrapeSetStep(adapt, ts->time_step)); /* the step asked for: a step cut after a failure grows back to it */
   PetscCall(ClothCreateVector(be->cloth, &be->DV));
   PetscCall(VecDuplicate(be->DV, &be->R));
   PetscCall(VecDuplicate(be->DV, &be->W));
@@ -993,8 +965,8 @@ static PetscErrorCode TSCreate_DrapeBE(TS ts)
   be->pc_switched         = -1;
   be->contact_its         = 2; /* a third solve cost 30 % more CG iterations on the stiff drop and changed the rest strain on the sphere scene by under 0.02 % (polyester 0.25 against 0.27 %, denim 3.62 % both) */
   ts->usessnes            = PETSC_TRUE;
-  ts->default_adapt_type  = TSADAPTNONE;
-  ts->max_snes_failures   = -1; /* a failed solve is retried at a smaller step */
+  ts->default_adapt_type  = TSADAPTDRAPE; /* fixed steps, cut after a failed solve and grown back (adapt.c) */
+  ts->max_snes_failures   = -1;           /* a failed solve is retried at a smaller step */
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBESetContact_C", TSDrapeBESetContact_DrapeBE));
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBESetSelfContact_C", TSDrapeBESetSelfContact_DrapeBE));
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBESetStiffness_C", TSDrapeBESetStiffness_DrapeBE));
@@ -1028,5 +1000,6 @@ PetscErrorCode DrapeTSRegister(void)
   PetscFunctionBeginUser;
   PetscCall(TSRegister(TSDRAPEBE, TSCreate_DrapeBE));
   PetscCall(PCRegister(PCDRAPE, PCCreate_Drape));
+  PetscCall(DrapeTSAdaptRegister());
   PetscFunctionReturn(0);
 }
