@@ -57,6 +57,12 @@ PETSC_EXTERN PetscErrorCode DrapeCheckRanksAgree(MPI_Comm);
  * Collective. */
 #define DRAPE_MPIIO_NAME_MAX 230
 PETSC_EXTERN PetscErrorCode DrapeCheckMPIIONames(MPI_Comm);
+/* -log_view [type]:FILE[:format[:mode]]: PETSc opens FILE only in PetscFinalize,
+ * after the run, and one it cannot open ended there in its traceback: a name too
+ * long for PETSc (PETSC_MAX_PATH_LEN) or the file system (255 characters between
+ * slashes), or a directory that is not there (on rank 0, which writes the log), is
+ * refused before the run. Collective. */
+PETSC_EXTERN PetscErrorCode DrapeCheckLogView(MPI_Comm);
 /* Refuse an input file option (-solid_file, -restart, -cloth_outline) whose file is
  * not a regular file (a FIFO, /dev/zero, a socket), before anything opens it; what
  * names it in the sentence. Missing files and directories are left to the reader.

@@ -14,9 +14,24 @@
 #include <selfcontact.h>
 
 #define TSDRAPEBE "drapebe"
+/* drapebe's default PC type: a placeholder meaning "drape chooses" (block
+ * Jacobi/ICC(0), giving way to multigrid), replaced at TSSetUp; -pc_type gives
+ * another. Registered by DrapeTSRegister. */
+#define PCDRAPE "drape"
+/* drapebe's default TSAdapt type (src/integrate/adapt.c): fixed steps of -ts_dt,
+ * cut by TSAdaptCheckStage after a failed solve, grown back after four accepted
+ * steps (later back to a size that failed). Registered by DrapeTSRegister. */
+#define TSADAPTDRAPE "drape"
 
-/* Register the type with TSRegister() (again: no harm). Not collective. */
+/* Register the TS type with TSRegister(), PCDRAPE with PCRegister() and
+ * TSADAPTDRAPE with TSAdaptRegister() (again: no harm). Not collective. */
 PETSC_EXTERN PetscErrorCode DrapeTSRegister(void);
+/* TSAdaptRegister() of TSADAPTDRAPE alone. Not collective. */
+PETSC_EXTERN PetscErrorCode DrapeTSAdaptRegister(void);
+/* The step a TSADAPTDRAPE adapt grows back to after a failure (drapebe's TSSetUp
+ * gives -ts_dt); it also forgets the failures so far. Does nothing for another
+ * type. Logically collective on TSAdapt. */
+PETSC_EXTERN PetscErrorCode TSAdaptDrapeSetStep(TSAdapt, PetscReal);
 /* The cloth whose motion the TS integrates (required by TSSetUp). Give it before
  * TSSetFromOptions: its defaults follow the cloth (-snes_type newtonls with bending
  * friction), and the options override them. Logically collective on TS. */

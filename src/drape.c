@@ -590,6 +590,63 @@ PetscErrorCode DrapeCheckMPIIONames(MPI_Comm comm)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode DrapeCheckLogView(MPI_Comm comm)
+{
+  static char  value[2 * PETSC_MAX_PATH_LEN]; /* type:FILE:format:mode */
+  char         given[PETSC_MAX_PATH_LEN], name[PETSC_MAX_PATH_LEN], dir[PETSC_MAX_PATH_LEN], why[2 * PETSC_MAX_PATH_LEN + 300] = "";
+  const char  *file, *end, *part = NULL;
+  size_t       len, longest = 0;
+  PetscBool    set;
+  PetscMPIInt  rank, missing = 0;
+  const size_t name_max = 255; /* NAME_MAX of Linux's file systems (ext4, xfs, tmpfs, Lustre, GPFS) */
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscOptionsGetString(NULL, NULL, "-log_view", value, sizeof value, &set));
+  if (!set || !(file = strchr(value, ':'))) PetscFunctionReturn(0); /* no FILE: the log goes to stdout */
+  file++;
+  end = strchr(file, ':');
+  len = end ? (size_t) (end - file) : strlen(file);
+  if (!len) PetscFunctionReturn(0);
+  if (len >= sizeof given)
+    (void) snprintf(why, sizeof why, "-log_view names a file of %zu characters or more (%.40s...): PETSc takes file names of at most %d characters; give a shorter path", len, file, (int) sizeof given - 2);
+  else {
+    (void) snprintf(given, sizeof given, "%.*s", (int) len, file);
+    PetscCall(DrapeFileName("-log_view", given, name, sizeof name));
+    PetscCall(PetscStrlen(name, &len));
+    for (const char *p = name; *p; p = end + (*end == '/')) { /* each part between slashes */
+      end = strchr(p, '/');
+      if (!end) end = p + strlen(p);
+      if ((size_t) (end - p) > longest) {
+        longest = (size_t) (end - p);
+        part    = p;
+      }
+    }
+    if (len + 1 >= sizeof name)
+      (void) snprintf(why, sizeof why, "-log_view names a file of %zu characters or more (%.40s...): PETSc takes file names of at most %d characters; give a shorter path", len, name, (int) sizeof name - 2);
+    else if (longest > name_max)
+      (void) snprintf(why, sizeof why, "-log_view names a file with a part of %zu characters between slashes (%.40s...): a file system takes at most %zu; give a shorter name", longest, part, name_max);
+    else {
+      /* rank 0 writes the log: its directory must be there */
+      PetscCallMPI(MPI_Comm_rank(comm, &rank));
+      if (!rank) {
+        struct stat st;
+        DirectoryOf(name, strrchr(name, '/'), dir, sizeof dir);
+        missing = stat(dir, &st) || !S_ISDIR(st.st_mode);
+      }
+      PetscCallMPI(MPI_Bcast(&missing, 1, MPI_INT, 0, comm));
+      if (missing)
+        (void) snprintf(why, sizeof why, "-log_view names the file %s in %s, which is not a directory (or not there): PETSc writes the log into it at the end of the run; create it or name another", name, rank ? "a directory of rank 0" : dir);
+    }
+  }
+  if (why[0]) {
+    /* the run stops here, and PetscFinalize would still open the file for the log
+     * (and end in PETSc's traceback): the option goes */
+    PetscCall(PetscOptionsClearValue(NULL, "-log_view"));
+    SETERRQ(comm, PETSC_ERR_USER_INPUT, "%s", why);
+  }
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode DrapeCheckRanksAgree(MPI_Comm comm)
 {
   static const char *const options[] = {NULL, "-solid_file", "-cloth_outline", "-restart", "-output_file"};

@@ -19,6 +19,7 @@ static PetscErrorCode Run(PetscBool *interrupted, PetscBool *restartable)
   PetscCall(DrapeReportOptionsFiles(PETSC_COMM_WORLD));
   PetscCall(DrapeCheckRanksAgree(PETSC_COMM_WORLD));
   PetscCall(DrapeCheckMPIIONames(PETSC_COMM_WORLD));
+  PetscCall(DrapeCheckLogView(PETSC_COMM_WORLD));
   PetscCall(PetscLogStagePush(drape_log.setup));
   PetscCall(SimulationCreate(PETSC_COMM_WORLD, &sim));
   PetscCall(SimulationSetFromOptions(sim));

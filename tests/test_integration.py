@@ -278,3 +278,44 @@ def test_failed_step_is_retried_at_a_smaller_step(tmp):
     bad = run(f"{args} -ts_max_reject 0", check=False)
     lines = [l for l in bad.stderr.splitlines() if l.strip()]
     assert bad.returncode != 0 and len(lines) == 1 and "failed: SNES DIVERGED_LINEAR_SOLVE, KSP DIVERGED_INDEFINITE_PC" in lines[0], bad.stderr
+
+
+def test_solver_options_win_over_drapebe_defaults(tmp):
+    """drapebe sets its solver defaults on the objects and the options override
+    them, with no question to the options database about what was typed (issue 29,
+    item 3): CG's absolute tolerance (the weight's impulse, unpreconditioned norm),
+    Newton's, the matrix type for block Jacobi's blocks, ML's threshold 0.02 where
+    drape chooses ML; and -pc_type drape, the placeholder, is refused."""
+    base = f"-options_file runs/hang.opts -da_grid_x 8 -da_grid_y 8 -ts_max_steps 1 -output_file {tmp / 'o.h5'}"
+    def outer(args, view):  # the outer solver's absolute tolerance and norm, as -ksp_view/-snes_view print them first
+        out = run(f"{base} {view} {args}").stdout
+        return re.search(r"absolute=([-+.e0-9]+),", out).group(1), re.search(r"using (\w+) norm type", out).group(1) if "ksp" in view else None
+    atol, norm = outer("", "-ksp_view")
+    assert norm == "UNPRECONDITIONED" and float(atol) > 1e-20, (atol, norm)
+    assert outer("-ksp_atol 1e-9", "-ksp_view") == ("1e-09", "PRECONDITIONED")
+    assert outer("-ksp_norm_type natural", "-ksp_view") == ("1e-50", "NATURAL")
+    assert outer("-snes_type newtonls", "-snes_view")[0] == atol  # Newton stops where CG does
+    assert outer("-snes_type newtonls -snes_atol 1e-12", "-snes_view")[0] == "1e-12"
+    assert run(base).report["mat_type"] == "seqsbaij"
+    assert run(f"{base} -sub_pc_type lu").report["mat_type"] == "seqaij"
+    # ML from the start ((h Omega_max)^2 > 5e4): drape's threshold, unless given
+    ml = "-options_file runs/hang.opts -da_grid_x 16 -da_grid_y 16 -ts_dt 0.2 -ts_max_time 1 -output_interval 1"
+    cg = {o: run(f"{ml} {o} -output_file {tmp / 'm.h5'}").report for o in ("", "-pc_ml_Threshold 0.02", "-pc_ml_Threshold 0")}
+    assert cg[""]["pc_type"] == "ml" and cg[""]["cg_per_step"] == cg["-pc_ml_Threshold 0.02"]["cg_per_step"] != cg["-pc_ml_Threshold 0"]["cg_per_step"], cg
+    bad = run(f"{base} -pc_type drape", check=False)
+    assert bad.returncode != 0 and "-pc_type drape is drapebe's default" in bad.stderr and "PETSC ERROR" not in bad.stdout + bad.stderr, bad.stderr
+
+
+def test_drape_tsadapt_grows_a_cut_step_back(tmp):
+    """drapebe's default TSAdapt (type drape, src/integrate/adapt.c) owns the step: a
+    step cut to a quarter after a failed solve (block Jacobi/ICC(0), asked for, at
+    h = 0.1 s) doubles back after 4 accepted steps, up to -ts_dt; -ts_adapt_monitor
+    shows TSAdaptChoose choosing it. With -ts_adapt_type none the cut step stays."""
+    args = (f"-options_file runs/fall.opts -drape_rest_tol 0 -da_grid_x 56 -da_grid_y 56 -ts_max_time 1.3 "
+            f"-ts_type drapebe -ts_dt 0.1 -pc_type bjacobi -output_file {tmp / 'g.h5'}")
+    res = run(f"{args} -ts_adapt_monitor")
+    taken = [float(h) for h in re.findall(r"TSAdapt drape drapebe 0: step +\d+ accepted t=\S+ *\+ *(\S+)", res.stdout)]
+    assert "retrying with dt=2.500e-02" in res.stdout, res.stdout
+    assert taken[:9] == [0.025] * 4 + [0.05] * 4 + [0.1] and set(taken[9:]) == {0.1}, taken
+    assert res.report["steps"] == len(taken) == 18
+    assert run(f"{args} -ts_adapt_type none").report["steps"] == 52  # 1.3 s at 0.025 s

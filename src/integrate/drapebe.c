@@ -24,11 +24,13 @@
  *
  * A step whose solve fails (SNES or KSP diverged) is rejected and retried at a
  * quarter of the step through TSAdaptCheckStage (-ts_max_reject rejections per
- * step, -ts_max_snes_failures failures per run, unlimited by default); after
- * four accepted steps the step doubles again, up to the -ts_dt asked for, but
- * back to a size that failed only after 8, 16, ... 1024 steps, doubling with each
- * failure at that size. */
+ * step, -ts_max_snes_failures failures per run, unlimited by default); TSAdapt
+ * chooses the next step (TSAdaptChoose): drape's type (TSADAPTDRAPE, the
+ * default, src/integrate/adapt.c) doubles it again after four accepted steps, up to
+ * the -ts_dt asked for, but back to a size that failed only after 8, 16, ... 1024
+ * steps; -ts_adapt_type basic chooses it from the local error. */
 #include <petsc/private/tsimpl.h>
+#include <petsc/private/kspimpl.h> /* KSP's norm type as the options left it (KSPGetNormType resolves the default) */
 #include <drapebe.h>
 #include <stability.h>
 #include <drape.h>
@@ -58,22 +60,19 @@ typedef struct {
   PetscInt  pc_lag, lag; /* rebuild every pc_lag steps (ksponly, iterative KSP); lag: where it applies */
   PetscBool pc_stale;    /* rebuild it: the solid's constraints changed since it was built, or a step failed */
   PetscBool pc_amg;      /* it is algebraic multigrid (costly to build) */
-  PetscBool pc_auto;     /* drape chose it (no -pc_type): block Jacobi/ICC(0) gives way to multigrid when it fails or is slow */
+  PetscBool pc_auto;     /* drape chose it (the PC's type was still PCDRAPE at TSSetUp): block Jacobi/ICC(0) gives way to multigrid when it fails or is slow */
+  PetscBool sub_factor;  /* -sub_pc_type lu, ilu or asm: block Jacobi's blocks need AIJ */
   PetscInt  pc_switched; /* the step at which it gave way (-1: never) */
   PetscInt  lits;        /* CG iterations of the last solve */
   PetscInt  max_its;     /* -ksp_max_it (ICC(0) chosen by drape stops at BE_ICC_MAX_ITS) */
-  /* step control */
-  PetscReal dt_nominal;                                           /* the step asked for */
+  /* step control: TSAdapt's (src/integrate/adapt.c: TSADAPTDRAPE, the default) */
   PetscReal next_h;                                               /* TSAdapt's choice for the next step */
-  PetscInt  accepted;                                             /* accepted steps since the step was last cut or grown */
-  PetscBool snes_atol_set;                                        /* -snes_atol given: drape does not set SNES's absolute tolerance */
+  PetscReal ksp_atol, snes_atol;                                  /* drape's defaults of the absolute tolerances (TSCreate_DrapeBE) */
+  PetscBool snes_atol_set;                                        /* the options changed SNES's absolute tolerance: drape does not set it */
   PetscReal energy, energy_free, energy_trial, energy_free_trial; /* BECheckEnergy */
   PetscReal energy_scale;                                         /* M g L */
   PetscBool have_energy;
-  PetscReal h_failed; /* the smallest step that failed since a step that large last succeeded */
-  PetscInt  wait;     /* accepted steps before the step grows back to h_failed or beyond */
-  PetscBool adaptive; /* a TSAdapt other than none chooses the step from the local error (TSEvaluateWLTE_DrapeBE) */
-  Vec       E;        /* work vector of the local error estimate */
+  Vec       E; /* work vector of the local error estimate (TSEvaluateWLTE_DrapeBE) */
   /* statistics */
   PetscInt nsolves, nrejected, nlte; /* nlte: steps rejected by TSAdapt for their local error */
   char     failure[512];             /* the last failed solve, for the error message */
@@ -187,7 +186,14 @@ static PetscErrorCode BESetMultigrid(PC pc)
   type = PCML;
 #endif
   PetscCall(PCSetType(pc, type));
-  if (!strcmp(type, PCML)) { /* drop weak connections (anisotropy of a draped cloth): fewer iterations */
+  if (!strcmp(type, PCML)) {
+    /* drop weak connections (anisotropy of a draped cloth): fewer iterations. A
+     * write into the options database, made only when the user gave no
+     * -pc_ml_Threshold, because PETSc 3.18's ML has no other way in: its threshold
+     * is a field of a struct private to ml.c, read only by PCSetFromOptions_ML
+     * (there is no PCMLSetThreshold nor a composed function), and giving the PC its
+     * own database (PetscObjectSetOptions) would hide the user's other -pc_ml_ and
+     * -mg_ options from it and leave them unused */
     char      name[256];
     PetscBool set;
     PetscCall(PetscSNPrintf(name, sizeof name, "-%spc_ml_Threshold", ((PetscObject) pc)->prefix ? ((PetscObject) pc)->prefix : ""));
@@ -197,15 +203,25 @@ static PetscErrorCode BESetMultigrid(PC pc)
   PetscFunctionReturn(0);
 }
 
+/* The PC type "drape" (PCDRAPE), drapebe's default: a placeholder meaning "drape
+ * chooses", replaced at TSSetUp (BEChoosePreconditioner). -pc_type gives any other,
+ * and PCSetFromOptions leaves this one when it is not given: so whether the options
+ * chose the preconditioner is the PC's own type, not a question to the options
+ * database. It has no methods: a solve never sees it. */
+static PetscErrorCode PCCreate_Drape(PC pc)
+{
+  PetscFunctionBeginUser;
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode BEChoosePreconditioner(TS ts, TS_DrapeBE *be, PC pc)
 {
-  PetscBool set;
   PCType    type = PCBJACOBI;
+  PetscBool typed;
 
   PetscFunctionBeginUser;
-  PetscCall(PetscOptionsHasName(NULL, ((PetscObject) pc)->prefix, "-pc_type", &set));
-  if (set) PetscFunctionReturn(0);
-  be->pc_auto = PETSC_TRUE;
+  PetscCall(PetscObjectTypeCompare((PetscObject) pc, PCDRAPE, &be->pc_auto));
+  if (!be->pc_auto) PetscFunctionReturn(0);
   if (be->omega <= 0) { /* not given: estimate it (the start-up estimate takes more iterations) */
     StabilityLimits    lim = {0};
     const PetscScalar *u;
@@ -219,6 +235,11 @@ static PetscErrorCode BEChoosePreconditioner(TS ts, TS_DrapeBE *be, PC pc)
   else
     PetscCall(PCSetType(pc, type));
   PetscCall(PCSetFromOptions(pc));
+  /* the chosen type's own options are read by PCSetFromOptions, which reads -pc_type
+   * too: -pc_type drape, typed, would put the placeholder back */
+  PetscCall(PetscObjectTypeCompare((PetscObject) pc, PCDRAPE, &typed));
+  PetscCheck(!typed, PetscObjectComm((PetscObject) ts), PETSC_ERR_USER_INPUT, "-pc_type %s is drapebe's default, not a preconditioner to ask for: leave -pc_type out to let the solves choose, or give one of PETSc's (bjacobi, ml, gamg, lu, ...)",
+             PCDRAPE);
   PetscFunctionReturn(0);
 }
 
@@ -554,7 +575,7 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
      * after -ts_max_snes_failures failures */
     PetscCall(TSAdaptCheckStage(ts->adapt, ts, ts->ptime + ts->time_step, ts->vec_sol, &accept));
     failed = (PetscBool) !accept;
-    if (accept && be->adaptive) { /* the solve succeeded: TSAdapt weighs its local error and chooses the next step */
+    if (accept) { /* the solve succeeded: TSAdapt chooses the next step (drape's: growth after a failure; basic: from the local error, and may reject this one) */
       PetscInt scheme;
       PetscCall(TSAdaptChoose(ts->adapt, ts, ts->time_step, &scheme, &be->next_h, &accept));
       if (!accept) { /* too large for the tolerances: again, at the step TSAdapt chose */
@@ -566,12 +587,7 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
     ts->reject++;
     if (failed) {
       be->nrejected++;
-      be->accepted = 0;
-      if (be->h < be->h_failed)
-        be->h_failed = be->h; /* be->h: the step that failed; TSAdapt has cut ts->time_step */
-      else
-        be->wait = PetscMin(2 * be->wait, 1024); /* it failed again at that size */
-      be->pc_stale = PETSC_TRUE;                 /* the failed preconditioner is no start for the smaller step */
+      be->pc_stale = PETSC_TRUE; /* the failed preconditioner is no start for the smaller step */
     }
     if (!ts->reason && ts->max_reject >= 0 && ++rejections > ts->max_reject) ts->reason = TS_DIVERGED_STEP_REJECTED;
     if (ts->reason) {
@@ -586,21 +602,7 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
   PetscCall(VecRestoreArrayRead(be->U0, &u0));
   ts->ptime += ts->time_step;
   PetscCall(TSPostStage(ts, ts->ptime, 0, &ts->vec_sol));
-  if (be->adaptive) { /* TSAdapt owns the step */
-    ts->time_step = be->next_h;
-    PetscFunctionReturn(0);
-  }
-  /* a step cut after a failure grows back, doubling after four accepted steps; back
-   * to a size that failed only after be->wait steps, which doubles with every failure
-   * there (a step that cannot be taken is not tried again every few steps) */
-  if (ts->time_step >= be->h_failed) {
-    be->h_failed = PETSC_MAX_REAL;
-    be->wait     = 4;
-  }
-  if (ts->time_step < be->dt_nominal && ++be->accepted >= (2 * ts->time_step >= be->h_failed ? be->wait : 4)) {
-    ts->time_step = PetscMin(2 * ts->time_step, be->dt_nominal);
-    be->accepted  = 0;
-  }
+  ts->time_step = be->next_h; /* TSAdapt owns the step */
   PetscFunctionReturn(0);
 }
 
@@ -637,7 +639,6 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
   SNES        snes;
   ClothInfo   info;
   TSAdapt     adapt;
-  PetscBool   none;
 
   PetscFunctionBeginUser;
   PetscCall(TSDrapeBEGetCloth(ts, &be->cloth));
@@ -648,14 +649,10 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
   be->n            = 3 * info.nowned;
   be->nparticles   = info.nparticles;
   be->g            = PetscSqrtReal(PetscSqr(info.gravity[0]) + PetscSqr(info.gravity[1]) + PetscSqr(info.gravity[2]));
-  be->dt_nominal   = ts->time_step;
-  be->h_failed     = PETSC_MAX_REAL;
-  be->wait         = 4;
   be->energy_scale = info.mass * be->g * PetscMax(info.size[0], info.size[1]);
   be->have_energy  = PETSC_FALSE;
   PetscCall(TSGetAdapt(ts, &adapt));
-  PetscCall(PetscObjectTypeCompare((PetscObject) adapt, TSADAPTNONE, &none));
-  be->adaptive = (PetscBool) !none;
+  PetscCall(TSAdaptDrapeSetStep(adapt, ts->time_step)); /* the step asked for: a step cut after a failure grows back to it */
   PetscCall(ClothCreateVector(be->cloth, &be->DV));
   PetscCall(VecDuplicate(be->DV, &be->R));
   PetscCall(VecDuplicate(be->DV, &be->W));
@@ -672,15 +669,7 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
     /* symmetric block storage (half the matrix: faster products and factorisation)
      * for the preconditioners that take it, AIJ for the others */
     PetscCall(PetscObjectTypeCompareAny((PetscObject) pc, &sbaij, PCBJACOBI, PCICC, PCCHOLESKY, PCJACOBI, PCPBJACOBI, PCNONE, ""));
-    if (sbaij) { /* block Jacobi's blocks: not with an LU or ILU of their own */
-      char      sub[64];
-      PetscBool set, lu;
-      PetscCall(PetscOptionsGetString(NULL, ((PetscObject) pc)->prefix, "-sub_pc_type", sub, sizeof sub, &set));
-      if (set) {
-        PetscCall(PetscStrInList(sub, "lu,ilu,asm", ',', &lu));
-        sbaij = (PetscBool) !lu;
-      }
-    }
+    if (sbaij && be->sub_factor) sbaij = PETSC_FALSE; /* block Jacobi's blocks: not with an LU or ILU of their own */
     PetscCall(PetscObjectTypeCompareAny((PetscObject) pc, &be->pc_amg, PCGAMG, PCML, PCHYPRE, PCHMG, ""));
     be->mattype = sbaij ? MATSBAIJ : MATAIJ;
     PetscCall(KSPGetTolerances(ksp, NULL, NULL, NULL, &be->max_its));
@@ -707,13 +696,16 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
      * (both unpreconditioned, so the test means the same whatever the
      * preconditioner): near rest b vanishes, and a test relative to it alone would
      * solve ever more exactly for an update that no longer matters. Unless the
-     * options set the norm or -ksp_atol. */
+     * options changed the norm or the absolute tolerance from drape's defaults
+     * (TSCreate_DrapeBE; TSSetFromOptions has read them into the KSP and SNES). */
     {
       PetscBool set_atol, set_norm;
-      PetscReal msq = 0, sum;
-      PetscCall(PetscOptionsHasName(NULL, ((PetscObject) ksp)->prefix, "-ksp_atol", &set_atol));
-      PetscCall(PetscOptionsHasName(NULL, ((PetscObject) ksp)->prefix, "-ksp_norm_type", &set_norm));
-      PetscCall(PetscOptionsHasName(NULL, ((PetscObject) snes)->prefix, "-snes_atol", &be->snes_atol_set));
+      PetscReal msq = 0, sum, atol;
+      PetscCall(KSPGetTolerances(ksp, NULL, &atol, NULL, NULL));
+      set_atol = (PetscBool) (atol != be->ksp_atol);
+      set_norm = (PetscBool) (ksp->normtype != KSP_NORM_DEFAULT);
+      PetscCall(SNESGetTolerances(snes, &atol, NULL, NULL, NULL, NULL));
+      be->snes_atol_set = (PetscBool) (atol != be->snes_atol);
       for (PetscInt k = 0; k < be->n / 3; k++)
         if (!be->pinned[k]) msq += PetscSqr(be->mass[k]);
       PetscCall(MPIU_Allreduce(&msq, &sum, 1, MPIU_REAL, MPI_SUM, PetscObjectComm((PetscObject) ts)));
@@ -902,6 +894,17 @@ static PetscErrorCode TSSetFromOptions_DrapeBE(TS ts, PetscOptionItems *PetscOpt
   PetscOptionsHeadBegin(PetscOptionsObject, "drape backward Euler");
   PetscCall(PetscOptionsInt("-drape_pc_lag", "Rebuild the preconditioner every this many steps (with -snes_type ksponly and an iterative KSP; 1: every step)", "TSStep_DrapeBE", be->pc_lag, &be->pc_lag, NULL));
   PetscCall(PetscOptionsInt("-drape_contact_its", "Solves per step at most to make the contact constraints consistent with the motion (1: constraints found at the start of the step only)", "TSStep_DrapeBE", be->contact_its, &be->contact_its, NULL));
+  {
+    /* block Jacobi's blocks with a factorisation of their own need AIJ (SBAIJ has
+     * only Cholesky and ICC): the matrix's type is chosen at TSSetUp, before the
+     * blocks' PC exists (PCSetUp_BJacobi creates it), so its type is read here, the
+     * option's value and no more (the blocks read it themselves) */
+    char      sub[64] = "";
+    PetscBool set;
+    PetscCall(PetscOptionsString("-sub_pc_type", "Preconditioner of block Jacobi's blocks (PETSc's option; drape stores the matrix as AIJ for lu, ilu or asm)", "TSSetUp_DrapeBE", sub, sub, sizeof sub, &set));
+    be->sub_factor = PETSC_FALSE;
+    if (set) PetscCall(PetscStrInList(sub, "lu,ilu,asm", ',', &be->sub_factor));
+  }
   PetscOptionsHeadEnd();
   PetscCall(DrapeCheckInt(PetscObjectComm((PetscObject) ts), "-drape_pc_lag", be->pc_lag, 1, 1000000));
   PetscCall(DrapeCheckInt(PetscObjectComm((PetscObject) ts), "-drape_contact_its", be->contact_its, 1, 1000));
@@ -962,8 +965,8 @@ static PetscErrorCode TSCreate_DrapeBE(TS ts)
   be->pc_switched         = -1;
   be->contact_its         = 2; /* a third solve cost 30 % more CG iterations on the stiff drop and changed the rest strain on the sphere scene by under 0.02 % (polyester 0.25 against 0.27 %, denim 3.62 % both) */
   ts->usessnes            = PETSC_TRUE;
-  ts->default_adapt_type  = TSADAPTNONE;
-  ts->max_snes_failures   = -1; /* a failed solve is retried at a smaller step */
+  ts->default_adapt_type  = TSADAPTDRAPE; /* fixed steps, cut after a failed solve and grown back (adapt.c) */
+  ts->max_snes_failures   = -1;           /* a failed solve is retried at a smaller step */
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBESetContact_C", TSDrapeBESetContact_DrapeBE));
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBESetSelfContact_C", TSDrapeBESetSelfContact_DrapeBE));
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBESetStiffness_C", TSDrapeBESetStiffness_DrapeBE));
@@ -977,13 +980,18 @@ static PetscErrorCode TSCreate_DrapeBE(TS ts)
   PetscCall(SNESGetKSP(snes, &ksp));
   PetscCall(KSPSetType(ksp, KSPCG));
   PetscCall(KSPSetTolerances(ksp, 1e-4, 1e-50, PETSC_DEFAULT, 1000)); /* BENCHMARKS.md: tighter changes no error */
+  /* the absolute tolerances as drape leaves them: TSSetUp_DrapeBE sets its own
+   * (from the weight) unless the options changed these, or the norm type from
+   * KSP_NORM_DEFAULT */
+  PetscCall(KSPGetTolerances(ksp, NULL, &be->ksp_atol, NULL, NULL));
+  PetscCall(SNESGetTolerances(snes, &be->snes_atol, NULL, NULL, NULL, NULL));
   /* CG starts from the last step's solution, scaled (BEStartFromLastSolution): the
    * velocity change varies slowly from step to step, and the test stays
    * |r| < rtol |b| (BENCHMARKS.md: the same error, fewer iterations) */
   PetscCall(KSPSetInitialGuessNonzero(ksp, PETSC_TRUE));
   PetscCall(KSPSetPreSolve(ksp, BEStartFromLastSolution, be));
   PetscCall(KSPGetPC(ksp, &pc));
-  PetscCall(PCSetType(pc, PCBJACOBI)); /* one block per rank, ILU(0) = ICC(0) on an SPD block; BEChoosePreconditioner */
+  PetscCall(PCSetType(pc, PCDRAPE)); /* drape chooses at TSSetUp (BEChoosePreconditioner), unless -pc_type chose */
   PetscFunctionReturn(0);
 }
 
@@ -991,5 +999,7 @@ PetscErrorCode DrapeTSRegister(void)
 {
   PetscFunctionBeginUser;
   PetscCall(TSRegister(TSDRAPEBE, TSCreate_DrapeBE));
+  PetscCall(PCRegister(PCDRAPE, PCCreate_Drape));
+  PetscCall(DrapeTSAdaptRegister());
   PetscFunctionReturn(0);
 }

@@ -305,10 +305,16 @@ static PetscErrorCode TSCreate_Symplectic(TS ts)
 }
 
 /* Land exactly on -ts_max_time (TS_EXACTFINALTIME_MATCHSTEP) for every TS type:
- * basicsymplectic and drapebe take fixed steps without a TSAdapt to clip the last
- * one. A step that ends within round-off of the end keeps its size (so a run
- * stopped at t and one that went on take the same steps) and PostStep snaps the
- * time; accumulated round-off never adds a spurious extra step. */
+ * drape's basicsymplectic never calls TSAdaptChoose, which clips the step of the
+ * others (euler, rk, ssp, drapebe) before this finds anything to clip. A step that
+ * ends within round-off of the end keeps its size (so a run stopped at t and one
+ * that went on take bitwise the same steps: tests/test_restart.py compares them
+ * exactly) and PostStep snaps the time; accumulated round-off never adds a spurious
+ * extra step. Not moved into a TSAdapt for basicsymplectic too: PETSc 3.18's
+ * TSAdaptChoose clips any overshoot, round-off included (drapebe's last step became
+ * tmax - t instead of h, 1e-16 apart, when its TSAdapt took over its steps), and
+ * its matchstepfac rules, without a setter, lengthen a last step by up to 1 % and
+ * halve the two last ones. */
 static PetscErrorCode PreStep(TS ts)
 {
   PetscReal              t, dt, tmax, rest;
