@@ -1102,6 +1102,15 @@ static PetscErrorCode SimulationViewSummary(Simulation s, PetscViewer viewer, Pe
     PetscCall(PetscObjectTypeCompare((PetscObject) s->ts, TSDRAPEBE, &implicit));
     PetscCall(TSDrapeBEGetStepHistory(s->ts, &switched, &error_rejected));
     if (implicit) PetscCall(ReportSetInt(r, "pc_switched_step", switched)); /* -1: block Jacobi/ICC(0) throughout, or the options' choice */
+    if (implicit && switched >= 0) {                                        /* the report's solver is the one the run ended with (the start-up line said the first) */
+      SNESType st;
+      KSPType  kt;
+      PCType   pt;
+      MatType  mt;
+      PetscCall(SimulationSolverTypes(s, &st, &kt, &pt, &mt));
+      PetscCall(ReportSetString(r, "pc_type", pt));
+      PetscCall(ReportSetString(r, "mat_type", mt));
+    }
     PetscCall(ReportViewInt(r, error_rejected ? viewer : NULL, "steps_rejected_error", ", %" PetscInt_FMT " steps rejected for their local error", error_rejected));
   }
   if (PetscIsNanReal(s->strain_last)) {
