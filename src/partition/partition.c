@@ -180,6 +180,56 @@ static PetscErrorCode PartitionMetis(MPI_Comm comm, const char *type, const Part
   PetscFunctionReturn(0);
 }
 
+/* The partitioner numbers its parts as it likes; part p goes to rank p. A rank then
+ * holds its part wherever it lies, and the inactive particles of its home block
+ * (outside the outline, kept at home: they do no work), and its arrays that span the
+ * box around its particles (the layout's map, the activity patch, the explicit
+ * kernel's patch) span both: at 2048^2 on 16 ranks a corner block's rank held a box
+ * six times its part. So each part is renamed after the home block it takes most of
+ * (vertex weights: particles), the blocks that give most first, and the parts left
+ * take the names left in order; the parts themselves, their balance and cut do not
+ * change. O(P) on every rank (one allgather of a pair per rank). */
+static PetscErrorCode PartitionRename(MPI_Comm comm, PetscInt nv, PetscInt vstart, const PetscInt *vid, PetscInt nb, PetscInt *part)
+{
+  PetscMPIInt size;
+  PetscInt   *count, best[2] = {0, -1}, *all, *name, next = 0;
+  PetscInt64 *key, most = 0;
+  PetscBool  *named;
+
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  PetscCall(PetscCalloc1(size, &count));
+  for (PetscInt k = 0; k < nb; k++)
+    if (vid[k] >= 0) count[part[vid[k] - vstart]]++;
+  for (PetscMPIInt p = 0; p < size; p++)
+    if (count[p] > best[0]) best[0] = count[p], best[1] = p;
+  PetscCall(PetscMalloc4(2 * size, &all, size, &key, size, &name, size, &named));
+  PetscCallMPI(MPI_Allgather(best, 2, MPIU_INT, all, 2, MPIU_INT, comm));
+  /* the same order on every rank: most particles first, then by home rank (a key
+   * below (largest count + 1) P: a home block's count times the ranks is at most the
+   * lattice's particles) */
+  for (PetscMPIInt r = 0; r < size; r++) most = PetscMax(most, all[2 * r]);
+  for (PetscMPIInt r = 0; r < size; r++) {
+    key[r]   = (most - (PetscInt64) all[2 * r]) * size + r;
+    name[r]  = -1;
+    named[r] = PETSC_FALSE;
+  }
+  PetscCall(PetscSortInt64(size, key));
+  for (PetscMPIInt q = 0; q < size; q++) {
+    const PetscInt r = (PetscInt) (key[q] % size), p = all[2 * r + 1];
+    if (p >= 0 && name[p] < 0) name[p] = r, named[r] = PETSC_TRUE;
+  }
+  for (PetscMPIInt p = 0; p < size; p++) {
+    if (name[p] >= 0) continue;
+    while (named[next]) next++;
+    name[p] = next, named[next] = PETSC_TRUE;
+  }
+  for (PetscInt v = 0; v < nv; v++) part[v] = name[part[v]];
+  PetscCall(PetscFree4(all, key, name, named));
+  PetscCall(PetscFree(count));
+  PetscFunctionReturn(0);
+}
+
 /* A parallel partitioner of PETSc's (MatPartitioning type `type`) on the graph of the
  * lattice's tiles: each rank cuts its home block into tiles of PARTITION_TILE x
  * PARTITION_TILE particles (smaller at the block's edges), a tile with active
@@ -332,6 +382,7 @@ static PetscErrorCode PartitionMat(MPI_Comm comm, const char *type, const Partit
   PetscCall(MatPartitioningDestroy(&mp));
   PetscCall(MatDestroy(&adj));
   PetscCall(PartitionFillEmptyParallel(comm, nv, vstart, part));
+  PetscCall(PartitionRename(comm, nv, vstart, vid, lx * ly, part));
   for (PetscInt k = 0; k < lx * ly; k++) dest[k] = vid[k] >= 0 ? part[vid[k] - vstart] : rank;
   PetscCall(PetscFree(part));
   PetscCall(PetscFree(vid));
