@@ -248,6 +248,14 @@ static PetscErrorCode PartitionRename(MPI_Comm comm, PetscInt nv, PetscInt vstar
  * "dgraphGatherAll2: communication error" and a traceback. The library says its
  * width (SCOTCH_numSizeof, Scotch 6 and later; looked up among the loaded symbols,
  * since drape does not link Scotch itself). */
+static PetscBool ScotchIndicesMatch(void)
+{
+  int (*numsizeof)(void);
+
+  *(void **) &numsizeof = dlsym(RTLD_DEFAULT, "SCOTCH_numSizeof");
+  return (PetscBool) (!numsizeof || numsizeof() == (int) sizeof(PetscInt));
+}
+
 static PetscErrorCode CheckScotchIndices(MPI_Comm comm)
 {
   int (*numsizeof)(void);
@@ -431,6 +439,17 @@ PetscErrorCode PartitionKnown(const char *type, PetscBool *known)
 {
   PetscFunctionBeginUser;
   *known = (PetscBool) (PartitionFind(type) != NULL);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode PartitionUsable(const char *type, PetscBool *usable)
+{
+  PetscBool scotch;
+
+  PetscFunctionBeginUser;
+  PetscCall(PartitionKnown(type, usable));
+  PetscCall(PetscStrcmp(type, "ptscotch", &scotch));
+  if (*usable && scotch) *usable = ScotchIndicesMatch();
   PetscFunctionReturn(0);
 }
 
