@@ -186,21 +186,25 @@ static PetscErrorCode PartitionMetis(MPI_Comm comm, const char *type, const Part
  * box around its particles (the layout's map, the activity patch, the explicit
  * kernel's patch) span both: at 2048^2 on 16 ranks a corner block's rank held a box
  * six times its part. So each part is renamed after the home block it takes most of
- * (vertex weights: particles), the blocks that give most first, and the parts left
+ * (counted in active particles), the blocks that give most first, and the parts left
  * take the names left in order; the parts themselves, their balance and cut do not
- * change. O(P) on every rank (one allgather of a pair per rank). */
-static PetscErrorCode PartitionRename(MPI_Comm comm, PetscInt nv, PetscInt vstart, const PetscInt *vid, PetscInt nb, PetscInt *part)
+ * change. dest: the home block's destinations, renamed where the particle is active.
+ * O(P) on every rank (one allgather of a pair per rank). Collective. */
+static PetscErrorCode PartitionRename(MPI_Comm comm, const PartitionBlocks *b, PetscBool (*active)(void *, PetscInt, PetscInt), void *ctx, PetscInt *dest)
 {
-  PetscMPIInt size;
-  PetscInt   *count, best[2] = {0, -1}, *all, *name, next = 0;
+  PetscMPIInt size, rank;
+  PetscInt   *count, best[2] = {0, -1}, *all, *name, next = 0, i0, i1, j0, j1;
   PetscInt64 *key, most = 0;
   PetscBool  *named;
 
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_size(comm, &size));
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  HomeBlock(b, rank, &i0, &i1, &j0, &j1);
   PetscCall(PetscCalloc1(size, &count));
-  for (PetscInt k = 0; k < nb; k++)
-    if (vid[k] >= 0) count[part[vid[k] - vstart]]++;
+  for (PetscInt j = j0, k = 0; j < j1; j++)
+    for (PetscInt i = i0; i < i1; i++, k++)
+      if (active(ctx, i, j)) count[dest[k]]++;
   for (PetscMPIInt p = 0; p < size; p++)
     if (count[p] > best[0]) best[0] = count[p], best[1] = p;
   PetscCall(PetscMalloc4(2 * size, &all, size, &key, size, &name, size, &named));
@@ -224,7 +228,9 @@ static PetscErrorCode PartitionRename(MPI_Comm comm, PetscInt nv, PetscInt vstar
     while (named[next]) next++;
     name[p] = next, named[next] = PETSC_TRUE;
   }
-  for (PetscInt v = 0; v < nv; v++) part[v] = name[part[v]];
+  for (PetscInt j = j0, k = 0; j < j1; j++)
+    for (PetscInt i = i0; i < i1; i++, k++)
+      if (active(ctx, i, j)) dest[k] = name[dest[k]];
   PetscCall(PetscFree4(all, key, name, named));
   PetscCall(PetscFree(count));
   PetscFunctionReturn(0);
@@ -390,7 +396,6 @@ static PetscErrorCode PartitionMat(MPI_Comm comm, const char *type, const Partit
   PetscCall(MatPartitioningDestroy(&mp));
   PetscCall(MatDestroy(&adj));
   PetscCall(PartitionFillEmptyParallel(comm, nv, vstart, part));
-  PetscCall(PartitionRename(comm, nv, vstart, vid, lx * ly, part));
   for (PetscInt k = 0; k < lx * ly; k++) dest[k] = vid[k] >= 0 ? part[vid[k] - vstart] : rank;
   PetscCall(PetscFree(part));
   PetscCall(PetscFree(vid));
@@ -476,5 +481,6 @@ PetscErrorCode PartitionDestinations(MPI_Comm comm, const char *type, const Part
     if (size == 1) fn = PartitionDMDA; /* one part: the home block */
   }
   PetscCall(fn(comm, type, b, active, weight, ctx, dest));
+  if (fn != PartitionDMDA) PetscCall(PartitionRename(comm, b, active, ctx, dest));
   PetscFunctionReturn(0);
 }
