@@ -1245,12 +1245,14 @@ PetscErrorCode ClothSetUp(Cloth c)
   PetscCall(ClothBuildDMDAScatter(c, &blocks));
   PetscCall(PartitionBlocksDestroy(&blocks));
 #if defined(__GLIBC__)
-  /* A graph partition's transient memory (the MATMPIADJ graph, PT-Scotch's own, the
-   * exchange of particles: 43-51 MiB a rank at 2048^2 on 16 ranks, where a rank's
-   * share of the lattice is about 70 MiB) is freed by now, but in small pieces that the C library's
-   * heap keeps; hand it back before the element lists, the largest arrays, are made
-   * (2048^2 on 16 ranks: 7 % less resident memory, all ranks and the largest; BENCHMARKS.md) */
-  if (PartitionIsGraph(c->partition)) (void) malloc_trim(0);
+  /* What the set-up has freed by now (a graph partition's transient memory: the
+   * MATMPIADJ graph, PT-Scotch's own, the exchange of particles, 43-51 MiB a rank at
+   * 2048^2 on 16 ranks, where a rank's share of the lattice is about 70 MiB; 36 MB
+   * on one rank with the DMDA's blocks) the C library's heap keeps, in small pieces:
+   * hand it back before the element lists, the largest arrays, are made (2048^2,
+   * -memory_view: ptscotch on 16 ranks 7 % less, all ranks and the largest; dmda on
+   * one rank 900 -> 864 MB; BENCHMARKS.md) */
+  (void) malloc_trim(0);
 #endif
 
   PetscCall(PetscMalloc3(c->nowned, &c->mass, c->nowned, &c->pinned, c->nowned, &c->active));
