@@ -329,12 +329,12 @@ static PetscErrorCode ClothCheckLatticeSize(Cloth c, PetscInt Mx, PetscInt My)
                need * local / 1e9, (int) local, node_bytes / 1e9, process_bytes < node_bytes ? ", less per process" : "");
     if (!ok[1]) {
       PetscBool   parallel;
-      const char *instead = "dmda (blocks of the lattice)";
+      const char *instead         = "dmda (blocks of the lattice)";
+      char        per_process[64] = "";
       PetscCall(PartitionUsable("parmetis", &parallel));
       if (parallel) instead = "parmetis, which partitions the graph in parallel, or dmda";
       PetscCall(PartitionUsable("ptscotch", &parallel));
       if (parallel) instead = "ptscotch, which partitions the graph in parallel (each rank builds its part), or dmda";
-      char per_process[64] = "";
       PetscCallMPI(MPI_Bcast(&graph, 1, MPI_DOUBLE, 0, c->comm));
       if (process_bytes < node_bytes) PetscCall(PetscSNPrintf(per_process, sizeof per_process, ", %.1f GB per process", process_bytes / 1e9));
       SETERRQ(c->comm, PETSC_ERR_USER_INPUT,

@@ -185,7 +185,7 @@ static PetscErrorCode PartitionMetis(MPI_Comm comm, const char *type, const Part
  * (outside the outline, kept at home: they do no work), and its arrays that span the
  * box around its particles (the layout's map, the activity patch, the explicit
  * kernel's patch) span both: at 2048^2 on 16 ranks a corner block's rank held a box
- * six times its part. So each part is renamed after the home block it takes most of
+ * about six times its part (by the patch's memory). So each part is renamed after the home block it takes most of
  * (counted in active particles), the blocks that give most first, and the parts left
  * take the names left in order; the parts themselves, their balance and cut do not
  * change. dest: the home block's destinations, renamed where the particle is active.
