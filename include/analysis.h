@@ -21,7 +21,10 @@ PETSC_EXTERN PetscErrorCode CusickSilhouette(PetscInt ntri, const PetscReal *xy,
 /* Number of folds: prominent maxima of the radius profile (circular). Not collective. */
 PETSC_EXTERN PetscErrorCode CusickCountFolds(PetscInt nbins, const PetscReal *radius, PetscReal prominence, PetscInt *folds);
 /* Drape coefficient and folds of the cloth at x (owned order), against the flat
- * reference x0, for a pedestal of radius r centred at c. Collective. */
+ * reference x0, for a pedestal of radius r centred at c. Each rank rasterises the
+ * cells of its DMDA block, the rasters (1200 x 1200 pixels, whatever the lattice) are
+ * OR-ed onto rank 0: no rank holds the whole lattice, and the result is the same to
+ * the bit on any ranks and partition. Collective. */
 PETSC_EXTERN PetscErrorCode CusickAnalyse(Cloth, const PetscScalar *x, const PetscScalar *x0, PetscReal pedestal_radius, const PetscReal c[2], PetscReal *dc, PetscInt *folds);
 
 /* The analysis as a part of a run: its options (-cusick_pedestal_radius,

@@ -38,11 +38,15 @@ static inline PetscInt    PartitionBlockNumber(const PartitionBlocks *b, PetscIn
 PETSC_EXTERN PetscErrorCode PartitionList(char *, size_t);
 /* Is `type` one of them? Not collective. */
 PETSC_EXTERN PetscErrorCode PartitionKnown(const char *type, PetscBool *);
+/* Is `type` one of them, and one that runs with this build (PT-Scotch's index width
+ * matching PETSc's)? Not collective. */
+PETSC_EXTERN PetscErrorCode PartitionUsable(const char *type, PetscBool *);
 /* Is `type` a partition of the interaction graph (every partitioner but dmda)? */
 PETSC_EXTERN PetscBool PartitionIsGraph(const char *type);
 
 /* dest[k]: the rank that will own the k-th particle of this rank's home block (its
  * block's particles row by row). Only active particles (active(ctx, i, j)) are
  * vertices of the graph, weighing weight(ctx, i, j) (weight NULL: 1 each); an
- * inactive particle stays at home. Collective. */
+ * inactive particle stays at home. A graph partition's parts are named (numbered as
+ * ranks) after the home blocks they take most of. Collective. */
 PETSC_EXTERN PetscErrorCode PartitionDestinations(MPI_Comm, const char *type, const PartitionBlocks *, PetscBool (*active)(void *, PetscInt, PetscInt), PetscInt (*weight)(void *, PetscInt, PetscInt), void *ctx, PetscInt *dest);

@@ -4,7 +4,9 @@ estimates, each refused with one sentence before anything of the lattice's size 
 allocated."""
 import re
 import resource
+import subprocess
 
+from conftest import DRAPE, mpiexec
 from test_hostile import drape, refused
 
 
@@ -41,3 +43,21 @@ def test_implicit_step_says_what_it_needs(tmp):
     assert res.returncode == 0, res.stdout + res.stderr
     error = refused(drape(base + ["-ts_type", "drapebe"], tmp, preexec_fn=limit), "The implicit step (drapebe) on a 450 x 450 lattice needs at least 0.6 GB per rank (3100 bytes per particle")
     assert "-ts_type basicsymplectic" in error, error
+
+
+def test_serial_metis_graph_that_cannot_fit_is_refused(tmp):
+    """Serial METIS builds the whole particle graph on rank 0 (about 140 bytes a
+    particle above the rank's share). Under a 1000 MB address-space limit on 2 ranks a
+    2000 x 2000 lattice fits the estimate with the DMDA's blocks (0.8 GB a rank: that
+    check passes first) and not with -cloth_partition metis (0.56 GB more on rank
+    0): refused before the graph, with its size and the partitioner to use instead.
+    (No run of the DMDA's blocks under the limit: with 64-bit indices it may not fit
+    the address space, which the estimate does not claim.)"""
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (1000 << 20, 1000 << 20))
+    base = ["-da_grid_x", "2000", "-da_grid_y", "2000", "-ts_type", "basicsymplectic", "-ts_max_steps", "0", "-drape_stability_its", "0", "-drape_progress", "0"]
+
+    def run2(part):
+        return subprocess.run(mpiexec(2) + [str(DRAPE)] + base + ["-cloth_partition", part], capture_output=True, text=True, cwd=tmp, timeout=120, preexec_fn=limit)
+    error = refused(run2("metis"), "-cloth_partition metis builds the whole particle graph of the 2000 x 2000 lattice on rank 0: about 0.6 GB (140 bytes a particle) on top of the rank's own 0.8 GB", ranks=2)
+    assert "1.0 GB per process" in error and re.search(r"; use -cloth_partition (ptscotch|parmetis|dmda)", error) and "dmda" in error, error

@@ -10,14 +10,13 @@ struct _p_Cusick {
   PetscScalar *x0; /* the flat specimen, owned order */
 };
 
-PetscErrorCode CusickSilhouette(PetscInt ntri, const PetscReal *xy, const PetscReal c[2], PetscReal extent, PetscInt npixels, PetscReal *area, PetscInt nbins, PetscReal *radius)
+/* Mark the pixels whose centres lie in one of ntri triangles (xy: 6 reals each) in
+ * cover (npixels x npixels, half-width extent around c); a pixel once covered stays
+ * so, whichever triangle or rank covers it. */
+static void SilhouetteCover(PetscInt ntri, const PetscReal *xy, const PetscReal c[2], PetscReal extent, PetscInt npixels, unsigned char *cover)
 {
   const PetscReal px = 2 * extent / npixels, x0 = c[0] - extent, y0 = c[1] - extent;
-  unsigned char  *cover;
-  PetscInt        count = 0;
 
-  PetscFunctionBeginUser;
-  PetscCall(PetscCalloc1(npixels * npixels, &cover));
   for (PetscInt t = 0; t < ntri; t++) {
     const PetscReal *p     = xy + 6 * t;
     PetscReal        lo[2] = {PetscMin(p[0], PetscMin(p[2], p[4])), PetscMin(p[1], PetscMin(p[3], p[5]))};
@@ -36,6 +35,14 @@ PetscErrorCode CusickSilhouette(PetscInt ntri, const PetscReal *xy, const PetscR
       }
     }
   }
+}
+
+/* The covered area and each angle bin's largest covered radius, from cover. */
+static void SilhouetteMeasure(const unsigned char *cover, const PetscReal c[2], PetscReal extent, PetscInt npixels, PetscReal *area, PetscInt nbins, PetscReal *radius)
+{
+  const PetscReal px = 2 * extent / npixels, x0 = c[0] - extent, y0 = c[1] - extent;
+  PetscInt        count = 0;
+
   for (PetscInt b = 0; b < nbins; b++) radius[b] = 0;
   for (PetscInt j = 0; j < npixels; j++) {
     for (PetscInt i = 0; i < npixels; i++) {
@@ -52,6 +59,16 @@ PetscErrorCode CusickSilhouette(PetscInt ntri, const PetscReal *xy, const PetscR
     }
   }
   *area = count * px * px;
+}
+
+PetscErrorCode CusickSilhouette(PetscInt ntri, const PetscReal *xy, const PetscReal c[2], PetscReal extent, PetscInt npixels, PetscReal *area, PetscInt nbins, PetscReal *radius)
+{
+  unsigned char *cover;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscCalloc1(npixels * npixels, &cover));
+  SilhouetteCover(ntri, xy, c, extent, npixels, cover);
+  SilhouetteMeasure(cover, c, extent, npixels, area, nbins, radius);
   PetscCall(PetscFree(cover));
   PetscFunctionReturn(0);
 }
@@ -101,62 +118,76 @@ PetscErrorCode CusickCountFolds(PetscInt nbins, const PetscReal *radius, PetscRe
   PetscFunctionReturn(0);
 }
 
-/* Projected triangles of the active cells of the natural-order positions X. */
-static PetscErrorCode ActiveTriangles(Cloth cloth, PetscInt Mx, PetscInt My, const PetscScalar *X, PetscInt *ntri, PetscReal **xy)
-{
-  PetscInt n = 0;
+/* The raster of the silhouette: CUSICK_PIXELS x CUSICK_PIXELS pixels over a square
+ * of 1.2 times the specimen's diagonal, CUSICK_BINS angle bins for the folds; its
+ * size does not depend on the lattice. */
+#define CUSICK_PIXELS 1200
+#define CUSICK_BINS   720
 
-  PetscFunctionBeginUser;
-  PetscCall(PetscMalloc1(12 * (Mx - 1) * (My - 1) + 1, xy));
-  for (PetscInt j = 0; j + 1 < My; j++) {
-    for (PetscInt i = 0; i + 1 < Mx; i++) {
-      const PetscInt q[4] = {j * Mx + i, j * Mx + i + 1, (j + 1) * Mx + i + 1, (j + 1) * Mx + i};
-      if (!(ClothIsActive(cloth, i, j) && ClothIsActive(cloth, i + 1, j) && ClothIsActive(cloth, i + 1, j + 1) && ClothIsActive(cloth, i, j + 1))) continue;
-      for (PetscInt t = 0; t < 2; t++) {
-        const PetscInt v[3] = {q[0], q[1 + t], q[2 + t]};
-        for (PetscInt k = 0; k < 3; k++) {
-          (*xy)[6 * n + 2 * k]     = X[3 * v[k]];
-          (*xy)[6 * n + 2 * k + 1] = X[3 * v[k] + 1];
-        }
-        n++;
-      }
-    }
-  }
-  *ntri = n;
-  PetscFunctionReturn(0);
-}
-
+/* Each rank rasterises the projected triangles of the active lattice cells whose
+ * first corner (i, j) lies in its DMDA block (the other three corners are in the
+ * block or in its ghost layer of one: a DMDA of the lattice's ownership with stencil
+ * width 1), the ranks' rasters are OR-ed onto rank 0, which measures the area and
+ * the radius profile. The union of the same triangles' pixels as the whole
+ * lattice's on one rank: the same DC and folds, to the bit, on any ranks and
+ * partition; each rank holds its block, its ghost layer and the raster (1.4 MB),
+ * no array of the whole lattice. */
 PetscErrorCode CusickAnalyse(Cloth cloth, const PetscScalar *x, const PetscScalar *x0, PetscReal pedestal_radius, const PetscReal c[2], PetscReal *dc, PetscInt *folds)
 {
-  DM          da;
-  Vec         G, N, Z;
-  VecScatter  scatter;
-  ClothInfo   info;
-  PetscMPIInt rank;
-  PetscReal   result[2] = {0, 0};
+  DM              da, dag;
+  Vec             G, L;
+  ClothInfo       info;
+  MPI_Comm        comm;
+  PetscMPIInt     rank;
+  PetscInt        m, n, xs, ys, xm, ym;
+  const PetscInt *lx, *ly;
+  PetscReal       result[2] = {0, 0}, *xy, extent;
+  unsigned char  *cover, *all = NULL;
 
   PetscFunctionBeginUser;
   PetscCall(ClothGetDM(cloth, &da));
   PetscCall(ClothGetInfo(cloth, &info));
-  PetscCallMPI(MPI_Comm_rank(PetscObjectComm((PetscObject) da), &rank));
-  PetscCall(DMCreateGlobalVector(da, &G));
-  PetscCall(DMDACreateNaturalVector(da, &N));
-  PetscCall(VecScatterCreateToZero(N, &scatter, &Z));
+  comm = PetscObjectComm((PetscObject) da);
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  extent = 0.6 * PetscSqrtReal(PetscSqr(info.size[0]) + PetscSqr(info.size[1]));
+  PetscCall(DMDAGetInfo(da, NULL, NULL, NULL, NULL, &m, &n, NULL, NULL, NULL, NULL, NULL, NULL, NULL));
+  PetscCall(DMDAGetOwnershipRanges(da, &lx, &ly, NULL));
+  PetscCall(DMDACreate2d(comm, DM_BOUNDARY_NONE, DM_BOUNDARY_NONE, DMDA_STENCIL_BOX, info.Mx, info.My, m, n, 3, 1, lx, ly, &dag));
+  PetscCall(DMSetUp(dag));
+  PetscCall(DMDAGetCorners(dag, &xs, &ys, NULL, &xm, &ym, NULL));
+  PetscCall(DMGetGlobalVector(dag, &G));
+  PetscCall(DMGetLocalVector(dag, &L));
+  PetscCall(PetscMalloc1(12 * xm + 1, &xy));
+  PetscCall(PetscMalloc1(CUSICK_PIXELS * CUSICK_PIXELS, &cover));
+  if (!rank) PetscCall(PetscMalloc1(CUSICK_PIXELS * CUSICK_PIXELS, &all));
   for (PetscInt pass = 0; pass < 2; pass++) {
-    PetscCall(ClothToDMDA(cloth, pass ? x : x0, G));
-    PetscCall(DMDAGlobalToNaturalBegin(da, G, INSERT_VALUES, N));
-    PetscCall(DMDAGlobalToNaturalEnd(da, G, INSERT_VALUES, N));
-    PetscCall(VecScatterBegin(scatter, N, Z, INSERT_VALUES, SCATTER_FORWARD));
-    PetscCall(VecScatterEnd(scatter, N, Z, INSERT_VALUES, SCATTER_FORWARD));
+    const PetscScalar ***X;
+    PetscCall(ClothToDMDA(cloth, pass ? x : x0, G)); /* the same layout as the Cloth's DMDA */
+    PetscCall(DMGlobalToLocalBegin(dag, G, INSERT_VALUES, L));
+    PetscCall(DMGlobalToLocalEnd(dag, G, INSERT_VALUES, L));
+    PetscCall(DMDAVecGetArrayDOFRead(dag, L, &X));
+    PetscCall(PetscArrayzero(cover, CUSICK_PIXELS * CUSICK_PIXELS));
+    for (PetscInt j = ys; j < ys + ym && j + 1 < info.My; j++) { /* a row of cells at a time */
+      PetscInt ntri = 0;
+      for (PetscInt i = xs; i < xs + xm && i + 1 < info.Mx; i++) {
+        const PetscInt q[4][2] = {{i, j}, {i + 1, j}, {i + 1, j + 1}, {i, j + 1}};
+        if (!(ClothIsActive(cloth, i, j) && ClothIsActive(cloth, i + 1, j) && ClothIsActive(cloth, i + 1, j + 1) && ClothIsActive(cloth, i, j + 1))) continue;
+        for (PetscInt t = 0; t < 2; t++) {
+          const PetscInt v[3] = {0, 1 + t, 2 + t};
+          for (PetscInt k = 0; k < 3; k++) {
+            xy[6 * ntri + 2 * k]     = PetscRealPart(X[q[v[k]][1]][q[v[k]][0]][0]);
+            xy[6 * ntri + 2 * k + 1] = PetscRealPart(X[q[v[k]][1]][q[v[k]][0]][1]);
+          }
+          ntri++;
+        }
+      }
+      SilhouetteCover(ntri, xy, c, extent, CUSICK_PIXELS, cover);
+    }
+    PetscCall(DMDAVecRestoreArrayDOFRead(dag, L, &X));
+    PetscCallMPI(MPI_Reduce(cover, all, CUSICK_PIXELS * CUSICK_PIXELS, MPI_UNSIGNED_CHAR, MPI_BOR, 0, comm));
     if (!rank) {
-      const PetscScalar *X;
-      PetscReal         *xy, area = 0, radius[720], extent = 0.6 * PetscSqrtReal(PetscSqr(info.size[0]) + PetscSqr(info.size[1]));
-      PetscInt           ntri;
-      PetscCall(VecGetArrayRead(Z, &X));
-      PetscCall(ActiveTriangles(cloth, info.Mx, info.My, X, &ntri, &xy));
-      PetscCall(VecRestoreArrayRead(Z, &X));
-      PetscCall(CusickSilhouette(ntri, xy, c, extent, 1200, &area, 720, radius));
-      PetscCall(PetscFree(xy));
+      PetscReal area, radius[CUSICK_BINS];
+      SilhouetteMeasure(all, c, extent, CUSICK_PIXELS, &area, CUSICK_BINS, radius);
       if (!pass)
         result[0] = area; /* the flat specimen */
       else {
@@ -165,18 +196,20 @@ PetscErrorCode CusickAnalyse(Cloth cloth, const PetscScalar *x, const PetscScala
         result[0]      = (area - disc) / (result[0] - disc);
         /* a fold must stand out of the lattice's own staircase outline and be a
          * tenth of the overhang deep */
-        PetscCall(CusickCountFolds(720, radius, PetscMax(0.1 * (0.5 * PetscMin(info.size[0], info.size[1]) - pedestal_radius), 1.5 * PetscMax(info.spacing[0], info.spacing[1])), &nf));
+        PetscCall(CusickCountFolds(CUSICK_BINS, radius, PetscMax(0.1 * (0.5 * PetscMin(info.size[0], info.size[1]) - pedestal_radius), 1.5 * PetscMax(info.spacing[0], info.spacing[1])), &nf));
         result[1] = nf;
       }
     }
   }
-  PetscCallMPI(MPI_Bcast(result, 2, MPIU_REAL, 0, PetscObjectComm((PetscObject) da)));
+  PetscCallMPI(MPI_Bcast(result, 2, MPIU_REAL, 0, comm));
   *dc    = result[0];
   *folds = (PetscInt) result[1];
-  PetscCall(VecScatterDestroy(&scatter));
-  PetscCall(VecDestroy(&Z));
-  PetscCall(VecDestroy(&N));
-  PetscCall(VecDestroy(&G));
+  PetscCall(PetscFree(all));
+  PetscCall(PetscFree(cover));
+  PetscCall(PetscFree(xy));
+  PetscCall(DMRestoreLocalVector(dag, &L));
+  PetscCall(DMRestoreGlobalVector(dag, &G));
+  PetscCall(DMDestroy(&dag));
   PetscFunctionReturn(0);
 }
 

@@ -3,6 +3,9 @@
 #include <petscdmda.h>
 #include <petscsf.h>
 #include <stdint.h>
+#if defined(__GLIBC__)
+#include <malloc.h> /* malloc_trim */
+#endif
 #include <partition.h>
 #include <drape.h>
 
@@ -294,7 +297,6 @@ static PetscErrorCode ClothCheckLatticeSize(Cloth c, PetscInt Mx, PetscInt My)
   PetscMPIInt      size, rank, local;
   MPI_Comm         node;
   PetscLogDouble   need, node_bytes, process_bytes;
-  PetscBool        fits;
 
   PetscFunctionBeginUser;
   PetscCheck(N <= most, c->comm, PETSC_ERR_USER_INPUT,
@@ -309,15 +311,38 @@ static PetscErrorCode ClothCheckLatticeSize(Cloth c, PetscInt Mx, PetscInt My)
   PetscCall(DrapeMemoryAvailable(&node_bytes, &process_bytes));
   need = 400.0 * (PetscLogDouble) N / size;
   {
-    PetscBool metis;
+    /* serial METIS (on more than one rank) builds the whole particle graph on rank 0
+     * and partitions it there: rank 0's peak rises by about CLOTH_METIS_BYTES a
+     * lattice particle (2048^2 on 2 ranks, -memory_view: 1097 MB against 534 MB with
+     * dmda, 134 bytes a particle; 107 for the disc inscribed in it, whose graph
+     * leaves out the corners) */
+    const PetscLogDouble CLOTH_METIS_BYTES = 140;
+    PetscBool            metis, ok[2];
+    PetscLogDouble       graph = 0;
     PetscCall(PetscStrcmp(c->partition, "metis", &metis));
-    if (!rank && metis) need += 18.0 * sizeof(PetscInt) * (PetscLogDouble) N;
+    if (!rank && metis && size > 1) graph = CLOTH_METIS_BYTES * (PetscLogDouble) N;
+    ok[0] = (PetscBool) (need * local <= node_bytes && need <= process_bytes);
+    ok[1] = (PetscBool) (need * local + graph <= node_bytes && need + graph <= process_bytes);
+    PetscCall(MPIU_Allreduce(MPI_IN_PLACE, ok, 2, MPIU_BOOL, MPI_LAND, c->comm));
+    PetscCheck(ok[0], c->comm, PETSC_ERR_USER_INPUT,
+               "A %" PetscInt_FMT " x %" PetscInt_FMT " lattice needs at least %.1f GB per rank (%.1f GB on a node running %d ranks), more than this machine gives a run (%.1f GB per node%s): use a smaller lattice, or more nodes", Mx, My, need / 1e9,
+               need * local / 1e9, (int) local, node_bytes / 1e9, process_bytes < node_bytes ? ", less per process" : "");
+    if (!ok[1]) {
+      PetscBool   parallel;
+      const char *instead         = "dmda (blocks of the lattice)";
+      char        per_process[64] = "";
+      PetscCall(PartitionUsable("parmetis", &parallel));
+      if (parallel) instead = "parmetis, which partitions the graph in parallel, or dmda";
+      PetscCall(PartitionUsable("ptscotch", &parallel));
+      if (parallel) instead = "ptscotch, which partitions the graph in parallel (each rank builds its part), or dmda";
+      PetscCallMPI(MPI_Bcast(&graph, 1, MPI_DOUBLE, 0, c->comm));
+      if (process_bytes < node_bytes) PetscCall(PetscSNPrintf(per_process, sizeof per_process, ", %.1f GB per process", process_bytes / 1e9));
+      SETERRQ(c->comm, PETSC_ERR_USER_INPUT,
+              "-cloth_partition metis builds the whole particle graph of the %" PetscInt_FMT " x %" PetscInt_FMT
+              " lattice on rank 0: about %.1f GB (%.0f bytes a particle) on top of the rank's own %.1f GB, more than this machine gives a run (%.1f GB per node%s, %d ranks on it); use -cloth_partition %s",
+              Mx, My, graph / 1e9, CLOTH_METIS_BYTES, need / 1e9, node_bytes / 1e9, per_process, (int) local, instead);
+    }
   }
-  fits = (PetscBool) (need * local <= node_bytes && need <= process_bytes);
-  PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &fits, 1, MPIU_BOOL, MPI_LAND, c->comm));
-  PetscCheck(fits, c->comm, PETSC_ERR_USER_INPUT,
-             "A %" PetscInt_FMT " x %" PetscInt_FMT " lattice needs at least %.1f GB per rank (%.1f GB on a node running %d ranks), more than this machine gives a run (%.1f GB per node%s): use a smaller lattice, or more nodes", Mx, My, need / 1e9,
-             need * local / 1e9, (int) local, node_bytes / 1e9, process_bytes < node_bytes ? ", less per process" : "");
   PetscFunctionReturn(0);
 }
 
@@ -1219,6 +1244,16 @@ PetscErrorCode ClothSetUp(Cloth c)
   if (c->shape != CLOTH_SQUARE && PartitionIsGraph(c->partition)) PetscCall(ClothActivityPatch(c, map.i0 - 2, map.i0 + map.w + 2, map.j0 - 2, map.j0 + map.h + 2));
   PetscCall(ClothBuildDMDAScatter(c, &blocks));
   PetscCall(PartitionBlocksDestroy(&blocks));
+#if defined(__GLIBC__)
+  /* What the set-up has freed by now (a graph partition's transient memory: the
+   * MATMPIADJ graph, PT-Scotch's own, the exchange of particles, 43-51 MiB a rank at
+   * 2048^2 on 16 ranks, where a rank's share of the lattice is about 70 MiB; 36 MB
+   * on one rank with the DMDA's blocks) the C library's heap keeps, in small pieces:
+   * hand it back before the element lists, the largest arrays, are made (2048^2,
+   * -memory_view: ptscotch on 16 ranks 7 % less, all ranks and the largest; dmda on
+   * one rank 900 -> 864 MB; BENCHMARKS.md) */
+  (void) malloc_trim(0);
+#endif
 
   PetscCall(PetscMalloc3(c->nowned, &c->mass, c->nowned, &c->pinned, c->nowned, &c->active));
   /* the owned particles come first in the local order: owned_local is 0, 1, ...,

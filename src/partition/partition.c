@@ -180,6 +180,62 @@ static PetscErrorCode PartitionMetis(MPI_Comm comm, const char *type, const Part
   PetscFunctionReturn(0);
 }
 
+/* The partitioner numbers its parts as it likes; part p goes to rank p. A rank then
+ * holds its part wherever it lies, and the inactive particles of its home block
+ * (outside the outline, kept at home: they do no work), and its arrays that span the
+ * box around its particles (the layout's map, the activity patch, the explicit
+ * kernel's patch) span both: at 2048^2 on 16 ranks a corner block's rank held a box
+ * about six times its part (by the patch's memory). So each part is renamed after the home block it takes most of
+ * (counted in active particles), the blocks that give most first, and the parts left
+ * take the names left in order; the parts themselves, their balance and cut do not
+ * change. dest: the home block's destinations, renamed where the particle is active.
+ * O(P) on every rank (one allgather of a pair per rank). Collective. */
+static PetscErrorCode PartitionRename(MPI_Comm comm, const PartitionBlocks *b, PetscBool (*active)(void *, PetscInt, PetscInt), void *ctx, PetscInt *dest)
+{
+  PetscMPIInt size, rank;
+  PetscInt   *count, best[2] = {0, -1}, *all, *name, next = 0, i0, i1, j0, j1;
+  PetscInt64 *key, most = 0;
+  PetscBool  *named;
+
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  HomeBlock(b, rank, &i0, &i1, &j0, &j1);
+  PetscCall(PetscCalloc1(size, &count));
+  for (PetscInt j = j0, k = 0; j < j1; j++)
+    for (PetscInt i = i0; i < i1; i++, k++)
+      if (active(ctx, i, j)) count[dest[k]]++;
+  for (PetscMPIInt p = 0; p < size; p++)
+    if (count[p] > best[0]) best[0] = count[p], best[1] = p;
+  PetscCall(PetscMalloc4(2 * size, &all, size, &key, size, &name, size, &named));
+  PetscCallMPI(MPI_Allgather(best, 2, MPIU_INT, all, 2, MPIU_INT, comm));
+  /* the same order on every rank: most particles first, then by home rank (a key
+   * below (largest count + 1) P: a home block's count times the ranks is at most the
+   * lattice's particles) */
+  for (PetscMPIInt r = 0; r < size; r++) most = PetscMax(most, all[2 * r]);
+  for (PetscMPIInt r = 0; r < size; r++) {
+    key[r]   = (most - (PetscInt64) all[2 * r]) * size + r;
+    name[r]  = -1;
+    named[r] = PETSC_FALSE;
+  }
+  PetscCall(PetscSortInt64(size, key));
+  for (PetscMPIInt q = 0; q < size; q++) {
+    const PetscInt r = (PetscInt) (key[q] % size), p = all[2 * r + 1];
+    if (p >= 0 && name[p] < 0) name[p] = r, named[r] = PETSC_TRUE;
+  }
+  for (PetscMPIInt p = 0; p < size; p++) {
+    if (name[p] >= 0) continue;
+    while (named[next]) next++;
+    name[p] = next, named[next] = PETSC_TRUE;
+  }
+  for (PetscInt j = j0, k = 0; j < j1; j++)
+    for (PetscInt i = i0; i < i1; i++, k++)
+      if (active(ctx, i, j)) dest[k] = name[dest[k]];
+  PetscCall(PetscFree4(all, key, name, named));
+  PetscCall(PetscFree(count));
+  PetscFunctionReturn(0);
+}
+
 /* A parallel partitioner of PETSc's (MatPartitioning type `type`) on the graph of the
  * lattice's tiles: each rank cuts its home block into tiles of PARTITION_TILE x
  * PARTITION_TILE particles (smaller at the block's edges), a tile with active
@@ -198,6 +254,14 @@ static PetscErrorCode PartitionMetis(MPI_Comm comm, const char *type, const Part
  * "dgraphGatherAll2: communication error" and a traceback. The library says its
  * width (SCOTCH_numSizeof, Scotch 6 and later; looked up among the loaded symbols,
  * since drape does not link Scotch itself). */
+static PetscBool ScotchIndicesMatch(void)
+{
+  int (*numsizeof)(void);
+
+  *(void **) &numsizeof = dlsym(RTLD_DEFAULT, "SCOTCH_numSizeof");
+  return (PetscBool) (!numsizeof || numsizeof() == (int) sizeof(PetscInt));
+}
+
 static PetscErrorCode CheckScotchIndices(MPI_Comm comm)
 {
   int (*numsizeof)(void);
@@ -383,6 +447,17 @@ PetscErrorCode PartitionKnown(const char *type, PetscBool *known)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode PartitionUsable(const char *type, PetscBool *usable)
+{
+  PetscBool scotch;
+
+  PetscFunctionBeginUser;
+  PetscCall(PartitionKnown(type, usable));
+  PetscCall(PetscStrcmp(type, "ptscotch", &scotch));
+  if (*usable && scotch) *usable = ScotchIndicesMatch();
+  PetscFunctionReturn(0);
+}
+
 PetscBool PartitionIsGraph(const char *type) { return (PetscBool) (PartitionFind(type) != PartitionDMDA); }
 
 PetscErrorCode PartitionDestinations(MPI_Comm comm, const char *type, const PartitionBlocks *b, PetscBool (*active)(void *, PetscInt, PetscInt), PetscInt (*weight)(void *, PetscInt, PetscInt), void *ctx, PetscInt *dest)
@@ -406,5 +481,6 @@ PetscErrorCode PartitionDestinations(MPI_Comm comm, const char *type, const Part
     if (size == 1) fn = PartitionDMDA; /* one part: the home block */
   }
   PetscCall(fn(comm, type, b, active, weight, ctx, dest));
+  if (fn != PartitionDMDA) PetscCall(PartitionRename(comm, b, active, ctx, dest));
   PetscFunctionReturn(0);
 }

@@ -90,6 +90,24 @@ int main(int argc, char **argv)
     passed++;
   }
 
+  /* 6. an 8-lobed drape: the overhang pulled in to rp + (rho - rp)(0.6 + 0.3 cos 8 theta)
+   *    and lowered: 8 folds; the DC printed to the bit, which must not depend on the
+   *    ranks or the partition (tests/test_unit.py compares runs) */
+  for (k = 0; k < n / 3; k++) {
+    PetscReal *p = x + 3 * k, *q = x0 + 3 * k, rho = PetscSqrtReal(q[0] * q[0] + q[1] * q[1]), th = PetscAtan2Real(q[1], q[0]);
+    p[0] = q[0], p[1] = q[1], p[2] = q[2];
+    if (rho > rp) {
+      PetscReal r = rp + (rho - rp) * (0.6 + 0.3 * PetscCosReal(8 * th));
+      p[0]        = r * PetscCosReal(th);
+      p[1]        = r * PetscSinReal(th);
+      p[2]        = q[2] - (rho - rp) * 0.5;
+    }
+  }
+  PetscCall(CusickAnalyse(cloth, x, x0, rp, c, &dc, &folds));
+  PetscCall(PetscPrintf(PETSC_COMM_WORLD, "8-lobed drape: DC = %.17g, %" PetscInt_FMT " folds\n", (double) dc, folds));
+  CHECK(dc > 0.2 && dc < 0.9 && folds == 8, "8-lobed drape: DC %g, folds %" PetscInt_FMT, (double) dc, folds);
+  passed++;
+
   PetscCall(PetscPrintf(PETSC_COMM_WORLD, "%" PetscInt_FMT " passed, 0 failed\n", passed));
   PetscCall(PetscFree3(x0, x, v));
   PetscCall(ClothDestroy(&cloth));
