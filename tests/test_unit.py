@@ -90,3 +90,12 @@ def test_self_contact_broad_phases():
     layers, a tangle and a sheet with long sweeps (the hash's cells grow), and agree
     with each other on a folded 121^2 lattice (no leaks)."""
     run_unit_ranks("test_broadphase", 1, [], 2)
+
+
+def test_block_icc_preconditioner():
+    """Block IC(0) (PCBLOCKICC, drapebe's default preconditioner): exact on a block
+    chain (no fill to drop), the same as PETSc's ICC(0) to round-off where that is
+    positive definite, and, on a bending matrix where PETSc's ICC(0) stops CG as an
+    indefinite preconditioner, compensated: symmetric, positive definite, and CG
+    converges (no leaks)."""
+    run_unit_ranks("test_blockicc", 1, [], 3)

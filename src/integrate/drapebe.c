@@ -31,6 +31,7 @@
  * steps; -ts_adapt_type basic chooses it from the local error. */
 #include <petsc/private/tsimpl.h>
 #include <petsc/private/kspimpl.h> /* KSP's norm type as the options left it (KSPGetNormType resolves the default) */
+#include <pcblockicc.h>
 #include <drapebe.h>
 #include <stability.h>
 #include <drape.h>
@@ -60,7 +61,7 @@ typedef struct {
   PetscInt  pc_lag, lag; /* rebuild every pc_lag steps (ksponly, iterative KSP); lag: where it applies */
   PetscBool pc_stale;    /* rebuild it: the solid's constraints changed since it was built, or a step failed */
   PetscBool pc_amg;      /* it is algebraic multigrid (costly to build) */
-  PetscBool pc_auto;     /* drape chose it (the PC's type was still PCDRAPE at TSSetUp): block Jacobi/ICC(0) gives way to multigrid when it fails or is slow */
+  PetscBool pc_auto;     /* drape chose it (the PC's type was still PCDRAPE at TSSetUp): block IC(0) gives way to multigrid when it fails or is slow */
   PetscBool sub_factor;  /* -sub_pc_type lu, ilu or asm: block Jacobi's blocks need AIJ */
   PetscInt  pc_switched; /* the step at which it gave way (-1: never) */
   PetscInt  lits;        /* CG iterations of the last solve */
@@ -158,12 +159,16 @@ static PetscErrorCode BESetConstraints(TS_DrapeBE *be, PetscInt pc_changes)
 }
 
 /* The preconditioner, unless the options chose one: the solves choose it. Block
- * Jacobi with ICC(0) is cheap to build (and to rebuild when contacts change), and
+ * IC(0) of each rank's block (PCBLOCKICC, include/pcblockicc.h: PETSc's ICC(0)
+ * where that is positive definite, compensated where it is not, so it never stops
+ * CG as an indefinite preconditioner; PETSc's ICC(0) did on the Cusick scene at
+ * 161^2, where the out-of-plane bending defeats IC(0): BENCHMARKS.md) is cheap to
+ * build (and to rebuild when contacts change), and
  * one of its CG iterations costs about a 20th of one preconditioned by an ML
  * V-cycle (12 fine-grid products and SOR sweeps: the hang at 64^2 and 1e-2 s, 65
  * against 7.5 iterations a step, 62 against 194 ms a step, BENCHMARKS.md). Its
  * iterations grow with the lattice and the stiffness of the step, (h
- * Omega_max)^2, and it can lose definiteness: then smoothed-aggregation multigrid
+ * Omega_max)^2: then smoothed-aggregation multigrid
  * with the cloth's rigid-body modes (BENearNullSpace) wins, ML where PETSc has it,
  * GAMG otherwise. So the run starts with ICC(0) unless the step is stiffer than
  * BE_AMG_STIFFNESS, and gives way to multigrid for the rest of the run at the
@@ -216,7 +221,7 @@ static PetscErrorCode PCCreate_Drape(PC pc)
 
 static PetscErrorCode BEChoosePreconditioner(TS ts, TS_DrapeBE *be, PC pc)
 {
-  PCType    type = PCBJACOBI;
+  PCType    type = PCBLOCKICC;
   PetscBool typed;
 
   PetscFunctionBeginUser;
@@ -243,7 +248,7 @@ static PetscErrorCode BEChoosePreconditioner(TS ts, TS_DrapeBE *be, PC pc)
   PetscFunctionReturn(0);
 }
 
-/* Block Jacobi/ICC(0), chosen by drape, gives way to multigrid (BEChoosePreconditioner):
+/* Block IC(0), chosen by drape, gives way to multigrid (BEChoosePreconditioner):
  * the matrix becomes AIJ, the preconditioner is built anew. Collective. */
 static PetscErrorCode BEUseMultigrid(TS ts, TS_DrapeBE *be)
 {
@@ -268,7 +273,7 @@ static PetscErrorCode BEUseMultigrid(TS ts, TS_DrapeBE *be)
   PetscCall(SNESSetJacobian(snes, J, J, BEJacobian, be));
   PetscCall(MatDestroy(&be->J));
   be->J = J;
-  PetscCall(PetscPrintf(PetscObjectComm((PetscObject) ts), "note: at step %" PetscInt_FMT " (t = %g s) CG with block Jacobi/ICC(0) %s; the run goes on with algebraic multigrid (%s)\n", ts->steps, (double) ts->ptime,
+  PetscCall(PetscPrintf(PetscObjectComm((PetscObject) ts), "note: at step %" PetscInt_FMT " (t = %g s) CG with block IC(0) %s; the run goes on with algebraic multigrid (%s)\n", ts->steps, (double) ts->ptime,
                         be->lits >= BE_ICC_MAX_ITS ? "reached " PetscStringize(BE_ICC_MAX_ITS) " iterations" : "failed", ((PetscObject) pc)->type_name));
   PetscFunctionReturn(0);
 }
@@ -668,13 +673,18 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
     PetscCall(BEChoosePreconditioner(ts, be, pc));
     /* symmetric block storage (half the matrix: faster products and factorisation)
      * for the preconditioners that take it, AIJ for the others */
-    PetscCall(PetscObjectTypeCompareAny((PetscObject) pc, &sbaij, PCBJACOBI, PCICC, PCCHOLESKY, PCJACOBI, PCPBJACOBI, PCNONE, ""));
+    PetscCall(PetscObjectTypeCompareAny((PetscObject) pc, &sbaij, PCBJACOBI, PCICC, PCBLOCKICC, PCCHOLESKY, PCJACOBI, PCNONE, ""));
     if (sbaij && be->sub_factor) sbaij = PETSC_FALSE; /* block Jacobi's blocks: not with an LU or ILU of their own */
     PetscCall(PetscObjectTypeCompareAny((PetscObject) pc, &be->pc_amg, PCGAMG, PCML, PCHYPRE, PCHMG, ""));
     be->mattype = sbaij ? MATSBAIJ : MATAIJ;
     PetscCall(KSPGetTolerances(ksp, NULL, NULL, NULL, &be->max_its));
     if (be->pc_auto && !be->pc_amg) PetscCall(KSPSetTolerances(ksp, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, PetscMin(be->max_its, BE_ICC_MAX_ITS)));
     PetscCall(ClothCreateMatrix(be->cloth, be->mattype, &be->J));
+    if (be->pc_auto && !be->pc_amg) { /* -drape_mat_type chose a storage block IC(0) does not factor: PETSc's block Jacobi/ILU(0) */
+      PetscBool sym;
+      PetscCall(PetscObjectTypeCompareAny((PetscObject) be->J, &sym, MATSEQSBAIJ, MATMPISBAIJ, ""));
+      if (!sym) PetscCall(PCSetType(pc, PCBJACOBI));
+    }
     /* the preconditioner lags with the single linearisation and an iterative KSP; a
      * direct solve (-ksp_type preonly) may not lag its factorisation, which is then
      * the solve itself, and takes no start (PETSc refuses one) */
@@ -1001,5 +1011,6 @@ PetscErrorCode DrapeTSRegister(void)
   PetscCall(TSRegister(TSDRAPEBE, TSCreate_DrapeBE));
   PetscCall(PCRegister(PCDRAPE, PCCreate_Drape));
   PetscCall(DrapeTSAdaptRegister());
+  PetscCall(PCBlockICCRegister());
   PetscFunctionReturn(0);
 }

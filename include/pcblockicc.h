@@ -1,0 +1,23 @@
+/* The preconditioner type "blockicc" (src/integrate/pcblockicc.c): incomplete
+ * Cholesky without fill, IC(0), of an SBAIJ matrix of block size 3 (on many ranks,
+ * of each rank's diagonal block: block Jacobi), in
+ * 3 x 3 blocks, that stays positive definite. PETSc's ICC(0) of the same matrix
+ * (PCICC on SBAIJ) inverts each pivot block as it comes: where the dropped fill
+ * leaves a pivot block indefinite, its preconditioner is indefinite and CG stops
+ * (KSP_DIVERGED_INDEFINITE_PC). Here such a factorisation is made again with the
+ * dropped fill compensated on the diagonal (Ajiz and Jennings), positive definite
+ * by construction; where no pivot fails, the factor is IC(0)'s.
+ *
+ * Options: -pc_blockicc_type auto (the default: compensated only when IC(0)
+ * fails), plain or compensated; -pc_blockicc_pivot_tol (1e-8). */
+#pragma once
+
+#include <petscpc.h>
+
+#define PCBLOCKICC "blockicc"
+
+/* Register the type with PCRegister() (again: no harm). Not collective. */
+PETSC_EXTERN PetscErrorCode PCBlockICCRegister(void);
+/* Whether the last factorisation compensated the dropped fill on any rank
+ * (PETSC_FALSE on a PC of another type). Collective on PC. */
+PETSC_EXTERN PetscErrorCode PCBlockICCGetCompensated(PC, PetscBool *);
