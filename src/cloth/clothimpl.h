@@ -169,6 +169,10 @@ struct _p_Cloth {
   PetscBool  rb_block;               /* blocks whole, by columns (RowBufferStrides); else scalar rows */
   PetscInt  *rb_start, *rb_ncols, *rb_colstart, *rb_cols, *rb_map, *rb_diag;
   PetscReal *rb_val;
+  /* the order of the sums (RowBufferSchedule, forces.c): rb_ntile tiles of rb_tile
+   * owned rows; per kind, the first element of each chunk (rb_ntile + 1 each) and the
+   * steps its chunks lag behind the tiles */
+  PetscInt rb_ntile, rb_tile, *rb_chunk, rb_lag[4];
   /* blocks besides the elements' (ClothSetExtraBlocks): owned row, global block
    * column, 9 values, position in rb_val (-1: not held) */
   PetscInt   ex_n, ex_m, *ex_row, *ex_col, *ex_map;
