@@ -225,6 +225,11 @@ static inline void ElementHessian(Cloth c, PetscBool project, PetscInt kind, Pet
   }
 }
 
+/* forces.c: J += a M + b H(x) element by element, each element's whole matrix
+ * through MatSetValuesBlocked (both halves): the reference the tests compare
+ * ClothAssembleMatrix with (tests/unit/test_assembly.c). Collective. */
+PETSC_INTERN PetscErrorCode ClothAssembleMatrixElementwise(Cloth, const PetscScalar *x, PetscReal a, PetscReal b, Mat J);
+
 /* The local (owned + ghost) work vector Yl of the element lists' force loop and the
  * Hessian product, made at its first use (the lattice kernel needs none). Not
  * collective. */

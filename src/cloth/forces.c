@@ -611,6 +611,7 @@ static PetscErrorCode RowBufferSchedule(Cloth c)
     c->rb_tile  = RB_TILE;
   }
   for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) c->rb_lag[kind] = kind * L;
+  PetscCall(PetscInfo(NULL, "Row buffer: %" PetscInt_FMT " tiles of %" PetscInt_FMT " rows, the kinds' chunks %" PetscInt_FMT " steps apart\n", c->rb_ntile, c->rb_tile, L));
   PetscFunctionReturn(0);
 }
 
@@ -1020,6 +1021,54 @@ PetscErrorCode ClothAssembleMatrix(Cloth c, const PetscScalar *x, PetscReal a, P
   PetscCall(ClothAddToMatrixRows(c, xl, a, b, J));
   PetscCall(ClothEndScatter(c, &xl));
   PetscCall(PetscLogEventEnd(drape_log.jacobian, 0, 0, 0, 0));
+  PetscFunctionReturn(0);
+}
+
+/* The reference of the tests: J += a M + b H(x) as the assembly was first written,
+ * element by element, each element's whole matrix (MatrixElementHessian, filtered
+ * by FilterElementHessian) added block by block with MatSetValuesBlocked, then the
+ * extra blocks and the mass blocks; every block of both halves. J: any matrix of
+ * block size 3 that accepts the pattern (AIJ without preallocation errors).
+ * ClothGetHessianDiagonal then gives this assembly's. Collective. */
+PetscErrorCode ClothAssembleMatrixElementwise(Cloth c, const PetscScalar *x, PetscReal a, PetscReal b, Mat J)
+{
+  const PetscScalar *xl;
+  PetscReal          H[225], B[9];
+
+  PetscFunctionBeginUser;
+  if (!c->hdiag) PetscCall(PetscMalloc1(9 * c->nowned + 1, &c->hdiag));
+  PetscCall(PetscArrayzero(c->hdiag, 9 * c->nowned));
+  PetscCall(ClothScatterPositions(c, x, &xl));
+  for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) {
+    const PetscInt n = KindSize(kind), m = 3 * n;
+    for (PetscInt e = 0; e < KindCount(c, kind); e++) {
+      const PetscInt *p = KindParticles(c, kind, e);
+      MatrixElementHessian(c, kind, e, xl, H);
+      for (PetscInt pa = 0; pa < n; pa++) {
+        const PetscInt row = p[pa] < c->nowned ? c->row_map[p[pa]] : -1;
+        if (row < 0) continue;
+        for (PetscInt pb = 0; pb < n; pb++) {
+          const PetscInt col = c->col_map[p[pb]];
+          if (col < 0) continue;
+          for (PetscInt i = 0; i < 3; i++)
+            for (PetscInt j = 0; j < 3; j++) B[3 * i + j] = b * H[m * (3 * pa + i) + 3 * pb + j];
+          PetscCall(MatSetValuesBlocked(J, 1, &row, 1, &col, B, ADD_VALUES));
+        }
+      }
+    }
+  }
+  PetscCall(ClothEndScatter(c, &xl));
+  for (PetscInt e = 0; e < c->ex_n; e++) {
+    if (!BlockHeld(c, PETSC_FALSE, c->ex_row[e], c->ex_col[e])) continue;
+    for (PetscInt i = 0; i < 9; i++) B[i] = b * c->ex_val[9 * e + i];
+    PetscCall(MatSetValuesBlocked(J, 1, &c->global[c->ex_row[e]], 1, &c->ex_col[e], B, ADD_VALUES));
+  }
+  for (PetscInt k = 0; k < c->nowned; k++) {
+    MassBlock(c, k, a, b, B);
+    PetscCall(MatSetValuesBlocked(J, 1, &c->global[k], 1, &c->global[k], B, ADD_VALUES));
+  }
+  PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
+  PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
   PetscFunctionReturn(0);
 }
 
