@@ -416,24 +416,40 @@ PetscErrorCode ClothCreateMatrix(Cloth c, MatType type, Mat *J)
     PetscCall(MatSetPreallocationCOO(*J, ncoo, ci, cj));
     PetscCall(PetscFree2(ci, cj));
   } else {
-    Mat P;
-    PetscCall(MatCreate(c->comm, &P));
-    PetscCall(MatSetSizes(P, n, n, PETSC_DETERMINE, PETSC_DETERMINE));
-    PetscCall(MatSetBlockSize(P, 3));
-    PetscCall(MatSetType(P, MATPREALLOCATOR));
-    PetscCall(MatSetUp(P));
-    { /* the pattern: zeros in every block row */
-      PetscInt     wide = 0;
-      PetscScalar *zero;
-      for (PetscInt k = 0; k < c->nowned; k++) wide = PetscMax(wide, c->rb_ncols[k]);
-      PetscCall(PetscCalloc1(9 * wide + 1, &zero));
+    PetscInt     wide = 0;
+    PetscScalar *zero;
+    PetscBool    xaij;
+    for (PetscInt k = 0; k < c->nowned; k++) wide = PetscMax(wide, c->rb_ncols[k]);
+    PetscCall(PetscCalloc1(9 * wide + 1, &zero));
+    PetscCall(PetscObjectTypeCompareAny((PetscObject) *J, &xaij, MATSEQAIJ, MATMPIAIJ, MATSEQBAIJ, MATMPIBAIJ, MATSEQSBAIJ, MATMPISBAIJ, ""));
+    if (xaij) { /* the exact counts of the row buffer's rows (upper blocks only for SBAIJ, as the buffer holds), then the pattern as zeros: MATPREALLOCATOR's hash table took 5 % of a 40-step run at 512^2 */
+      PetscInt *dnnz, *onnz;
+      PetscCall(PetscMalloc2(c->nowned + 1, &dnnz, c->nowned + 1, &onnz));
+      for (PetscInt k = 0; k < c->nowned; k++) {
+        const PetscInt *col = c->rb_cols + c->rb_colstart[k];
+        dnnz[k]             = 0;
+        for (PetscInt l = 0; l < c->rb_ncols[k]; l++) dnnz[k] += col[l] >= c->rstart && col[l] < c->rstart + c->nowned;
+        onnz[k] = c->rb_ncols[k] - dnnz[k];
+      }
+      PetscCall(MatXAIJSetPreallocation(*J, 3, dnnz, onnz, dnnz, onnz));
+      PetscCall(PetscFree2(dnnz, onnz));
+      for (PetscInt k = 0; k < c->nowned; k++) PetscCall(MatSetValuesBlocked(*J, 1, &c->global[k], c->rb_ncols[k], c->rb_cols + c->rb_colstart[k], zero, INSERT_VALUES));
+      PetscCall(MatAssemblyBegin(*J, MAT_FINAL_ASSEMBLY));
+      PetscCall(MatAssemblyEnd(*J, MAT_FINAL_ASSEMBLY));
+    } else { /* dense and the rest: through MATPREALLOCATOR */
+      Mat P;
+      PetscCall(MatCreate(c->comm, &P));
+      PetscCall(MatSetSizes(P, n, n, PETSC_DETERMINE, PETSC_DETERMINE));
+      PetscCall(MatSetBlockSize(P, 3));
+      PetscCall(MatSetType(P, MATPREALLOCATOR));
+      PetscCall(MatSetUp(P));
       for (PetscInt k = 0; k < c->nowned; k++) PetscCall(MatSetValuesBlocked(P, 1, &c->global[k], c->rb_ncols[k], c->rb_cols + c->rb_colstart[k], zero, INSERT_VALUES));
-      PetscCall(PetscFree(zero));
+      PetscCall(MatAssemblyBegin(P, MAT_FINAL_ASSEMBLY));
+      PetscCall(MatAssemblyEnd(P, MAT_FINAL_ASSEMBLY));
+      PetscCall(MatPreallocatorPreallocate(P, PETSC_TRUE, *J));
+      PetscCall(MatDestroy(&P));
     }
-    PetscCall(MatAssemblyBegin(P, MAT_FINAL_ASSEMBLY));
-    PetscCall(MatAssemblyEnd(P, MAT_FINAL_ASSEMBLY));
-    PetscCall(MatPreallocatorPreallocate(P, PETSC_TRUE, *J));
-    PetscCall(MatDestroy(&P));
+    PetscCall(PetscFree(zero));
     PetscCall(MatSetOption(*J, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
     PetscCall(MatSetOption(*J, MAT_NO_OFF_PROC_ENTRIES, PETSC_TRUE));
   }
