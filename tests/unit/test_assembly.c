@@ -6,7 +6,7 @@ static const char help[] = "The implicit matrix J = a M + b H of ClothAssembleMa
 
 #include <cloth.h>
 #include <drape.h>
-#include "cloth/clothimpl.h"
+#include <cloth/clothimpl.h>
 
 /* max |J - R| and max |R| over all entries (J converted to AIJ: SBAIJ's lower half
  * from its upper) */
