@@ -46,6 +46,21 @@ def test_cloth_rigid_motion_and_force_balance(np_):
     run_unit_ranks("test_cloth", np_, ["-da_grid_x", "9", "-da_grid_y", "7", "-cloth_pin", "edge_corners"], 14)
 
 @pytest.mark.parametrize("np_", [1, 2])
+@pytest.mark.parametrize("opts", ["", "-cloth_hessian exact -cloth_bend_hysteresis 0.01,0.01", "-cloth_model paper -cloth_partition metis"])
+def test_assembled_matrix_matches_elementwise_reference(np_, opts):
+    """The implicit matrix of ClothAssembleMatrix (blocks formed alone from each
+    element's h or H6, summed tile by tile) against each element's whole matrix
+    added block by block, at randomly distorted positions on a 25 x 23 lattice (3
+    tiles on one rank), without and with sliding and fixed particles: AIJ (csr, coo,
+    rows) and BAIJ equal to the bit, and the diagonal blocks of H too; SBAIJ (rows,
+    coo) within 1e-13 (its lower half is its upper's transpose). Projected and exact
+    Hessians, the bending friction, the paper's model, a METIS partition; 1 and 2
+    ranks, no leaks. A sum in another order, a constraint left out or the kinds'
+    order broken by the tiles fails it."""
+    run_unit_ranks("test_assembly", np_, ["-da_grid_x", "25", "-da_grid_y", "23", "-cloth_pin", "edge_corners"] + opts.split(), 12)
+
+
+@pytest.mark.parametrize("np_", [1, 2])
 def test_cusick_analysis_known_silhouettes(np_):
     """Drape coefficient and folds on constructed silhouettes: a square and a 7-lobed
     star (exact areas, 4 and 7 maxima), the flat specimen (DC = 1), one hanging

@@ -169,6 +169,10 @@ struct _p_Cloth {
   PetscBool  rb_block;               /* blocks whole, by columns (RowBufferStrides); else scalar rows */
   PetscInt  *rb_start, *rb_ncols, *rb_colstart, *rb_cols, *rb_map, *rb_diag;
   PetscReal *rb_val;
+  /* the order of the sums (RowBufferSchedule, forces.c): rb_ntile tiles of rb_tile
+   * owned rows; per kind, the first element of each chunk (rb_ntile + 1 each) and the
+   * steps its chunks lag behind the tiles */
+  PetscInt rb_ntile, rb_tile, *rb_chunk, rb_lag[4];
   /* blocks besides the elements' (ClothSetExtraBlocks): owned row, global block
    * column, 9 values, position in rb_val (-1: not held) */
   PetscInt   ex_n, ex_m, *ex_row, *ex_col, *ex_map;
@@ -220,6 +224,11 @@ static inline void ElementHessian(Cloth c, PetscBool project, PetscInt kind, Pet
       KernelAngle(kind == 1 ? KERNEL_SHEAR : KERNEL_BEND, xl + 3 * p[0], xl + 3 * p[1], xl + 3 * p[2], ElemCoef(el, e), ElemLaw(el, e), NULL, H, project);
   }
 }
+
+/* forces.c: J += a M + b H(x) element by element, each element's whole matrix
+ * through MatSetValuesBlocked (both halves): the reference the tests compare
+ * ClothAssembleMatrix with (tests/unit/test_assembly.c). Collective. */
+PETSC_INTERN PetscErrorCode ClothAssembleMatrixElementwise(Cloth, const PetscScalar *x, PetscReal a, PetscReal b, Mat J);
 
 /* The local (owned + ghost) work vector Yl of the element lists' force loop and the
  * Hessian product, made at its first use (the lattice kernel needs none). Not

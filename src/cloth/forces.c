@@ -416,24 +416,40 @@ PetscErrorCode ClothCreateMatrix(Cloth c, MatType type, Mat *J)
     PetscCall(MatSetPreallocationCOO(*J, ncoo, ci, cj));
     PetscCall(PetscFree2(ci, cj));
   } else {
-    Mat P;
-    PetscCall(MatCreate(c->comm, &P));
-    PetscCall(MatSetSizes(P, n, n, PETSC_DETERMINE, PETSC_DETERMINE));
-    PetscCall(MatSetBlockSize(P, 3));
-    PetscCall(MatSetType(P, MATPREALLOCATOR));
-    PetscCall(MatSetUp(P));
-    { /* the pattern: zeros in every block row */
-      PetscInt     wide = 0;
-      PetscScalar *zero;
-      for (PetscInt k = 0; k < c->nowned; k++) wide = PetscMax(wide, c->rb_ncols[k]);
-      PetscCall(PetscCalloc1(9 * wide + 1, &zero));
+    PetscInt     wide = 0;
+    PetscScalar *zero;
+    PetscBool    xaij;
+    for (PetscInt k = 0; k < c->nowned; k++) wide = PetscMax(wide, c->rb_ncols[k]);
+    PetscCall(PetscCalloc1(9 * wide + 1, &zero));
+    PetscCall(PetscObjectTypeCompareAny((PetscObject) *J, &xaij, MATSEQAIJ, MATMPIAIJ, MATSEQBAIJ, MATMPIBAIJ, MATSEQSBAIJ, MATMPISBAIJ, ""));
+    if (xaij) { /* the exact counts of the row buffer's rows (upper blocks only for SBAIJ, as the buffer holds), then the pattern as zeros: MATPREALLOCATOR's hash table took 5 % of a 40-step run at 512^2 */
+      PetscInt *dnnz, *onnz;
+      PetscCall(PetscMalloc2(c->nowned + 1, &dnnz, c->nowned + 1, &onnz));
+      for (PetscInt k = 0; k < c->nowned; k++) {
+        const PetscInt *col = c->rb_cols + c->rb_colstart[k];
+        dnnz[k]             = 0;
+        for (PetscInt l = 0; l < c->rb_ncols[k]; l++) dnnz[k] += col[l] >= c->rstart && col[l] < c->rstart + c->nowned;
+        onnz[k] = c->rb_ncols[k] - dnnz[k];
+      }
+      PetscCall(MatXAIJSetPreallocation(*J, 3, dnnz, onnz, dnnz, onnz));
+      PetscCall(PetscFree2(dnnz, onnz));
+      for (PetscInt k = 0; k < c->nowned; k++) PetscCall(MatSetValuesBlocked(*J, 1, &c->global[k], c->rb_ncols[k], c->rb_cols + c->rb_colstart[k], zero, INSERT_VALUES));
+      PetscCall(MatAssemblyBegin(*J, MAT_FINAL_ASSEMBLY));
+      PetscCall(MatAssemblyEnd(*J, MAT_FINAL_ASSEMBLY));
+    } else { /* dense and the rest: through MATPREALLOCATOR */
+      Mat P;
+      PetscCall(MatCreate(c->comm, &P));
+      PetscCall(MatSetSizes(P, n, n, PETSC_DETERMINE, PETSC_DETERMINE));
+      PetscCall(MatSetBlockSize(P, 3));
+      PetscCall(MatSetType(P, MATPREALLOCATOR));
+      PetscCall(MatSetUp(P));
       for (PetscInt k = 0; k < c->nowned; k++) PetscCall(MatSetValuesBlocked(P, 1, &c->global[k], c->rb_ncols[k], c->rb_cols + c->rb_colstart[k], zero, INSERT_VALUES));
-      PetscCall(PetscFree(zero));
+      PetscCall(MatAssemblyBegin(P, MAT_FINAL_ASSEMBLY));
+      PetscCall(MatAssemblyEnd(P, MAT_FINAL_ASSEMBLY));
+      PetscCall(MatPreallocatorPreallocate(P, PETSC_TRUE, *J));
+      PetscCall(MatDestroy(&P));
     }
-    PetscCall(MatAssemblyBegin(P, MAT_FINAL_ASSEMBLY));
-    PetscCall(MatAssemblyEnd(P, MAT_FINAL_ASSEMBLY));
-    PetscCall(MatPreallocatorPreallocate(P, PETSC_TRUE, *J));
-    PetscCall(MatDestroy(&P));
+    PetscCall(PetscFree(zero));
     PetscCall(MatSetOption(*J, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
     PetscCall(MatSetOption(*J, MAT_NO_OFF_PROC_ENTRIES, PETSC_TRUE));
   }
@@ -548,6 +564,73 @@ PetscErrorCode ClothSetExtraBlocks(Cloth c, PetscInt n, const PetscInt rows[], c
   PetscFunctionReturn(0);
 }
 
+/* The order of the assembly (ClothAddToMatrixRows). A pass over all the elements of
+ * one kind after another streams the whole buffer through memory once per kind (it
+ * is far larger than the caches at 512^2). Instead the owned rows are cut into tiles
+ * of RB_TILE particles, each list into chunks (chunk t: the elements after those of
+ * chunks < t whose rows reach at most tile t, by the running maximum of an element's
+ * largest owned particle), and step s zeroes tile s and then adds chunk s - lag[kind]
+ * of each kind in turn: the rows being summed stay in the cache. Every buffer entry
+ * must still receive its terms in the order of the passes (all of kind 0 in list
+ * order, then kind 1, ...), so that the matrix is the same to the bit: a row's
+ * last chunk of a kind, shifted by that kind's lag, must not come after its first
+ * chunk of a later kind, shifted by the later lag. The smallest lags that do this,
+ * lag[kind] = kind L, are computed here; an order of the particles where L would be
+ * large (no lattice order) takes one tile and no lag: the passes as they were. */
+#define RB_TILE    256
+#define RB_MAX_LAG 64
+static PetscErrorCode RowBufferSchedule(Cloth c)
+{
+  const PetscInt nowned = c->nowned, ntile = PetscMax(1, (nowned + RB_TILE - 1) / RB_TILE);
+  PetscInt      *lo, *hi, L = 0;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscFree(c->rb_chunk));
+  PetscCall(PetscMalloc1(CLOTH_KINDS * (ntile + 1), &c->rb_chunk));
+  PetscCall(PetscMalloc2(CLOTH_KINDS * nowned + 1, &lo, CLOTH_KINDS * nowned + 1, &hi));
+  for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) {
+    const PetscInt n = KindSize(kind), ne = KindCount(c, kind);
+    PetscInt      *ch = c->rb_chunk + kind * (ntile + 1), t = 0, top = 0;
+    for (PetscInt k = 0; k < nowned; k++) lo[kind * nowned + k] = PETSC_MAX_INT, hi[kind * nowned + k] = -1;
+    ch[0] = 0;
+    for (PetscInt e = 0; e < ne; e++) {
+      const PetscInt *p = KindParticles(c, kind, e);
+      for (PetscInt a = 0; a < n; a++)
+        if (p[a] < nowned) top = PetscMax(top, p[a]);
+      while (t + 1 < ntile && top >= (t + 1) * RB_TILE) ch[++t] = e;
+      for (PetscInt a = 0; a < n; a++) {
+        if (p[a] >= nowned) continue;
+        lo[kind * nowned + p[a]] = PetscMin(lo[kind * nowned + p[a]], t);
+        hi[kind * nowned + p[a]] = PetscMax(hi[kind * nowned + p[a]], t);
+      }
+    }
+    while (t + 1 <= ntile) ch[++t] = ne;
+  }
+  /* L >= (hi_kind - lo_later) / (later - kind) at every row */
+  for (PetscInt k = 0; k < nowned; k++)
+    for (PetscInt k1 = 0; k1 < CLOTH_KINDS; k1++)
+      for (PetscInt k2 = k1 + 1; k2 < CLOTH_KINDS; k2++) {
+        const PetscInt h = hi[k1 * nowned + k], l = lo[k2 * nowned + k];
+        if (h >= 0 && l != PETSC_MAX_INT && h > l) L = PetscMax(L, (h - l + (k2 - k1) - 1) / (k2 - k1));
+      }
+  PetscCall(PetscFree2(lo, hi));
+  if (L > RB_MAX_LAG) { /* one tile: the kinds one after the other */
+    for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) {
+      c->rb_chunk[2 * kind]     = 0;
+      c->rb_chunk[2 * kind + 1] = KindCount(c, kind);
+    }
+    c->rb_ntile = 1;
+    c->rb_tile  = PetscMax(nowned, 1);
+    L           = 0;
+  } else {
+    c->rb_ntile = ntile;
+    c->rb_tile  = RB_TILE;
+  }
+  for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) c->rb_lag[kind] = kind * L;
+  PetscCall(PetscInfo(NULL, "Row buffer: %" PetscInt_FMT " tiles of %" PetscInt_FMT " rows, the kinds' chunks %" PetscInt_FMT " steps apart\n", c->rb_ntile, c->rb_tile, L));
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
 {
   PetscInt *count, total = 0, npairs = 0;
@@ -621,6 +704,7 @@ static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
   c->rb_mat = J;
   c->rb_sym = sym;
   PetscCall(ExtraMap(c, NULL));
+  PetscCall(RowBufferSchedule(c));
   PetscFunctionReturn(0);
 }
 
@@ -694,29 +778,213 @@ static PetscErrorCode RowBufferToAIJ(Cloth c, Mat J)
   PetscFunctionReturn(0);
 }
 
+/* ---- The element blocks into the row buffer ----
+ *
+ * Each element block the buffer holds (rb_map >= 0) is formed alone, from the
+ * element's few numbers (a stretch edge's h, an angle element's H6), filtered by the
+ * constraints and added: symmetric storage skips the blocks of the lower half before
+ * computing them, and no element matrix is written out. Every buffer entry and
+ * every hdiag entry receives the same terms, the same values, in the same (element)
+ * order as from the element's whole matrix (MatrixElementHessian and
+ * FilterElementHessian, ClothAssembleMatrixElementwise): the matrix is the same to
+ * the bit. */
+
+/* The element blocks are formed in the buffer's layout (blk: by columns, as (S)BAIJ
+ * store a block; else by rows, the three scalar rows of AIJ): entry (i, j) of a block
+ * at Layout(blk, i, j) of its nine. */
+static inline PetscInt Layout(PetscBool blk, PetscInt i, PetscInt j) { return blk ? i + 3 * j : 3 * i + j; }
+
+/* v += b B, B in the layout; the block's rows si apart when not blk */
+static inline void AddBlock(PetscBool blk, PetscReal *restrict v, PetscInt si, PetscReal b, const PetscReal *restrict B)
+{
+  if (blk)
+    for (PetscInt q = 0; q < 9; q++) v[q] += b * B[q];
+  else
+    for (PetscInt i = 0; i < 3; i++)
+      for (PetscInt j = 0; j < 3; j++) v[si * i + j] += b * B[3 * i + j];
+}
+
+/* hdiag of owned particle k += B (B in the layout, hdiag by rows) */
+static inline void AddHdiag(Cloth c, PetscBool blk, PetscInt k, const PetscReal *restrict B)
+{
+  PetscReal *restrict h = c->hdiag + 9 * k;
+  for (PetscInt i = 0; i < 3; i++)
+    for (PetscInt j = 0; j < 3; j++) h[3 * i + j] += B[Layout(blk, i, j)];
+}
+
+/* v += b S_a B S_b for block (pa, pb) of an element on particles p (B in the
+ * layout): the projections in FilterElementHessian's order (by S_a first when
+ * pa <= pb), on the block by rows. */
+static inline void AddFilteredBlock(Cloth c, PetscBool blk, const PetscInt *p, PetscInt pa, PetscInt pb, PetscReal *restrict v, PetscInt si, PetscReal b, const PetscReal *restrict Bl)
+{
+  const ClothConstraint ta = c->ctype[p[pa]], tb = c->ctype[p[pb]];
+  const PetscReal      *na = c->cnormal + 3 * p[pa], *nb = c->cnormal + 3 * p[pb];
+  PetscReal             B[9], Bo[9];
+
+  for (PetscInt i = 0; i < 3; i++)
+    for (PetscInt j = 0; j < 3; j++) B[3 * i + j] = Bl[Layout(blk, i, j)];
+  if (pa <= pb) {
+    if (ta != CLOTH_FREE) ProjectBlock(ta, na, B, 3, PETSC_TRUE);
+    if (tb != CLOTH_FREE) ProjectBlock(tb, nb, B, 3, PETSC_FALSE);
+  } else {
+    if (tb != CLOTH_FREE) ProjectBlock(tb, nb, B, 3, PETSC_FALSE);
+    if (ta != CLOTH_FREE) ProjectBlock(ta, na, B, 3, PETSC_TRUE);
+  }
+  for (PetscInt i = 0; i < 3; i++)
+    for (PetscInt j = 0; j < 3; j++) Bo[Layout(blk, i, j)] = B[3 * i + j];
+  AddBlock(blk, v, si, b, Bo);
+}
+
+/* The buffer's row stride of row k when not blk (RowBufferStrides' si) */
+static inline PetscInt RowStride(Cloth c, PetscBool blk, PetscInt k) { return blk ? 1 : 3 * c->rb_ncols[k]; }
+
+/* The stretch edges [e0, e1); map: the list's rb_map entries (4 each). */
+static inline void AddStretchBlocks(Cloth c, PetscBool blk, PetscReal b, const PetscReal *restrict xl, const PetscInt *restrict map, PetscInt e0, PetscInt e1)
+{
+  const ClothElements *el      = &c->stretch_el;
+  const PetscBool      project = (PetscBool) !c->exact_hessian;
+  PetscReal *restrict val      = c->rb_val;
+
+  map += 4 * e0;
+  for (PetscInt e = e0; e < e1; e++, map += 4) {
+    const PetscInt *p = el->p + 2 * e;
+    PetscReal       h[9], B[2][9]; /* h, -h in the layout */
+    KernelStretchHessianBlock(xl + 3 * p[0], xl + 3 * p[1], ElemCoef(el, e), ElemRest(el, e), project, h);
+    for (PetscInt i = 0; i < 3; i++)
+      for (PetscInt j = 0; j < 3; j++) {
+        B[0][Layout(blk, i, j)] = h[3 * i + j];
+        B[1][Layout(blk, i, j)] = -h[3 * i + j];
+      }
+    for (PetscInt a = 0; a < 2; a++)
+      if (p[a] < c->nowned) AddHdiag(c, blk, p[a], B[0]);
+    for (PetscInt a = 0; a < 2; a++) {
+      PetscInt si;
+      if (map[2 * a] < 0 && map[2 * a + 1] < 0) continue;
+      si = RowStride(c, blk, p[a]);
+      for (PetscInt q = 0; q < 2; q++) {
+        const PetscInt pos = map[2 * a + q];
+        if (pos < 0) continue;
+        if (c->constrained)
+          AddFilteredBlock(c, blk, p, a, q, val + pos, si, b, B[a != q]);
+        else
+          AddBlock(blk, val + pos, si, b, B[a != q]);
+      }
+    }
+  }
+}
+
+/* The shear corners (kind 1) or bending triples (kind 2) [e0, e1); map: 9 each. The
+ * nine blocks of the 9 x 9 Hessian from H6's four, in the sums of KernelAngle. */
+static inline void AddAngleBlocks(Cloth c, PetscInt kind, PetscBool blk, PetscReal b, const PetscReal *restrict xl, const PetscInt *restrict map, PetscInt e0, PetscInt e1)
+{
+  const ClothElements  *el      = KindList(c, kind);
+  const KernelAngleKind ak      = kind == 1 ? KERNEL_SHEAR : KERNEL_BEND;
+  const PetscBool       project = (PetscBool) !c->exact_hessian;
+  PetscReal *restrict val       = c->rb_val;
+
+  map += 9 * e0;
+  for (PetscInt e = e0; e < e1; e++, map += 9) {
+    const PetscInt *p = el->p + 3 * e;
+    PetscReal       H6[36], B[9][9]; /* block (a, q) at B[3 a + q], in the layout */
+    KernelAngleHessianE(ak, xl + 3 * p[0], xl + 3 * p[1], xl + 3 * p[2], ElemCoef(el, e), ElemLaw(el, e), project, H6);
+    for (PetscInt i = 0; i < 3; i++) {
+      for (PetscInt j = 0; j < 3; j++) {
+        const PetscReal h11 = H6[6 * i + j], h12 = H6[6 * i + 3 + j], h21 = H6[6 * (3 + i) + j], h22 = H6[6 * (3 + i) + 3 + j];
+        const PetscInt  l = Layout(blk, i, j);
+        B[0][l]           = h11;
+        B[1][l]           = h12;
+        B[2][l]           = -(h11 + h12);
+        B[3][l]           = h21;
+        B[4][l]           = h22;
+        B[5][l]           = -(h21 + h22);
+        B[6][l]           = -(h11 + h21);
+        B[7][l]           = -(h12 + h22);
+        B[8][l]           = h11 + h12 + h21 + h22;
+      }
+    }
+    for (PetscInt a = 0; a < 3; a++)
+      if (p[a] < c->nowned) AddHdiag(c, blk, p[a], B[4 * a]);
+    for (PetscInt a = 0; a < 3; a++) {
+      PetscInt si;
+      if (map[3 * a] < 0 && map[3 * a + 1] < 0 && map[3 * a + 2] < 0) continue;
+      si = RowStride(c, blk, p[a]);
+      for (PetscInt q = 0; q < 3; q++) {
+        const PetscInt pos = map[3 * a + q];
+        if (pos < 0) continue;
+        if (c->constrained)
+          AddFilteredBlock(c, blk, p, a, q, val + pos, si, b, B[3 * a + q]);
+        else
+          AddBlock(blk, val + pos, si, b, B[3 * a + q]);
+      }
+    }
+  }
+}
+
+/* Elements of any kind through their whole matrix (the bending friction: its five
+ * particles may repeat one, so blocks may meet in one buffer block, and their order
+ * is the element matrix's); map: n^2 each. */
+static void AddElementMatrices(Cloth c, PetscInt kind, PetscReal b, const PetscReal *xl, const PetscInt *map, PetscInt e0, PetscInt e1)
+{
+  const PetscInt n = KindSize(kind), m = 3 * n;
+  PetscReal      H[225];
+
+  map += n * n * e0;
+  for (PetscInt e = e0; e < e1; e++) {
+    const PetscInt *p = KindParticles(c, kind, e);
+    MatrixElementHessian(c, kind, e, xl, H);
+    for (PetscInt pa = 0; pa < n; pa++) {
+      for (PetscInt pb = 0; pb < n; pb++, map++) {
+        const PetscInt pos = *map;
+        PetscInt       si, sj;
+        if (pos < 0) continue;
+        RowBufferStrides(c, p[pa], &si, &sj);
+        for (PetscInt i = 0; i < 3; i++)
+          for (PetscInt j = 0; j < 3; j++) c->rb_val[pos + si * i + sj * j] += b * H[m * (3 * pa + i) + 3 * pb + j];
+      }
+    }
+  }
+}
+
+/* Elements [e0, e1) of list `kind` into the buffer; map: the list's rb_map entries. */
+static void AddKindRange(Cloth c, PetscInt kind, PetscReal b, const PetscReal *xl, const PetscInt *map, PetscInt e0, PetscInt e1)
+{
+  if (e0 >= e1) return;
+  if (kind == 0) {
+    if (c->rb_block)
+      AddStretchBlocks(c, PETSC_TRUE, b, xl, map, e0, e1);
+    else
+      AddStretchBlocks(c, PETSC_FALSE, b, xl, map, e0, e1);
+  } else if (kind < 3) {
+    if (c->rb_block)
+      AddAngleBlocks(c, kind, PETSC_TRUE, b, xl, map, e0, e1);
+    else
+      AddAngleBlocks(c, kind, PETSC_FALSE, b, xl, map, e0, e1);
+  } else
+    AddElementMatrices(c, kind, b, xl, map, e0, e1);
+}
+
 static PetscErrorCode ClothAddToMatrixRows(Cloth c, const PetscReal *xl, PetscReal a, PetscReal b, Mat J)
 {
-  PetscReal H[225], D[9];
-  PetscInt  pair = 0;
+  PetscReal       D[9];
+  const PetscInt *map[CLOTH_KINDS];
 
   PetscFunctionBeginUser;
   if (c->rb_alias) PetscCall(RowBufferAlias(c, J, PETSC_TRUE));
-  PetscCall(PetscArrayzero(c->rb_val, c->rb_start[c->nowned]));
-  for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) {
-    const PetscInt n = KindSize(kind), m = 3 * n;
-    for (PetscInt e = 0; e < KindCount(c, kind); e++) {
-      const PetscInt *p = KindParticles(c, kind, e);
-      MatrixElementHessian(c, kind, e, xl, H);
-      for (PetscInt pa = 0; pa < n; pa++) {
-        for (PetscInt pb = 0; pb < n; pb++, pair++) {
-          const PetscInt pos = c->rb_map[pair];
-          PetscInt       si, sj;
-          if (pos < 0) continue;
-          RowBufferStrides(c, p[pa], &si, &sj);
-          for (PetscInt i = 0; i < 3; i++)
-            for (PetscInt j = 0; j < 3; j++) c->rb_val[pos + si * i + sj * j] += b * H[m * (3 * pa + i) + 3 * pb + j];
-        }
-      }
+  map[0] = c->rb_map;
+  for (PetscInt kind = 1; kind < CLOTH_KINDS; kind++) map[kind] = map[kind - 1] + KindSize(kind - 1) * KindSize(kind - 1) * KindCount(c, kind - 1);
+  /* the tiles' schedule (RowBufferSchedule): at step s, the rows of tile s zeroed,
+   * then each kind's chunk s - lag */
+  for (PetscInt step = 0; step < c->rb_ntile + c->rb_lag[CLOTH_KINDS - 1]; step++) {
+    if (step < c->rb_ntile) {
+      const PetscInt k0 = PetscMin(step * c->rb_tile, c->nowned), k1 = PetscMin(k0 + c->rb_tile, c->nowned);
+      PetscCall(PetscArrayzero(c->rb_val + c->rb_start[k0], c->rb_start[k1] - c->rb_start[k0]));
+      PetscCall(PetscArrayzero(c->hdiag + 9 * k0, 9 * (k1 - k0)));
+    }
+    for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) {
+      const PetscInt  t  = step - c->rb_lag[kind];
+      const PetscInt *ch = c->rb_chunk + kind * (c->rb_ntile + 1);
+      if (t < 0 || t >= c->rb_ntile) continue;
+      AddKindRange(c, kind, b, xl, map[kind], ch[t], ch[t + 1]);
     }
   }
   for (PetscInt e = 0; e < c->ex_n; e++) {
@@ -759,9 +1027,8 @@ PetscErrorCode ClothAssembleMatrix(Cloth c, const PetscScalar *x, PetscReal a, P
 
   PetscFunctionBeginUser;
   PetscCall(PetscLogEventBegin(drape_log.jacobian, 0, 0, 0, 0));
-  if (!c->hdiag) PetscCall(PetscMalloc1(9 * c->nowned + 1, &c->hdiag));
-  PetscCall(PetscArrayzero(c->hdiag, 9 * c->nowned));
-  if (c->rb_mat != J) { /* a matrix ClothCreateMatrix did not make: rows into its own pattern */
+  if (!c->hdiag) PetscCall(PetscMalloc1(9 * c->nowned + 1, &c->hdiag)); /* zeroed tile by tile (ClothAddToMatrixRows) */
+  if (c->rb_mat != J) {                                                 /* a matrix ClothCreateMatrix did not make: rows into its own pattern */
     c->rb_coo = c->rb_csr = c->rb_alias = PETSC_FALSE;
     c->rb_block                         = PETSC_TRUE;
     PetscCall(ClothBuildRowBuffer(c, J));
@@ -770,6 +1037,54 @@ PetscErrorCode ClothAssembleMatrix(Cloth c, const PetscScalar *x, PetscReal a, P
   PetscCall(ClothAddToMatrixRows(c, xl, a, b, J));
   PetscCall(ClothEndScatter(c, &xl));
   PetscCall(PetscLogEventEnd(drape_log.jacobian, 0, 0, 0, 0));
+  PetscFunctionReturn(0);
+}
+
+/* The reference of the tests: J += a M + b H(x) as the assembly was first written,
+ * element by element, each element's whole matrix (MatrixElementHessian, filtered
+ * by FilterElementHessian) added block by block with MatSetValuesBlocked, then the
+ * extra blocks and the mass blocks; every block of both halves. J: any matrix of
+ * block size 3 that accepts the pattern (AIJ without preallocation errors).
+ * ClothGetHessianDiagonal then gives this assembly's. Collective. */
+PetscErrorCode ClothAssembleMatrixElementwise(Cloth c, const PetscScalar *x, PetscReal a, PetscReal b, Mat J)
+{
+  const PetscScalar *xl;
+  PetscReal          H[225], B[9];
+
+  PetscFunctionBeginUser;
+  if (!c->hdiag) PetscCall(PetscMalloc1(9 * c->nowned + 1, &c->hdiag));
+  PetscCall(PetscArrayzero(c->hdiag, 9 * c->nowned));
+  PetscCall(ClothScatterPositions(c, x, &xl));
+  for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) {
+    const PetscInt n = KindSize(kind), m = 3 * n;
+    for (PetscInt e = 0; e < KindCount(c, kind); e++) {
+      const PetscInt *p = KindParticles(c, kind, e);
+      MatrixElementHessian(c, kind, e, xl, H);
+      for (PetscInt pa = 0; pa < n; pa++) {
+        const PetscInt row = p[pa] < c->nowned ? c->row_map[p[pa]] : -1;
+        if (row < 0) continue;
+        for (PetscInt pb = 0; pb < n; pb++) {
+          const PetscInt col = c->col_map[p[pb]];
+          if (col < 0) continue;
+          for (PetscInt i = 0; i < 3; i++)
+            for (PetscInt j = 0; j < 3; j++) B[3 * i + j] = b * H[m * (3 * pa + i) + 3 * pb + j];
+          PetscCall(MatSetValuesBlocked(J, 1, &row, 1, &col, B, ADD_VALUES));
+        }
+      }
+    }
+  }
+  PetscCall(ClothEndScatter(c, &xl));
+  for (PetscInt e = 0; e < c->ex_n; e++) {
+    if (!BlockHeld(c, PETSC_FALSE, c->ex_row[e], c->ex_col[e])) continue;
+    for (PetscInt i = 0; i < 9; i++) B[i] = b * c->ex_val[9 * e + i];
+    PetscCall(MatSetValuesBlocked(J, 1, &c->global[c->ex_row[e]], 1, &c->ex_col[e], B, ADD_VALUES));
+  }
+  for (PetscInt k = 0; k < c->nowned; k++) {
+    MassBlock(c, k, a, b, B);
+    PetscCall(MatSetValuesBlocked(J, 1, &c->global[k], 1, &c->global[k], B, ADD_VALUES));
+  }
+  PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
+  PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
   PetscFunctionReturn(0);
 }
 

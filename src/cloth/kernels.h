@@ -172,6 +172,19 @@ static inline void KernelProjectPSD2(PetscReal *a, PetscReal *b, PetscReal *d)
   *d = l1 * s * s / n;
 }
 
+/* The stretch edge's Hessian block h (3 x 3): the element's is [[h, -h], [-h, h]]
+ * (KernelStretch, the same formula). */
+static inline void KernelStretchHessianBlock(const PetscReal *xa, const PetscReal *xb, PetscReal k, PetscReal L, PetscBool project, PetscReal h[9])
+{
+  const PetscReal e[3] = {xb[0] - xa[0], xb[1] - xa[1], xb[2] - xa[2]};
+  const PetscReal l = PetscSqrtReal(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]), u[3] = {e[0] / l, e[1] / l, e[2] / l};
+  PetscReal       s = 1 - L / l;
+
+  if (project && s < 0) s = 0;
+  for (PetscInt i = 0; i < 3; i++)
+    for (PetscInt j = 0; j < 3; j++) h[3 * i + j] = k * ((1 - s) * u[i] * u[j] + (i == j ? s : 0));
+}
+
 static inline PetscReal KernelStretch(const PetscReal *xa, const PetscReal *xb, PetscReal k, PetscReal L, PetscReal *g, PetscReal *H, PetscBool project)
 {
   PetscReal e[3] = {xb[0] - xa[0], xb[1] - xa[1], xb[2] - xa[2]};
@@ -185,11 +198,11 @@ static inline PetscReal KernelStretch(const PetscReal *xa, const PetscReal *xb, 
     }
   }
   if (H) {
-    PetscReal s = 1 - L / l, u[3] = {e[0] / l, e[1] / l, e[2] / l};
-    if (project && s < 0) s = 0;
+    PetscReal hb[9];
+    KernelStretchHessianBlock(xa, xb, k, L, project, hb);
     for (PetscInt i = 0; i < 3; i++) {
       for (PetscInt j = 0; j < 3; j++) {
-        PetscReal h            = k * ((1 - s) * u[i] * u[j] + (i == j ? s : 0));
+        PetscReal h            = hb[3 * i + j];
         H[6 * i + j]           = h;
         H[6 * (i + 3) + j + 3] = h;
         H[6 * i + j + 3]       = -h;
@@ -484,6 +497,43 @@ static inline void KernelBendPartials(PetscReal kappa, const KernelBendLaw *law,
   d->Ews = kappa * (G1 * C.cws + G2 * C.cw * C.cs);
 }
 
+/* The angle Hessian with respect to (e1, e2), 6 x 6 row-major, from the partials d:
+ * H6 = J^T E2 J + [[2Eu, Es], [Es, 2Ew]] (x) I3, J = [grad u; grad w; grad s] =
+ * [[2 e1, 0], [0, 2 e2], [e2, e1]]; with project, each part's negative eigenvalues
+ * clamped at 0. J's zero entries are left out of the products (the same values as
+ * the full products: only a zero's sign may differ). The element's 9 x 9 Hessian is
+ * H9 = B^T H6 B, B = [[I, 0, -I], [0, I, -I]]: its blocks are h11, h12, -(h11 + h12);
+ * h21, h22, -(h21 + h22); -(h11 + h21), -(h12 + h22), h11 + h12 + h21 + h22 with
+ * h11, h12, h21, h22 the 3 x 3 blocks of H6 (KernelAngle, ClothAssembleMatrix). */
+static inline void KernelAngleHessian6(const KernelAnglePartials *d, const PetscReal e1[3], const PetscReal e2[3], PetscBool project, PetscReal H6[36])
+{
+  PetscReal E2[9] = {d->Euu, d->Euw, d->Eus, d->Euw, d->Eww, d->Ews, d->Eus, d->Ews, d->Ess};
+  PetscReal a = 2 * d->Eu, b = d->Es, c = 2 * d->Ew, t[6][3];
+
+  if (project) {
+    if (!KernelIsPSD3(E2) && !KernelProjectPSD3Closed(E2)) KernelProjectPSD3(E2);
+    KernelProjectPSD2(&a, &b, &c);
+  }
+  for (PetscInt i = 0; i < 3; i++) { /* t = (E2 J)^T, column by column of J */
+    for (PetscInt p = 0; p < 3; p++) {
+      t[i][p]     = E2[3 * p] * (2 * e1[i]) + E2[3 * p + 2] * e2[i];
+      t[3 + i][p] = E2[3 * p + 1] * (2 * e2[i]) + E2[3 * p + 2] * e1[i];
+    }
+  }
+  for (PetscInt i = 0; i < 6; i++) {
+    for (PetscInt j = 0; j < 3; j++) {
+      H6[6 * i + j]     = t[i][0] * (2 * e1[j]) + t[i][2] * e2[j];
+      H6[6 * i + 3 + j] = t[i][1] * (2 * e2[j]) + t[i][2] * e1[j];
+    }
+  }
+  for (PetscInt i = 0; i < 3; i++) {
+    H6[6 * i + i] += a;
+    H6[6 * i + 3 + i] += b;
+    H6[6 * (3 + i) + i] += b;
+    H6[6 * (3 + i) + 3 + i] += c;
+  }
+}
+
 typedef enum {
   KERNEL_SHEAR,
   KERNEL_BEND
@@ -511,36 +561,12 @@ static inline PetscReal KernelAngle(KernelAngleKind kind, const PetscReal *xa, c
     }
   }
   if (H) {
-    /* H6 (w.r.t. e1, e2) = J^T E2 J + [[2Eu, Es], [Es, 2Ew]] (x) I3, J = [grad u; grad w; grad s] */
-    PetscReal E2[9] = {d.Euu, d.Euw, d.Eus, d.Euw, d.Eww, d.Ews, d.Eus, d.Ews, d.Ess};
-    PetscReal a = 2 * d.Eu, b = d.Es, c = 2 * d.Ew, Jm[3][6], H6[6][6];
-    if (project) {
-      if (!KernelIsPSD3(E2) && !KernelProjectPSD3Closed(E2)) KernelProjectPSD3(E2);
-      KernelProjectPSD2(&a, &b, &c);
-    }
-    for (PetscInt i = 0; i < 3; i++) {
-      Jm[0][i]     = 2 * e1[i];
-      Jm[0][3 + i] = 0;
-      Jm[1][i]     = 0;
-      Jm[1][3 + i] = 2 * e2[i];
-      Jm[2][i]     = e2[i];
-      Jm[2][3 + i] = e1[i];
-    }
-    for (PetscInt i = 0; i < 6; i++) {
-      PetscReal t[3];
-      for (PetscInt p = 0; p < 3; p++) t[p] = E2[3 * p] * Jm[0][i] + E2[3 * p + 1] * Jm[1][i] + E2[3 * p + 2] * Jm[2][i];
-      for (PetscInt j = 0; j < 6; j++) H6[i][j] = t[0] * Jm[0][j] + t[1] * Jm[1][j] + t[2] * Jm[2][j];
-    }
-    for (PetscInt i = 0; i < 3; i++) {
-      H6[i][i] += a;
-      H6[i][3 + i] += b;
-      H6[3 + i][i] += b;
-      H6[3 + i][3 + i] += c;
-    }
+    PetscReal H6[36];
+    KernelAngleHessian6(&d, e1, e2, project, H6);
     /* H9 = B^T H6 B with B = [[I, 0, -I], [0, I, -I]] */
     for (PetscInt i = 0; i < 3; i++) {
       for (PetscInt j = 0; j < 3; j++) {
-        PetscReal h11 = H6[i][j], h12 = H6[i][3 + j], h21 = H6[3 + i][j], h22 = H6[3 + i][3 + j];
+        PetscReal h11 = H6[6 * i + j], h12 = H6[6 * i + 3 + j], h21 = H6[6 * (3 + i) + j], h22 = H6[6 * (3 + i) + 3 + j];
         H[9 * i + j]           = h11;
         H[9 * i + 3 + j]       = h12;
         H[9 * i + 6 + j]       = -(h11 + h12);
@@ -554,6 +580,23 @@ static inline PetscReal KernelAngle(KernelAngleKind kind, const PetscReal *xa, c
     }
   }
   return d.E;
+}
+
+/* The angle element's Hessian with respect to (e1, e2) alone (KernelAngleHessian6):
+ * what KernelAngle's H is made of, for the matrix assembly, which adds its 3 x 3
+ * blocks straight from H6 into the rows that hold them. */
+static inline void KernelAngleHessianE(KernelAngleKind kind, const PetscReal *xa, const PetscReal *xb, const PetscReal *xc, PetscReal kappa, const KernelBendLaw *law, PetscBool project, PetscReal H6[36])
+{
+  const PetscReal     e1[3] = {xa[0] - xc[0], xa[1] - xc[1], xa[2] - xc[2]}, e2[3] = {xb[0] - xc[0], xb[1] - xc[1], xb[2] - xc[2]};
+  const PetscReal     u = e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2], w = e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2];
+  const PetscReal     s = e1[0] * e2[0] + e1[1] * e2[1] + e1[2] * e2[2];
+  KernelAnglePartials d = {0};
+
+  if (kind == KERNEL_SHEAR)
+    KernelShearPartials(kappa, u, w, s, 2, &d);
+  else
+    KernelBendPartials(kappa, law, u, w, s, 2, &d);
+  KernelAngleHessian6(&d, e1, e2, project, H6);
 }
 
 /* Bending friction (-cloth_bend_hysteresis). The yarns of a bent fabric slide on
