@@ -1583,7 +1583,7 @@ PetscErrorCode SelfContactFilter(SelfContact sc, PetscReal h, PetscScalar *x, Pe
   PetscCall(Pass(sc, PETSC_TRUE, h, &sc->stats.pairs, &close));
   if (close) PetscCall(SelfHaloUpdate(sc, NULL, s->x1, s->v)); /* close: pairs that acted, on any rank */
   for (PetscInt it = 0; it < sc->its && active; it++) {
-    PetscCall(SelfListUpdate(sc, sc->thickness, PETSC_FALSE));
+    if (it > 0 || close) PetscCall(SelfListUpdate(sc, sc->thickness, PETSC_FALSE)); /* (else nothing moved since the last) */
     PetscCall(Pass(sc, PETSC_FALSE, h, &active, &ncol));
     if (ncol) PetscCall(SelfHaloUpdate(sc, NULL, s->x1, s->v));
     sc->stats.collisions += ncol;
