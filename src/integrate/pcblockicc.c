@@ -39,7 +39,6 @@ typedef struct {
   PetscReal      pivot_tol;    /* a pivot must exceed this times A's diagonal entry  */
   PCBlockICCType type;         /* plain IC(0), compensated, or plain unless a pivot fails */
   PetscBool      compensated;  /* the last factorisation was compensated            */
-  PetscInt       repairs;      /* pivot blocks round-off left indefinite even so: A_kk */
 } PC_BlockICC;
 
 /* The LDL^T pivots of the symmetric 3 x 3 block d (by columns) are each above tol
@@ -145,7 +144,6 @@ static PetscErrorCode PCBlockICCNumeric(PC_BlockICC *icc, Mat A, PetscBool compe
   PetscCall(PetscArraycpy(fa, aa, 9 * ai[n]));
   PetscCall(PetscArrayzero(comp, 3 * n));
   for (PetscInt k = 0; k < n; k++) next[k] = n; /* every list empty */
-  icc->repairs = 0;
   for (PetscInt k = 0; k < n && *ok; k++) {
     MatScalar       *dk = fa + 9 * ai[k];
     const MatScalar *ak = aa + 9 * ai[k];
@@ -186,12 +184,10 @@ static PetscErrorCode PCBlockICCNumeric(PC_BlockICC *icc, Mat A, PetscBool compe
     {
       MatScalar dinv[9];
       if (!BlockInvertSPD(dk, ak, icc->pivot_tol, dinv)) { /* the dropped fill took more than the block had */
-        if (!compensate)
-          *ok = PETSC_FALSE;
-        else { /* round-off only: the compensated Schur complement is positive definite */
-          icc->repairs++;
-          PetscCheck(BlockInvertSPD(ak, ak, 0, dinv), PETSC_COMM_SELF, PETSC_ERR_MAT_CH_ZRPVT, "-pc_type blockicc needs a symmetric positive definite matrix, and its diagonal block %" PetscInt_FMT " is not", k);
-        }
+        *ok = compensate;
+        if (!*ok) continue; /* the loop ends; the factor is made again, compensated */
+        /* round-off only: the compensated Schur complement is positive definite */
+        PetscCheck(BlockInvertSPD(ak, ak, 0, dinv), PETSC_COMM_SELF, PETSC_ERR_MAT_CH_ZRPVT, "-pc_type blockicc needs a symmetric positive definite matrix, and its diagonal block %" PetscInt_FMT " is not", k);
       }
       PetscCall(PetscArraycpy(dk, dinv, 9));
     }
