@@ -18,9 +18,10 @@
  * Jacobi/ICC(0), giving way to multigrid), replaced at TSSetUp; -pc_type gives
  * another. Registered by DrapeTSRegister. */
 #define PCDRAPE "drape"
-/* drapebe's default TSAdapt type (src/integrate/adapt.c): fixed steps of -ts_dt,
- * cut by TSAdaptCheckStage after a failed solve, grown back after four accepted
- * steps (later back to a size that failed). Registered by DrapeTSRegister. */
+/* drapebe's default TSAdapt type (src/integrate/adapt.c): steps of -ts_dt, cut by
+ * TSAdaptCheckStage after a failed solve, grown back after four accepted steps
+ * (later back to a size that failed), and grown beyond -ts_dt while the cloth
+ * settles (TSAdaptDrapeSetSettled). Registered by DrapeTSRegister. */
 #define TSADAPTDRAPE "drape"
 
 /* Register the TS type with TSRegister(), PCDRAPE with PCRegister() and
@@ -32,6 +33,15 @@ PETSC_EXTERN PetscErrorCode DrapeTSAdaptRegister(void);
  * gives -ts_dt); it also forgets the failures so far. Does nothing for another
  * type. Logically collective on TSAdapt. */
 PETSC_EXTERN PetscErrorCode TSAdaptDrapeSetStep(TSAdapt, PetscReal);
+/* Is the cloth settling (its kinetic energy below -drape_settle_tol long enough,
+ * rest.h)? Then a TSADAPTDRAPE adapt grows the step up to
+ * -ts_adapt_drape_settle_factor x the step asked for; when it is no longer settling,
+ * the next step is the one asked for. Does nothing for another type. Logically
+ * collective on TSAdapt. */
+PETSC_EXTERN PetscErrorCode TSAdaptDrapeSetSettled(TSAdapt, PetscBool);
+/* The step asked for and the largest step taken (0, 0 for another type). Not
+ * collective. */
+PETSC_EXTERN PetscErrorCode TSAdaptDrapeGetSteps(TSAdapt, PetscReal *dt, PetscReal *largest);
 /* The cloth whose motion the TS integrates (required by TSSetUp). Give it before
  * TSSetFromOptions: its defaults follow the cloth (-snes_type newtonls with bending
  * friction), and the options override them. Logically collective on TS. */

@@ -102,6 +102,29 @@ def test_rest_shape_does_not_depend_on_the_scheme(tmp, fabric):
     assert np.linalg.norm(x["drapebe"] - x["symplectic"], axis=-1).max() < 3e-3
 
 
+def test_step_grows_as_the_cloth_settles(tmp):
+    """The strip of the test above (denim, drapebe at 2e-3 s), whose rest is unique:
+    once the kinetic energy has stayed below -drape_settle_tol for -drape_rest_time,
+    drapebe doubles its step up to 10 x -ts_dt, so the run comes to rest in fewer
+    steps and at the rest of the run at -ts_dt throughout. At the rest tolerance 1e-6
+    each run is 0.5 mm from the true rest (1.06 mm apart); at 1e-8, as here, 0.06 and
+    0.04 mm (0.1 mm apart; 2913 steps against 1367). -ts_adapt_drape_settle_factor 1
+    keeps -ts_dt, and the report says when the cloth settled and the largest step.
+    (The Cusick scene, whose folds have nearby rests: BENCHMARKS.md.)"""
+    args = f"{STRIP} -cloth_fabric denim -ts_type drapebe -ts_dt 2e-3 -drape_rest_tol 1e-8 -drape_settle_tol 1e-3 -ts_max_time 12"
+    res, x = {}, {}
+    for factor in (1, 10):
+        out = tmp / f"f{factor}.h5"
+        res[factor] = run(f"{args} -ts_adapt_drape_settle_factor {factor} -output_file {out}", checks=False).report
+        x[factor] = drape_h5.load(out).positions[-1]
+    fixed, grown = res[1], res[10]
+    assert fixed["at_rest"] and grown["at_rest"], (fixed, grown)
+    assert fixed["dt_largest"] == pytest.approx(2e-3) and grown["dt_largest"] == pytest.approx(2e-2), (fixed, grown)
+    assert 0 < grown["settled_at"] < grown["t"] - 0.2, grown
+    assert grown["steps"] < 0.6 * fixed["steps"], (fixed["steps"], grown["steps"])
+    assert np.linalg.norm(x[10] - x[1], axis=-1).max() < 3e-4
+
+
 STIFF = ("-cloth_size 1 -cloth_density 0.1 -cloth_stretch 1333 -cloth_shear 500 -cloth_bend 1e-5 -cloth_damping 0 "
          "-da_grid_x 32 -da_grid_y 32 -ts_type drapebe -ts_dt 1e-2 -ts_max_time 1")
 

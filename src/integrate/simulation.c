@@ -405,10 +405,13 @@ static PetscErrorCode PostStep(TS ts)
   }
   PetscCall(ClothUpdatePlasticState(s->cloth, u)); /* the step's final place: the bending friction's sliders follow */
   {
-    PetscBool at_rest;
+    PetscBool at_rest, settled;
+    TSAdapt   adapt;
     PetscCall(TSGetTime(ts, &t));
-    PetscCall(RestTestUpdate(s->rest, s->cloth, u + s->n, t, &at_rest));
+    PetscCall(RestTestUpdate(s->rest, s->cloth, u + s->n, t, &at_rest, &settled));
     if (at_rest) PetscCall(TSSetConvergedReason(ts, TS_CONVERGED_USER));
+    PetscCall(TSGetAdapt(ts, &adapt));
+    PetscCall(TSAdaptDrapeSetSettled(adapt, settled)); /* drapebe's step may grow (adapt.c); no-op for the other adapt types */
   }
   PetscCall(VecRestoreArray(s->U, &u));
   PetscFunctionReturn(0);
@@ -1096,6 +1099,13 @@ static PetscErrorCode SimulationViewSummary(Simulation s, PetscViewer viewer, Pe
   PetscCall(ReportViewReal(r, its > 0 ? viewer : NULL, "cg_per_step", ", %.2f CG iterations per step", (PetscReal) its / PetscMax(run, 1)));
   PetscCall(ReportViewReal(r, solves > run ? viewer : NULL, "solves_per_step", ", %.2f solves per step", (PetscReal) solves / PetscMax(run, 1)));
   PetscCall(ReportViewInt(r, rejected ? viewer : NULL, "steps_retried", ", %" PetscInt_FMT " steps retried at a smaller step", rejected));
+  {
+    TSAdapt   adapt;
+    PetscReal dt, largest;
+    PetscCall(TSGetAdapt(s->ts, &adapt));
+    PetscCall(TSAdaptDrapeGetSteps(adapt, &dt, &largest)); /* 0, 0 unless drape's adapt type */
+    if (largest > 0) PetscCall(ReportViewReal(r, largest > dt * (1 + 1e-12) ? viewer : NULL, "dt_largest", ", steps up to %g s as the cloth settled", largest));
+  }
   {
     PetscInt  switched, error_rejected;
     PetscBool implicit;
