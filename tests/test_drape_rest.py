@@ -104,7 +104,8 @@ def test_rest_shape_does_not_depend_on_the_scheme(tmp, fabric):
 
 def test_step_grows_as_the_cloth_settles(tmp):
     """The strip of the test above (denim, drapebe at 2e-3 s), whose rest is unique:
-    once the kinetic energy has stayed below -drape_settle_tol for -drape_rest_time,
+    once the kinetic energy has stayed below -drape_settle_tol (off unless given) for
+    -drape_rest_time,
     drapebe doubles its step up to 10 x -ts_dt, so the run comes to rest in fewer
     steps and at the rest of the run at -ts_dt throughout. At the rest tolerance 1e-6
     each run is 0.5 mm from the true rest (1.06 mm apart); at 1e-8, as here, 0.06 and
