@@ -167,6 +167,7 @@ struct _p_Cloth {
   PetscBool  rb_coo, rb_csr, rb_sym; /* rb_csr: copied into AIJ's arrays (RowBufferToAIJ) */
   PetscBool  rb_alias;               /* rb_val is the one-rank matrix's value array while it is assembled (else NULL) */
   PetscBool  rb_block;               /* blocks whole, by columns (RowBufferStrides); else scalar rows */
+  PetscInt   rb_split;               /* several ranks, (S)BAIJ: 1 if the diagonal block's pattern is the buffer's owned columns (RowBufferToBlock), 0 if not, -1 unknown */
   PetscInt  *rb_start, *rb_ncols, *rb_colstart, *rb_cols, *rb_map, *rb_diag;
   PetscReal *rb_val;
   /* the order of the sums (RowBufferSchedule, forces.c): rb_ntile tiles of rb_tile

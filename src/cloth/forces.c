@@ -357,7 +357,9 @@ PetscErrorCode ClothGetHessianDiagonal(Cloth c, const PetscReal **hdiag)
  * rows are its CSR rows; RowBufferToAIJ); coo, MatSetValuesCOO with the pattern
  * given once by MatSetPreallocationCOO (the default for other types that implement
  * COO natively; its map costs 16 bytes per nonzero, 2.6 kB per particle); or rows,
- * one MatSetValuesBlocked per block row (every other type: SBAIJ, BAIJ, dense). */
+ * one MatSetValuesBlocked per block row (every other type: SBAIJ, BAIJ, dense; on
+ * several ranks (S)BAIJ's rows are copied into its diagonal block's array and only
+ * the blocks outside it inserted: RowBufferToBlock). */
 static PetscErrorCode ClothBuildRowBuffer(Cloth, Mat);
 
 PetscErrorCode ClothCreateMatrix(Cloth c, MatType type, Mat *J)
@@ -701,8 +703,9 @@ static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
   }
   if (!c->rb_alias) PetscCall(PetscMalloc1(c->rb_start[c->nowned] + 1, &c->rb_val));
   PetscCall(PetscFree(count));
-  c->rb_mat = J;
-  c->rb_sym = sym;
+  c->rb_mat   = J;
+  c->rb_sym   = sym;
+  c->rb_split = -1;
   PetscCall(ExtraMap(c, NULL));
   PetscCall(RowBufferSchedule(c));
   PetscFunctionReturn(0);
@@ -775,6 +778,75 @@ static PetscErrorCode RowBufferToAIJ(Cloth c, Mat J)
   }
   PetscCall(MatSeqAIJRestoreArrayWrite(A, &va));
   if (B) PetscCall(MatSeqAIJRestoreArrayWrite(B, &vb));
+  PetscFunctionReturn(0);
+}
+
+/* The row buffer into an MPIBAIJ or MPISBAIJ matrix of its pattern, on several
+ * ranks: a block row's blocks in the owned column range are one run of the row of
+ * the rank's diagonal block (MatGetDiagonalBlock; blocks by columns, as the buffer
+ * holds them), copied into its value array; the blocks outside that range, only
+ * in the rows along a cut, go through MatSetValuesBlocked. MatSetValuesBlocked for
+ * every row, a search per block, took 4-5 % of each rank's time in drapebe's 2-rank
+ * run at 512^2 (perf), a cost one rank (rb_alias) does not have. The diagonal
+ * block's pattern is compared with the buffer's once per matrix (*done false: it
+ * differs, and the caller inserts every row). */
+static PetscErrorCode RowBufferToBlock(Cloth c, Mat J, PetscBool *done)
+{
+  Mat             A;
+  const PetscInt *ia, *ja;
+  PetscInt        n, rstart, rend;
+  PetscBool       sym, got;
+  MatScalar      *va;
+
+  PetscFunctionBeginUser;
+  *done = PETSC_FALSE;
+  if (!c->rb_split) PetscFunctionReturn(0);
+  PetscCall(MatGetOwnershipRange(J, &rstart, &rend));
+  rstart /= 3, rend /= 3; /* block rows */
+  PetscCall(MatGetDiagonalBlock(J, &A));
+  PetscCall(PetscObjectTypeCompare((PetscObject) A, MATSEQSBAIJ, &sym));
+  PetscCall(MatGetRowIJ(A, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &got));
+  if (c->rb_split < 0) { /* the first hand-off to this matrix: does the pattern match? */
+    PetscBool same = (PetscBool) (got && n == c->nowned && rend - rstart == c->nowned);
+    for (PetscInt k = 0; same && k < c->nowned; k++) {
+      const PetscInt m = c->rb_ncols[k], *col = c->rb_cols + c->rb_colstart[k];
+      PetscInt       lo = 0, hi;
+      while (lo < m && col[lo] < rstart) lo++;
+      for (hi = lo; hi < m && col[hi] < rend; hi++) {}
+      same = (PetscBool) (c->global[k] == rstart + k && ia[k + 1] - ia[k] == hi - lo);
+      for (PetscInt t = 0; same && t < hi - lo; t++) same = (PetscBool) (ja[ia[k] + t] == col[lo + t] - rstart);
+    }
+    c->rb_split = same;
+  }
+  if (c->rb_split) {
+    if (sym)
+      PetscCall(MatSeqSBAIJGetArray(A, &va));
+    else
+      PetscCall(MatSeqBAIJGetArray(A, &va));
+    for (PetscInt k = 0; k < c->nowned; k++) {
+      const PetscInt m = c->rb_ncols[k], *col = c->rb_cols + c->rb_colstart[k];
+      PetscInt       lo = 0;
+      while (lo < m && col[lo] < rstart) lo++;
+      PetscCall(PetscArraycpy(va + 9 * ia[k], c->rb_val + c->rb_start[k] + 9 * lo, 9 * (ia[k + 1] - ia[k])));
+    }
+    if (sym)
+      PetscCall(MatSeqSBAIJRestoreArray(A, &va));
+    else
+      PetscCall(MatSeqBAIJRestoreArray(A, &va));
+  }
+  PetscCall(MatRestoreRowIJ(A, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &got));
+  if (!c->rb_split) PetscFunctionReturn(0);
+  PetscCall(MatSetOption(J, MAT_ROW_ORIENTED, PETSC_FALSE)); /* block after block, each by columns */
+  for (PetscInt k = 0; k < c->nowned; k++) {
+    const PetscInt   m = c->rb_ncols[k], *col = c->rb_cols + c->rb_colstart[k];
+    const PetscReal *row = c->rb_val + c->rb_start[k];
+    PetscInt         lo  = 0, hi;
+    while (lo < m && col[lo] < rstart) lo++;
+    for (hi = lo; hi < m && col[hi] < rend; hi++) {}
+    if (lo > 0) PetscCall(MatSetValuesBlocked(J, 1, &c->global[k], lo, col, row, INSERT_VALUES));
+    if (hi < m) PetscCall(MatSetValuesBlocked(J, 1, &c->global[k], m - hi, col + hi, row + 9 * hi, INSERT_VALUES));
+  }
+  *done = PETSC_TRUE;
   PetscFunctionReturn(0);
 }
 
@@ -1013,8 +1085,16 @@ static PetscErrorCode ClothAddToMatrixRows(Cloth c, const PetscReal *xl, PetscRe
   else if (c->rb_csr)
     PetscCall(RowBufferToAIJ(c, J));
   else {
-    PetscCall(MatSetOption(J, MAT_ROW_ORIENTED, PETSC_FALSE)); /* block after block, each by columns */
-    for (PetscInt k = 0; k < c->nowned; k++) PetscCall(MatSetValuesBlocked(J, 1, &c->global[k], c->rb_ncols[k], c->rb_cols + c->rb_colstart[k], c->rb_val + c->rb_start[k], INSERT_VALUES));
+    PetscBool split = PETSC_FALSE;
+    PetscCall(PetscObjectTypeCompareAny((PetscObject) J, &split, MATMPISBAIJ, MATMPIBAIJ, ""));
+    if (split && c->rb_block)
+      PetscCall(RowBufferToBlock(c, J, &split));
+    else
+      split = PETSC_FALSE;
+    if (!split) {
+      PetscCall(MatSetOption(J, MAT_ROW_ORIENTED, PETSC_FALSE)); /* block after block, each by columns */
+      for (PetscInt k = 0; k < c->nowned; k++) PetscCall(MatSetValuesBlocked(J, 1, &c->global[k], c->rb_ncols[k], c->rb_cols + c->rb_colstart[k], c->rb_val + c->rb_start[k], INSERT_VALUES));
+    }
   }
   PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY)); /* a new state, which the preconditioner sees */
   PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
