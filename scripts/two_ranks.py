@@ -17,7 +17,7 @@ speed-up of the wall-time medians over the first variant's.
 
     python3 scripts/two_ranks.py                     # 1 and 2 ranks, 3 rounds (about 2 min quiet)
     python3 scripts/two_ranks.py --variant one:1 --variant two:2 --variant 'bj:2:-drape_pc_overlap 0'
-    python3 scripts/two_ranks.py --variant old1:1::/tmp/old/build --variant old2:2::/tmp/old/build --variant new2:2
+    python3 scripts/two_ranks.py --variant new1:1 --variant new2:2 --variant old1:1::OLD/build  (OLD: another commit's tree, built)
 """
 import argparse
 import os
