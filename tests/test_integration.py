@@ -7,7 +7,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from conftest import DRAPE, ROOT, ROUNDOFF, mpiexec, printed, run, wait_for_frames
+from conftest import DRAPE, ROOT, ROUNDOFF, mpiexec, printed, refused, run, wait_for_frames
 
 import drape_h5
 
@@ -319,3 +319,21 @@ def test_drape_tsadapt_grows_a_cut_step_back(tmp):
     assert taken[:9] == [0.025] * 4 + [0.05] * 4 + [0.1] and set(taken[9:]) == {0.1}, taken
     assert res.report["steps"] == len(taken) == 18
     assert run(f"{args} -ts_adapt_type none").report["steps"] == 52  # 1.3 s at 0.025 s
+
+
+def test_overlapping_blocks_on_two_ranks():
+    """drapebe on several ranks (issue 26): drape's default preconditioner is block
+    IC(0) on each rank's rows grown by 2 layers (restricted additive Schwarz,
+    -drape_pc_overlap), which CG converges with in about one rank's iterations, where
+    block Jacobi (-drape_pc_overlap 0, the blocks without overlap) takes many more; one
+    rank is unaffected. (The frames on 2 and 4 ranks against one rank's:
+    test_same_frames_on_1_2_4_ranks, whose runs take this default.)"""
+    base = "-da_grid_x 48 -da_grid_y 48 -cloth_pin edge_corners -ts_type drapebe -ts_dt 2e-3 -ts_max_steps 20 -drape_stability_its 0"
+    one = run(base).report
+    assert one["pc_type"] == "blockicc" and one["cg_per_step"] == run(f"{base} -drape_pc_overlap 0").report["cg_per_step"], one
+    res = run(f"{base} -ksp_view", np_=2)
+    assert res.report["pc_type"] == "asm" and "amount of overlap = 2" in res.stdout and "type: blockicc" in res.stdout, res.stdout
+    jacobi = run(f"{base} -drape_pc_overlap 0", np_=2).report
+    assert jacobi["pc_type"] == "blockicc"
+    assert res.report["cg_per_step"] <= 1.1 * one["cg_per_step"] < jacobi["cg_per_step"], (one, res.report, jacobi)
+    refused("-ts_type drapebe -drape_pc_overlap -1", "-drape_pc_overlap must be zero or positive")

@@ -164,9 +164,12 @@ struct _p_Cloth {
    * block pair the position of its (0,0) entry, or -1; rb_coo: the buffer goes to
    * rb_mat by MatSetValuesCOO (in buffer order), else by MatSetValuesBlocked rows */
   Mat        rb_mat;
-  PetscBool  rb_coo, rb_csr, rb_sym; /* rb_csr: copied into AIJ's arrays (RowBufferToAIJ) */
-  PetscBool  rb_alias;               /* rb_val is the one-rank matrix's value array while it is assembled (else NULL) */
-  PetscBool  rb_block;               /* blocks whole, by columns (RowBufferStrides); else scalar rows */
+  PetscBool  rb_coo, rb_csr, rb_sym;  /* rb_csr: copied into AIJ's arrays (RowBufferToAIJ) */
+  PetscBool  rb_alias;                /* rb_val is the one-rank matrix's value array while it is assembled (else NULL) */
+  PetscBool  rb_block;                /* blocks whole, by columns (RowBufferStrides); else scalar rows */
+  PetscInt   rb_split;                /* several ranks, (S)BAIJ: 1 if the diagonal block's pattern is the buffer's owned columns (RowBufferSplitCheck), 0 if not, -1 unknown */
+  PetscInt  *rb_lo, *rb_cut, rb_ncut; /* rb_split: per row its first owned column's position; the rows with blocks outside the diagonal block */
+  PetscInt  *rb_done;                 /* rb_split: per tile the assembly step that completes it */
   PetscInt  *rb_start, *rb_ncols, *rb_colstart, *rb_cols, *rb_map, *rb_diag;
   PetscReal *rb_val;
   /* the order of the sums (RowBufferSchedule, forces.c): rb_ntile tiles of rb_tile

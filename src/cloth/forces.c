@@ -357,7 +357,9 @@ PetscErrorCode ClothGetHessianDiagonal(Cloth c, const PetscReal **hdiag)
  * rows are its CSR rows; RowBufferToAIJ); coo, MatSetValuesCOO with the pattern
  * given once by MatSetPreallocationCOO (the default for other types that implement
  * COO natively; its map costs 16 bytes per nonzero, 2.6 kB per particle); or rows,
- * one MatSetValuesBlocked per block row (every other type: SBAIJ, BAIJ, dense). */
+ * one MatSetValuesBlocked per block row (every other type: SBAIJ, BAIJ, dense; on
+ * several ranks (S)BAIJ's rows are copied into its diagonal block's array and only
+ * the blocks outside it inserted: RowBufferToBlock). */
 static PetscErrorCode ClothBuildRowBuffer(Cloth, Mat);
 
 PetscErrorCode ClothCreateMatrix(Cloth c, MatType type, Mat *J)
@@ -701,8 +703,9 @@ static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
   }
   if (!c->rb_alias) PetscCall(PetscMalloc1(c->rb_start[c->nowned] + 1, &c->rb_val));
   PetscCall(PetscFree(count));
-  c->rb_mat = J;
-  c->rb_sym = sym;
+  c->rb_mat   = J;
+  c->rb_sym   = sym;
+  c->rb_split = -1;
   PetscCall(ExtraMap(c, NULL));
   PetscCall(RowBufferSchedule(c));
   PetscFunctionReturn(0);
@@ -775,6 +778,93 @@ static PetscErrorCode RowBufferToAIJ(Cloth c, Mat J)
   }
   PetscCall(MatSeqAIJRestoreArrayWrite(A, &va));
   if (B) PetscCall(MatSeqAIJRestoreArrayWrite(B, &vb));
+  PetscFunctionReturn(0);
+}
+
+/* The row buffer into an MPIBAIJ or MPISBAIJ matrix of its pattern, on several
+ * ranks: a block row's blocks in the owned column range are one run of the row of
+ * the rank's diagonal block (MatGetDiagonalBlock; blocks by columns, as the buffer
+ * holds them), copied into its value array, each tile of rows as soon as its sums
+ * are complete (rb_done: while they are in the cache; the mass blocks added there,
+ * in the same order as before); the blocks outside that range, only in the rows
+ * along a cut (rb_cut), go through MatSetValuesBlocked. MatSetValuesBlocked for
+ * every row, a search per block, took 4-5 % of each rank's time in drapebe's 2-rank
+ * run at 512^2 (perf), a cost one rank (rb_alias) does not have. The diagonal
+ * block's pattern is compared with the buffer's once per matrix; where it differs
+ * (rb_split 0) every row goes through MatSetValuesBlocked. */
+static PetscErrorCode RowBufferSplitCheck(Cloth c, Mat J)
+{
+  Mat             A;
+  const PetscInt *ia, *ja;
+  PetscInt        n, rstart, rend, ncut = 0;
+  PetscBool       got, same;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscFree3(c->rb_lo, c->rb_cut, c->rb_done));
+  c->rb_split = 0;
+  c->rb_ncut  = 0;
+  PetscCall(PetscObjectTypeCompareAny((PetscObject) J, &same, MATMPISBAIJ, MATMPIBAIJ, ""));
+  if (!same || !c->rb_block || c->rb_coo || c->rb_alias) PetscFunctionReturn(0);
+  PetscCall(MatAssembled(J, &same));
+  if (!same) { /* no pattern yet: rows through MatSetValuesBlocked, and the question asked again */
+    c->rb_split = -1;
+    PetscFunctionReturn(0);
+  }
+  PetscCall(MatGetOwnershipRange(J, &rstart, &rend));
+  rstart /= 3, rend /= 3; /* block rows */
+  PetscCall(MatGetDiagonalBlock(J, &A));
+  PetscCall(MatGetRowIJ(A, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &got));
+  same = (PetscBool) (got && n == c->nowned && rend - rstart == c->nowned);
+  PetscCall(PetscMalloc3(c->nowned + 1, &c->rb_lo, c->nowned + 1, &c->rb_cut, c->rb_ntile + 1, &c->rb_done));
+  for (PetscInt k = 0; same && k < c->nowned; k++) {
+    const PetscInt m = c->rb_ncols[k], *col = c->rb_cols + c->rb_colstart[k];
+    PetscInt       lo = 0, hi;
+    while (lo < m && col[lo] < rstart) lo++;
+    for (hi = lo; hi < m && col[hi] < rend; hi++) {}
+    same = (PetscBool) (c->global[k] == rstart + k && ia[k + 1] - ia[k] == hi - lo);
+    for (PetscInt t = 0; same && t < hi - lo; t++) same = (PetscBool) (ja[ia[k] + t] == col[lo + t] - rstart);
+    c->rb_lo[k] = lo;
+    if (lo > 0 || hi < m) c->rb_cut[ncut++] = k;
+  }
+  if (got) PetscCall(MatRestoreRowIJ(A, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &got));
+  if (!same) {
+    PetscCall(PetscFree3(c->rb_lo, c->rb_cut, c->rb_done));
+    PetscFunctionReturn(0);
+  }
+  /* the step of ClothAddToMatrixRows after which tile t's sums are complete: its
+   * own (zeroed then), or the last chunk of any kind with an owned particle in it */
+  for (PetscInt t = 0; t < c->rb_ntile; t++) c->rb_done[t] = t;
+  for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) {
+    const PetscInt  sz = KindSize(kind);
+    const PetscInt *ch = c->rb_chunk + kind * (c->rb_ntile + 1);
+    for (PetscInt t = 0; t < c->rb_ntile; t++)
+      for (PetscInt e = ch[t]; e < ch[t + 1]; e++) {
+        const PetscInt *p = KindParticles(c, kind, e);
+        for (PetscInt a = 0; a < sz; a++)
+          if (p[a] < c->nowned) c->rb_done[p[a] / c->rb_tile] = PetscMax(c->rb_done[p[a] / c->rb_tile], t + c->rb_lag[kind]);
+      }
+  }
+  c->rb_split = 1;
+  c->rb_ncut  = ncut;
+  PetscFunctionReturn(0);
+}
+
+/* Rows [k0, k1): the mass blocks added, then (va: the diagonal block's array) their
+ * blocks in the owned columns copied there. */
+static PetscErrorCode RowBufferFinishRows(Cloth c, PetscInt k0, PetscInt k1, PetscReal a, PetscReal b, MatScalar *va, const PetscInt *ia)
+{
+  PetscReal D[9];
+
+  PetscFunctionBeginUser;
+  for (PetscInt k = k0; k < k1; k++) {
+    PetscInt si, sj;
+    RowBufferStrides(c, k, &si, &sj);
+    MassBlock(c, k, a, b, D);
+    for (PetscInt i = 0; i < 3; i++)
+      for (PetscInt j = 0; j < 3; j++) c->rb_val[c->rb_diag[k] + si * i + sj * j] += D[3 * i + j];
+  }
+  if (va)
+    for (PetscInt k = k0; k < k1; k++) PetscCall(PetscArraycpy(va + 9 * ia[k], c->rb_val + c->rb_start[k] + 9 * c->rb_lo[k], 9 * (ia[k + 1] - ia[k])));
   PetscFunctionReturn(0);
 }
 
@@ -965,13 +1055,31 @@ static void AddKindRange(Cloth c, PetscInt kind, PetscReal b, const PetscReal *x
 
 static PetscErrorCode ClothAddToMatrixRows(Cloth c, const PetscReal *xl, PetscReal a, PetscReal b, Mat J)
 {
-  PetscReal       D[9];
-  const PetscInt *map[CLOTH_KINDS];
+  const PetscInt *map[CLOTH_KINDS], *ia = NULL, *ja = NULL;
+  Mat             A     = NULL;
+  MatScalar      *va    = NULL;
+  PetscBool       fused = PETSC_FALSE, sym = PETSC_FALSE, got = PETSC_FALSE;
+  PetscInt        n = 0;
 
   PetscFunctionBeginUser;
   if (c->rb_alias) PetscCall(RowBufferAlias(c, J, PETSC_TRUE));
   map[0] = c->rb_map;
   for (PetscInt kind = 1; kind < CLOTH_KINDS; kind++) map[kind] = map[kind - 1] + KindSize(kind - 1) * KindSize(kind - 1) * KindCount(c, kind - 1);
+  /* several ranks, (S)BAIJ: the diagonal block's array, filled tile by tile when no
+   * extra block is held (they are added after the element sums, before the mass) */
+  if (c->rb_split < 0) PetscCall(RowBufferSplitCheck(c, J));
+  if (c->rb_split == 1) {
+    PetscCall(MatGetDiagonalBlock(J, &A));
+    PetscCall(PetscObjectTypeCompare((PetscObject) A, MATSEQSBAIJ, &sym));
+    PetscCall(MatGetRowIJ(A, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &got));
+    PetscCheck(got, PETSC_COMM_SELF, PETSC_ERR_PLIB, "The diagonal block's pattern could not be read");
+    if (sym)
+      PetscCall(MatSeqSBAIJGetArray(A, &va));
+    else
+      PetscCall(MatSeqBAIJGetArray(A, &va));
+    fused = PETSC_TRUE;
+    for (PetscInt e = 0; e < c->ex_n && fused; e++) fused = (PetscBool) (c->ex_map[e] < 0);
+  }
   /* the tiles' schedule (RowBufferSchedule): at step s, the rows of tile s zeroed,
    * then each kind's chunk s - lag */
   for (PetscInt step = 0; step < c->rb_ntile + c->rb_lag[CLOTH_KINDS - 1]; step++) {
@@ -986,24 +1094,32 @@ static PetscErrorCode ClothAddToMatrixRows(Cloth c, const PetscReal *xl, PetscRe
       if (t < 0 || t >= c->rb_ntile) continue;
       AddKindRange(c, kind, b, xl, map[kind], ch[t], ch[t + 1]);
     }
+    if (fused)
+      for (PetscInt t = 0; t < c->rb_ntile; t++)
+        if (c->rb_done[t] == step) PetscCall(RowBufferFinishRows(c, PetscMin(t * c->rb_tile, c->nowned), PetscMin((t + 1) * c->rb_tile, c->nowned), a, b, va, ia));
   }
-  for (PetscInt e = 0; e < c->ex_n; e++) {
-    const PetscInt pos = c->ex_map[e];
-    PetscInt       si, sj;
-    if (pos < 0) continue;
-    RowBufferStrides(c, c->ex_row[e], &si, &sj);
-    for (PetscInt i = 0; i < 3; i++)
-      for (PetscInt j = 0; j < 3; j++) c->rb_val[pos + si * i + sj * j] += b * c->ex_val[9 * e + 3 * i + j];
+  if (!fused) {
+    for (PetscInt e = 0; e < c->ex_n; e++) {
+      const PetscInt pos = c->ex_map[e];
+      PetscInt       si, sj;
+      if (pos < 0) continue;
+      RowBufferStrides(c, c->ex_row[e], &si, &sj);
+      for (PetscInt i = 0; i < 3; i++)
+        for (PetscInt j = 0; j < 3; j++) c->rb_val[pos + si * i + sj * j] += b * c->ex_val[9 * e + 3 * i + j];
+    }
+    PetscCall(RowBufferFinishRows(c, 0, c->nowned, a, b, va, ia));
   }
-  for (PetscInt k = 0; k < c->nowned; k++) {
-    PetscInt si, sj;
-    RowBufferStrides(c, k, &si, &sj);
-    MassBlock(c, k, a, b, D);
-    for (PetscInt i = 0; i < 3; i++)
-      for (PetscInt j = 0; j < 3; j++) c->rb_val[c->rb_diag[k] + si * i + sj * j] += D[3 * i + j];
+  if (va) {
+    if (sym)
+      PetscCall(MatSeqSBAIJRestoreArray(A, &va));
+    else
+      PetscCall(MatSeqBAIJRestoreArray(A, &va));
+    PetscCall(MatRestoreRowIJ(A, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &got));
   }
   /* the hand-off (J is rb_mat: ClothAssembleMatrix): the values already in place,
-   * through COO (assembled on return), copied into AIJ's arrays, or row by row */
+   * through COO (assembled on return), copied into AIJ's arrays, or row by row (on
+   * several ranks (S)BAIJ's rows along a cut only, their blocks outside the
+   * diagonal block) */
   if (c->rb_coo) {
     PetscCall(MatSetValuesCOO(J, c->rb_val, INSERT_VALUES));
     PetscFunctionReturn(0);
@@ -1012,7 +1128,20 @@ static PetscErrorCode ClothAddToMatrixRows(Cloth c, const PetscReal *xl, PetscRe
     PetscCall(RowBufferAlias(c, J, PETSC_FALSE));
   else if (c->rb_csr)
     PetscCall(RowBufferToAIJ(c, J));
-  else {
+  else if (c->rb_split == 1) {
+    PetscInt rstart, rend;
+    PetscCall(MatGetOwnershipRange(J, &rstart, &rend));
+    rstart /= 3, rend /= 3;
+    PetscCall(MatSetOption(J, MAT_ROW_ORIENTED, PETSC_FALSE)); /* block after block, each by columns */
+    for (PetscInt q = 0; q < c->rb_ncut; q++) {
+      const PetscInt   k = c->rb_cut[q], m = c->rb_ncols[k], lo = c->rb_lo[k], *col = c->rb_cols + c->rb_colstart[k];
+      const PetscReal *row = c->rb_val + c->rb_start[k];
+      PetscInt         hi  = lo;
+      while (hi < m && col[hi] < rend) hi++;
+      if (lo > 0) PetscCall(MatSetValuesBlocked(J, 1, &c->global[k], lo, col, row, INSERT_VALUES));
+      if (hi < m) PetscCall(MatSetValuesBlocked(J, 1, &c->global[k], m - hi, col + hi, row + 9 * hi, INSERT_VALUES));
+    }
+  } else {
     PetscCall(MatSetOption(J, MAT_ROW_ORIENTED, PETSC_FALSE)); /* block after block, each by columns */
     for (PetscInt k = 0; k < c->nowned; k++) PetscCall(MatSetValuesBlocked(J, 1, &c->global[k], c->rb_ncols[k], c->rb_cols + c->rb_colstart[k], c->rb_val + c->rb_start[k], INSERT_VALUES));
   }

@@ -59,6 +59,7 @@ typedef struct {
   PetscInt           contact_its;   /* solves allowed per step, for the solid's and self-contact's active sets */
   /* preconditioner */
   PetscInt  pc_lag, lag; /* rebuild every pc_lag steps (ksponly, iterative KSP); lag: where it applies */
+  PetscInt  pc_overlap;  /* on several ranks, block IC(0) on each rank's block grown by this many layers of the matrix's graph (restricted additive Schwarz); 0: block Jacobi */
   PetscBool pc_stale;    /* rebuild it: the solid's constraints changed since it was built, or a step failed */
   PetscBool pc_amg;      /* it is algebraic multigrid (costly to build) */
   PetscBool pc_auto;     /* drape chose it (the PC's type was still PCDRAPE at TSSetUp): block IC(0) gives way to multigrid when it fails or is slow */
@@ -219,10 +220,42 @@ static PetscErrorCode PCCreate_Drape(PC pc)
   PetscFunctionReturn(0);
 }
 
+/* On several ranks, block Jacobi's blocks (each rank's rows) lose the coupling
+ * across the cut, and CG pays for it: the hang at 512^2 took 4.35 iterations a step
+ * on two ranks against 3.175 on one (BENCHMARKS.md, "Two ranks at 512^2"). So
+ * drape's default there is restricted additive Schwarz (PCASM, restrict): each
+ * rank's rows grown by -drape_pc_overlap layers of the matrix's graph
+ * (MatIncreaseOverlap), their SBAIJ submatrix factored by block IC(0), the result
+ * kept on the rank's own rows only; overlap 2 gave one rank's 3.175. The blocks'
+ * PC: block IC(0), set here (PCASM calls this after creating the blocks' KSPs and
+ * before their KSPSetFromOptions, so -sub_pc_type still chooses another) on
+ * symmetric storage, left to PETSc on other storage. */
+static PetscErrorCode BESubBlockICC(PC pc, PetscInt nsub, const IS row[], const IS col[], Mat sub[], void *ctx)
+{
+  KSP      *ksp;
+  PetscInt  n;
+  PC        subpc;
+  PetscBool sbaij;
+  PCType    type;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectTypeCompare((PetscObject) pc, PCASM, &sbaij));
+  if (!sbaij) PetscFunctionReturn(0);
+  PetscCall(PCASMGetSubKSP(pc, &n, NULL, &ksp));
+  for (PetscInt i = 0; i < n && i < nsub; i++) {
+    PetscCall(KSPGetPC(ksp[i], &subpc));
+    PetscCall(PCGetType(subpc, &type));
+    PetscCall(PetscObjectTypeCompare((PetscObject) sub[i], MATSEQSBAIJ, &sbaij));
+    if (!type && sbaij) PetscCall(PCSetType(subpc, PCBLOCKICC));
+  }
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode BEChoosePreconditioner(TS ts, TS_DrapeBE *be, PC pc)
 {
-  PCType    type = PCBLOCKICC;
-  PetscBool typed;
+  PCType      type = PCBLOCKICC;
+  PetscBool   typed;
+  PetscMPIInt size;
 
   PetscFunctionBeginUser;
   PetscCall(PetscObjectTypeCompare((PetscObject) pc, PCDRAPE, &be->pc_auto));
@@ -235,9 +268,15 @@ static PetscErrorCode BEChoosePreconditioner(TS ts, TS_DrapeBE *be, PC pc)
     PetscCall(VecRestoreArrayRead(ts->vec_sol, &u));
     be->omega = lim.omega;
   }
+  PetscCallMPI(MPI_Comm_size(PetscObjectComm((PetscObject) ts), &size));
   if (PetscSqr(ts->time_step * be->omega) > BE_AMG_STIFFNESS)
     PetscCall(BESetMultigrid(pc));
-  else
+  else if (size > 1 && be->pc_overlap > 0) { /* block IC(0) on overlapping blocks (BESubBlockICC) */
+    PetscCall(PCSetType(pc, PCASM));
+    PetscCall(PCASMSetType(pc, PC_ASM_RESTRICT));
+    PetscCall(PCASMSetOverlap(pc, be->pc_overlap));
+    PetscCall(PCSetModifySubMatrices(pc, BESubBlockICC, NULL));
+  } else
     PetscCall(PCSetType(pc, type));
   PetscCall(PCSetFromOptions(pc));
   /* the chosen type's own options are read by PCSetFromOptions, which reads -pc_type
@@ -459,10 +498,17 @@ static PetscErrorCode BESelfBlocks(TS ts, TS_DrapeBE *be)
   mine = fits;
   PetscCallMPI(MPI_Allreduce(&mine, &all, 1, MPI_INT, MPI_MIN, PetscObjectComm((PetscObject) ts)));
   if (!all) {
-    SNES snes;
-    Mat  J;
+    SNES      snes;
+    KSP       ksp;
+    PC        pc;
+    Mat       J;
+    PetscBool overlap;
     PetscCall(ClothCreateMatrix(be->cloth, be->mattype, &J));
     PetscCall(TSGetSNES(ts, &snes));
+    PetscCall(SNESGetKSP(snes, &ksp));
+    PetscCall(KSPGetPC(ksp, &pc));
+    PetscCall(PetscObjectTypeCompare((PetscObject) pc, PCASM, &overlap));
+    if (overlap) PetscCall(PCReset(pc)); /* its overlap and submatrix are the old pattern's */
     PetscCall(SNESSetJacobian(snes, J, J, BEJacobian, be));
     PetscCall(MatDestroy(&be->J));
     be->J        = J;
@@ -674,7 +720,8 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
     /* symmetric block storage (half the matrix: faster products and factorisation)
      * for the preconditioners that take it, AIJ for the others */
     PetscCall(PetscObjectTypeCompareAny((PetscObject) pc, &sbaij, PCBJACOBI, PCICC, PCBLOCKICC, PCCHOLESKY, PCJACOBI, PCNONE, ""));
-    if (sbaij && be->sub_factor) sbaij = PETSC_FALSE; /* block Jacobi's blocks: not with an LU or ILU of their own */
+    if (!sbaij && be->pc_auto) PetscCall(PetscObjectTypeCompare((PetscObject) pc, PCASM, &sbaij)); /* drape's overlapping blocks: block IC(0) */
+    if (sbaij && be->sub_factor) sbaij = PETSC_FALSE;                                              /* block Jacobi's blocks: not with an LU or ILU of their own */
     PetscCall(PetscObjectTypeCompareAny((PetscObject) pc, &be->pc_amg, PCGAMG, PCML, PCHYPRE, PCHMG, ""));
     be->mattype = sbaij ? MATSBAIJ : MATAIJ;
     PetscCall(KSPGetTolerances(ksp, NULL, NULL, NULL, &be->max_its));
@@ -683,7 +730,10 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
     if (be->pc_auto && !be->pc_amg) { /* -drape_mat_type chose a storage block IC(0) does not factor: PETSc's block Jacobi/ILU(0) */
       PetscBool sym;
       PetscCall(PetscObjectTypeCompareAny((PetscObject) be->J, &sym, MATSEQSBAIJ, MATMPISBAIJ, ""));
-      if (!sym) PetscCall(PCSetType(pc, PCBJACOBI));
+      if (!sym) {
+        PetscCall(PCSetModifySubMatrices(pc, NULL, NULL));
+        PetscCall(PCSetType(pc, PCBJACOBI));
+      }
     }
     /* the preconditioner lags with the single linearisation and an iterative KSP; a
      * direct solve (-ksp_type preonly) may not lag its factorisation, which is then
@@ -903,6 +953,9 @@ static PetscErrorCode TSSetFromOptions_DrapeBE(TS ts, PetscOptionItems *PetscOpt
   PetscFunctionBeginUser;
   PetscOptionsHeadBegin(PetscOptionsObject, "drape backward Euler");
   PetscCall(PetscOptionsInt("-drape_pc_lag", "Rebuild the preconditioner every this many steps (with -snes_type ksponly and an iterative KSP; 1: every step)", "TSStep_DrapeBE", be->pc_lag, &be->pc_lag, NULL));
+  PetscCall(PetscOptionsInt("-drape_pc_overlap",
+                            "On several ranks, drape's default preconditioner factors each rank's rows grown by this many layers of the matrix's graph (restricted additive Schwarz with block IC(0)); 0: each rank's rows alone (block Jacobi)",
+                            "BEChoosePreconditioner", be->pc_overlap, &be->pc_overlap, NULL));
   PetscCall(PetscOptionsInt("-drape_contact_its", "Solves per step at most to make the contact constraints consistent with the motion (1: constraints found at the start of the step only)", "TSStep_DrapeBE", be->contact_its, &be->contact_its, NULL));
   {
     /* block Jacobi's blocks with a factorisation of their own need AIJ (SBAIJ has
@@ -918,6 +971,7 @@ static PetscErrorCode TSSetFromOptions_DrapeBE(TS ts, PetscOptionItems *PetscOpt
   PetscOptionsHeadEnd();
   PetscCall(DrapeCheckInt(PetscObjectComm((PetscObject) ts), "-drape_pc_lag", be->pc_lag, 1, 1000000));
   PetscCall(DrapeCheckInt(PetscObjectComm((PetscObject) ts), "-drape_contact_its", be->contact_its, 1, 1000));
+  PetscCall(DrapeCheckInt(PetscObjectComm((PetscObject) ts), "-drape_pc_overlap", be->pc_overlap, 0, 100));
   {
     /* bending friction: the single linearisation decides at the free motion's end
      * which triples slide, and a triple that turns back within the step is pushed on
@@ -972,6 +1026,7 @@ static PetscErrorCode TSCreate_DrapeBE(TS ts)
   ts->ops->setfromoptions = TSSetFromOptions_DrapeBE;
   ts->ops->evaluatewlte   = TSEvaluateWLTE_DrapeBE;
   be->pc_lag              = 5;
+  be->pc_overlap          = 2;
   be->pc_switched         = -1;
   be->contact_its         = 2; /* a third solve cost 30 % more CG iterations on the stiff drop and changed the rest strain on the sphere scene by under 0.02 % (polyester 0.25 against 0.27 %, denim 3.62 % both) */
   ts->usessnes            = PETSC_TRUE;
