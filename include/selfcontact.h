@@ -83,7 +83,7 @@ PETSC_EXTERN PetscErrorCode SelfContactGetStats(SelfContact, SelfContactStats *)
 PETSC_EXTERN PetscErrorCode SelfContactSolveEnabled(SelfContact, PetscBool *);
 /* Whether the penalties of a step of h are soft against a cloth of stretch
  * rigidity `rigidity` (N/m): at their default stiffness (no -contact_self_stiffness,
- * -contact_self_solve on), 10 m/h^2 below 1/16 of it. Not collective (the same on
+ * -contact_self_solve on), 10 m/h^2 below 1/32 of it. Not collective (the same on
  * every rank). */
 PETSC_EXTERN PetscErrorCode SelfContactSolveSoft(SelfContact, PetscReal h, PetscReal rigidity, PetscBool *soft);
 PETSC_EXTERN PetscErrorCode SelfContactSolveBegin(SelfContact, PetscReal h, const PetscScalar *x0, const PetscScalar *v0);

@@ -411,7 +411,7 @@ static PetscErrorCode BESolve(TS ts, TS_DrapeBE *be, PetscBool *ok)
 /* What changes the state after a step, the projection onto the solid and the
  * self-contact filter, is no part of the step's energy check, which starts from the
  * state it leaves. At a step so large that the penalties in the solve are soft
- * against the cloth's stretch (10 m/h^2 below a 16th of its rigidity:
+ * against the cloth's stretch (10 m/h^2 below a 32nd of its rigidity:
  * SelfContactSolveSoft), folds pushed by the cloth behind them sink into each other
  * and the filter, pushing the pairs apart in position, stores elastic energy after
  * every step: the sphere drop at 64^2 and 1e-2 s gained 0.02-0.07 J a step that way
