@@ -58,9 +58,10 @@ PETSC_EXTERN PetscErrorCode TSDrapeBESetSelfContact(TS, SelfContact);
  * every rank). */
 PETSC_EXTERN PetscErrorCode TSDrapeBESetStiffness(TS, PetscReal);
 /* The state was changed after the last step by more than the landing on the solid
- * (the self-contact filter): the energy check of the next step starts from it.
- * Logically collective on TS. */
-PETSC_EXTERN PetscErrorCode TSDrapeBEStateChanged(TS);
+ * (the self-contact filter), adding `added` J of mechanical energy: the energy check
+ * of the next step starts from it, and the next step is cut when `added` is more
+ * than that check allows a step. Logically collective on TS. */
+PETSC_EXTERN PetscErrorCode TSDrapeBEStateChanged(TS, PetscReal added);
 /* Impulse (N s) the contact constraints gave this rank's particles in the last
  * step. Not collective. */
 PETSC_EXTERN PetscErrorCode TSDrapeBEGetContactImpulse(TS, PetscReal[3]);
@@ -68,7 +69,8 @@ PETSC_EXTERN PetscErrorCode TSDrapeBEGetContactImpulse(TS, PetscReal[3]);
  * or empty: none). Not collective (the same on every rank). */
 PETSC_EXTERN PetscErrorCode TSDrapeBEGetStatistics(TS, PetscInt *solves, PetscInt *rejected, const char **failure);
 /* The step at which drape's block Jacobi/ICC(0) gave way to multigrid (-1: it did
- * not, or the options chose the preconditioner), and the steps TSAdapt rejected for
- * their local error (-ts_adapt_type basic). Not collective (the same on every
- * rank). */
-PETSC_EXTERN PetscErrorCode TSDrapeBEGetStepHistory(TS, PetscInt *pc_switched, PetscInt *error_rejected);
+ * not, or the options chose the preconditioner), the steps TSAdapt rejected for
+ * their local error (-ts_adapt_type basic), and the steps cut because the changes
+ * after the step before (the self-contact filter, TSDrapeBEStateChanged) added
+ * mechanical energy. Not collective (the same on every rank). */
+PETSC_EXTERN PetscErrorCode TSDrapeBEGetStepHistory(TS, PetscInt *pc_switched, PetscInt *error_rejected, PetscInt *filter_cut);

@@ -81,6 +81,11 @@ PETSC_EXTERN PetscErrorCode SelfContactGetStats(SelfContact, SelfContactStats *)
  * SolveBegin: collective; x0, v0 owned. SolveEnabled: -contact_self_solve was not
  * turned off (not collective). */
 PETSC_EXTERN PetscErrorCode SelfContactSolveEnabled(SelfContact, PetscBool *);
+/* Whether the penalties of a step of h are soft against a cloth of stretch
+ * rigidity `rigidity` (N/m): at their default stiffness (no -contact_self_stiffness,
+ * -contact_self_solve on), 10 m/h^2 below 1/32 of it. Not collective (the same on
+ * every rank). */
+PETSC_EXTERN PetscErrorCode SelfContactSolveSoft(SelfContact, PetscReal h, PetscReal rigidity, PetscBool *soft);
 PETSC_EXTERN PetscErrorCode SelfContactSolveBegin(SelfContact, PetscReal h, const PetscScalar *x0, const PetscScalar *v0);
 /* The solid contact's constraints of the step (owned; NULL: none): the pairs' rows
  * and columns of the matrix are filtered like the cloth's. Collective. */

@@ -66,10 +66,11 @@ struct _p_Simulation {
   MPI_Comm        comm;
   Cloth           cloth;
   Solid           solid;
-  Contact         contact; /* NULL when the scene has no solid */
-  ContactSolve    solve;   /* contact inside drapebe's step (contactsolve.h); NULL when contact is */
-  SelfContact     self;    /* NULL without -contact_self */
-  PetscBool      *held;    /* owned particles sticky contact holds after the step (for the self-contact filter) */
+  Contact         contact;    /* NULL when the scene has no solid */
+  ContactSolve    solve;      /* contact inside drapebe's step (contactsolve.h); NULL when contact is */
+  SelfContact     self;       /* NULL without -contact_self */
+  PetscBool      *held;       /* owned particles sticky contact holds after the step (for the self-contact filter) */
+  PetscScalar    *unfiltered; /* drapebe, soft self-contact penalties: the state before the projection and the filter, for the energy they add */
   ContactTally    tally;
   RestTest        rest;    /* the run ends at rest (rest.h) */
   Cusick          cusick;  /* the Cusick analysis at the end (analysis.h) */
@@ -376,6 +377,26 @@ static PetscErrorCode PostStep(TS ts)
     }
   }
   PetscCall(VecGetArray(s->U, &u));
+  /* drapebe cuts the next step when the filter (and the projection before it) added
+   * energy after a step whose self-contact penalties were soft against the cloth
+   * (TSDrapeBEStateChanged, SelfContactSolveSoft): the state before them is kept */
+  PetscBool watch = PETSC_FALSE;
+  if (s->self) {
+    PetscBool implicit;
+    PetscCall(PetscObjectTypeCompare((PetscObject) ts, TSDRAPEBE, &implicit));
+    if (implicit) {
+      PetscReal t0;
+      ClothInfo info;
+      PetscCall(TSGetPrevTime(ts, &t0));
+      PetscCall(TSGetTime(ts, &t));
+      PetscCall(ClothGetInfo(s->cloth, &info));
+      PetscCall(SelfContactSolveSoft(s->self, t - t0, PetscMax(info.stretch[0], info.stretch[1]), &watch));
+    }
+    if (watch) {
+      if (!s->unfiltered) PetscCall(PetscMalloc1(2 * s->n + 1, &s->unfiltered));
+      PetscCall(PetscArraycpy(s->unfiltered, u, 2 * s->n));
+    }
+  }
   if (s->contact) {
     PetscReal depth, h = 0, t0;
     PetscBool velocity_first;
@@ -401,7 +422,16 @@ static PetscErrorCode PostStep(TS ts)
     PetscBool changed;
     PetscCall(SelfContactSetHeld(s->self, s->held));
     PetscCall(SelfContactFilter(s->self, t - t0, u, u + s->n, &changed));
-    if (changed) PetscCall(TSDrapeBEStateChanged(ts));
+    if (changed) {
+      PetscReal added = 0;
+      if (watch) {
+        ClothEnergies before, after;
+        PetscCall(ClothComputeEnergies(s->cloth, s->unfiltered, s->unfiltered + s->n, &before));
+        PetscCall(ClothComputeEnergies(s->cloth, u, u + s->n, &after));
+        added = (after.kinetic + after.gravity + after.stretch + after.shear + after.bend) - (before.kinetic + before.gravity + before.stretch + before.shear + before.bend);
+      }
+      PetscCall(TSDrapeBEStateChanged(ts, added));
+    }
   }
   PetscCall(ClothUpdatePlasticState(s->cloth, u)); /* the step's final place: the bending friction's sliders follow */
   {
@@ -758,6 +788,7 @@ PetscErrorCode SimulationDestroy(Simulation *sim)
   PetscCall(ContactDestroy(&s->contact));
   PetscCall(SelfContactDestroy(&s->self));
   PetscCall(PetscFree(s->held));
+  PetscCall(PetscFree(s->unfiltered));
   PetscCall(SolidDestroy(&s->solid));
   PetscCall(ClothDestroy(&s->cloth));
   PetscCall(PetscFree(*sim));
@@ -1107,10 +1138,10 @@ static PetscErrorCode SimulationViewSummary(Simulation s, PetscViewer viewer, Pe
     if (largest > 0) PetscCall(ReportViewReal(r, largest > dt * (1 + 1e-12) ? viewer : NULL, "dt_largest", ", steps up to %g s as the cloth settled", largest));
   }
   {
-    PetscInt  switched, error_rejected;
+    PetscInt  switched, error_rejected, filter_cut;
     PetscBool implicit;
     PetscCall(PetscObjectTypeCompare((PetscObject) s->ts, TSDRAPEBE, &implicit));
-    PetscCall(TSDrapeBEGetStepHistory(s->ts, &switched, &error_rejected));
+    PetscCall(TSDrapeBEGetStepHistory(s->ts, &switched, &error_rejected, &filter_cut));
     if (implicit) PetscCall(ReportSetInt(r, "pc_switched_step", switched)); /* -1: block Jacobi/ICC(0) throughout, or the options' choice */
     if (implicit && switched >= 0) {                                        /* the report's solver is the one the run ended with (the start-up line said the first) */
       SNESType st;
@@ -1122,6 +1153,7 @@ static PetscErrorCode SimulationViewSummary(Simulation s, PetscViewer viewer, Pe
       PetscCall(ReportSetString(r, "mat_type", mt));
     }
     PetscCall(ReportViewInt(r, error_rejected ? viewer : NULL, "steps_rejected_error", ", %" PetscInt_FMT " steps rejected for their local error", error_rejected));
+    PetscCall(ReportViewInt(r, filter_cut ? viewer : NULL, "steps_cut_filter", ", %" PetscInt_FMT " steps cut after the self-contact filter added energy", filter_cut));
   }
   if (PetscIsNanReal(s->strain_last)) {
     PetscCall(ReportSetReal(r, "strain_max", s->strain_last));
