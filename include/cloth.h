@@ -23,6 +23,9 @@ typedef struct {
   PetscReal contact_force[3]; /* mean force of the solid on the cloth since the last frame, N */
 } ClothEnergies;
 
+/* Mechanical energy: kinetic + gravitational + elastic (stretch, shear, bending). */
+static inline PetscReal ClothEnergyMechanical(const ClothEnergies *e) { return e->kinetic + e->gravity + e->stretch + e->shear + e->bend; }
+
 /* Summary numbers a driver prints or writes next to the results. */
 typedef struct {
   PetscInt    Mx, My;                     /* lattice size (warp x weft)           */

@@ -25,8 +25,8 @@
  * The end of the run (-ts_max_time, TS_EXACTFINALTIME_MATCHSTEP) is not this type's:
  * see PreStep in simulation.c. TSAdaptChoose clips a step that would pass the end;
  * its rules for the steps before it (lengthen a last step by up to 1 %, halve the
- * two last ones) are turned off here (matchstepfac), as drape's steps stay -ts_dt
- * until the end. */
+ * two last ones) are turned off here (matchstepfac): drape's steps change by the
+ * rules above alone. */
 #include <petsc/private/tsimpl.h>
 #include <drapebe.h>
 #include <drape.h>

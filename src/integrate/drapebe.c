@@ -243,7 +243,7 @@ static PetscErrorCode BESubBlockICC(PC pc, PetscInt nsub, const IS row[], const 
   PCType    type;
 
   PetscFunctionBeginUser;
-  PetscCall(PetscObjectTypeCompare((PetscObject) pc, PCASM, &sbaij));
+  PetscCall(PetscObjectTypeCompare((PetscObject) pc, PCASM, &sbaij)); /* -pc_type may have replaced drape's PCASM */
   if (!sbaij) PetscFunctionReturn(0);
   PetscCall(PCASMGetSubKSP(pc, &n, NULL, &ksp));
   for (PetscInt i = 0; i < n && i < nsub; i++) {
@@ -498,12 +498,12 @@ static PetscErrorCode BECheckEnergy(TS ts, TS_DrapeBE *be, PetscBool *ok)
   if (!*ok) PetscFunctionReturn(0);
   if (!be->have_energy) { /* the first step: the energy of U0 */
     PetscCall(ClothComputeEnergies(be->cloth, be->x0, be->v0, &en));
-    be->energy      = en.kinetic + en.gravity + en.stretch + en.shear + en.bend;
-    be->energy_free = en.kinetic + en.stretch + en.shear + en.bend;
+    be->energy      = ClothEnergyMechanical(&en);
+    be->energy_free = en.kinetic + en.stretch + en.shear + en.bend; /* without gravity's */
     be->have_energy = PETSC_TRUE;
   }
   PetscCall(ClothComputeEnergies(be->cloth, be->xt, be->vt, &en));
-  e    = en.kinetic + en.gravity + en.stretch + en.shear + en.bend;
+  e    = ClothEnergyMechanical(&en);
   rise = e - be->energy;
   if (!(rise <= 0.01 * (be->energy_scale + be->energy_free))) { /* NaN fails too */
     SNES snes;

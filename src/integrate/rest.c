@@ -60,6 +60,19 @@ PetscErrorCode RestTestSetFromOptions(RestTest r)
   PetscFunctionReturn(0);
 }
 
+/* Has value stayed below tol for time, counted from the first time t it was below
+ * (*since; -1: not below now)? */
+static PetscBool BelowFor(PetscReal value, PetscReal tol, PetscReal t, PetscReal time, PetscReal *since)
+{
+  if (value >= tol)
+    *since = -1;
+  else if (*since < 0)
+    *since = t; /* not yet, even with time 0: first one step below */
+  else
+    return (PetscBool) (t - *since >= time);
+  return PETSC_FALSE;
+}
+
 PetscErrorCode RestTestUpdate(RestTest r, Cloth cloth, const PetscScalar *v, PetscReal t, PetscBool *at_rest, PetscBool *settled)
 {
   PetscReal        loc[2] = {0, 0}, sum[2];
@@ -79,19 +92,11 @@ PetscErrorCode RestTestUpdate(RestTest r, Cloth cloth, const PetscScalar *v, Pet
     loc[1] += mass[k];
   }
   PetscCall(MPIU_Allreduce(loc, sum, 2, MPIU_REAL, MPI_SUM, r->comm));
-  if (sum[0] / sum[1] >= r->settle) /* also with -drape_settle_tol 0: never settling */
-    r->settling = -1;
-  else if (r->settling < 0)
-    r->settling = t;
-  if (r->settling >= 0 && t - r->settling >= r->time) {
+  if (BelowFor(sum[0] / sum[1], r->settle, t, r->time, &r->settling)) { /* never with -drape_settle_tol 0 */
     if (settled) *settled = PETSC_TRUE;
     if (r->t_settled < 0) r->t_settled = t;
   }
-  if (sum[0] / sum[1] >= r->tol)
-    r->since = -1;
-  else if (r->since < 0)
-    r->since = t;
-  else if (t - r->since >= r->time) {
+  if (BelowFor(sum[0] / sum[1], r->tol, t, r->time, &r->since)) {
     r->t       = t;
     r->at_rest = *at_rest = PETSC_TRUE;
   }

@@ -428,7 +428,7 @@ static PetscErrorCode PostStep(TS ts)
         ClothEnergies before, after;
         PetscCall(ClothComputeEnergies(s->cloth, s->unfiltered, s->unfiltered + s->n, &before));
         PetscCall(ClothComputeEnergies(s->cloth, u, u + s->n, &after));
-        added = (after.kinetic + after.gravity + after.stretch + after.shear + after.bend) - (before.kinetic + before.gravity + before.stretch + before.shear + before.bend);
+        added = ClothEnergyMechanical(&after) - ClothEnergyMechanical(&before);
       }
       PetscCall(TSDrapeBEStateChanged(ts, added));
     }
