@@ -9,7 +9,10 @@
  * by construction; where no pivot fails, the factor is IC(0)'s.
  *
  * Options: -pc_blockicc_type auto (the default: compensated only when IC(0)
- * fails), plain or compensated; -pc_blockicc_pivot_tol (1e-8). */
+ * fails), plain or compensated; -pc_blockicc_pivot_tol (1e-8);
+ * -pc_blockicc_precision single (the default: the factor stored in float, the
+ * arithmetic in double; double where a rounded pivot block would not be positive
+ * definite) or double. */
 #pragma once
 
 #include <petscpc.h>

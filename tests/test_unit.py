@@ -113,4 +113,4 @@ def test_block_icc_preconditioner():
     positive definite, and, on a bending matrix where PETSc's ICC(0) stops CG as an
     indefinite preconditioner, compensated: symmetric, positive definite, and CG
     converges (no leaks)."""
-    run_unit_ranks("test_blockicc", 1, [], 3)
+    run_unit_ranks("test_blockicc", 1, [], 4)

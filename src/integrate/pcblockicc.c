@@ -18,6 +18,17 @@
  * indefinite preconditioner. A factorisation that needs no compensation is IC(0)'s,
  * the same as PETSc's ICC(0) to round-off (tests/unit/test_blockicc.c).
  *
+ * The factor is stored in single precision unless -pc_blockicc_precision double
+ * (pcblockicc_kernels.h, compiled once for each): the triangular solves stream the
+ * factor once each way per CG iteration, and float halves those bytes (on one core
+ * the solves took 45 % less time at 512^2: BENCHMARKS.md). The arithmetic stays
+ * double: each row is formed in double and rounded once, so the preconditioner is
+ * the double factor's within float's rounding, and U^T D U of the rounded blocks is
+ * still symmetric, as CG needs. Positive definite too, while every rounded inverse
+ * pivot block D_k^-1 is: that is checked, and where one is not (a pivot block
+ * conditioned beyond 1/eps of float) the factorisation is made again in double, and
+ * stays double for the rest of the run.
+ *
  * Blocks are PETSc's: 9 values by columns, B(r, c) = b[r + 3 c]. */
 #include <petsc/private/pcimpl.h>
 #include <pcblockicc.h>
@@ -29,16 +40,26 @@ typedef enum {
 } PCBlockICCType;
 static const char *const PCBlockICCTypes[] = {"auto", "plain", "compensated", "PCBlockICCType", "PC_BLOCKICC_", NULL};
 
+typedef enum {
+  PC_BLOCKICC_SINGLE,
+  PC_BLOCKICC_DOUBLE
+} PCBlockICCPrecision;
+static const char *const PCBlockICCPrecisions[] = {"single", "double", "PCBlockICCPrecision", "PC_BLOCKICC_", NULL};
+
 typedef struct {
-  PetscInt       n;            /* block rows                                       */
-  PetscInt      *ai, *aj;      /* A's upper pattern (the diagonal first in each row) */
-  MatScalar     *fa;           /* factor: D_k^-1 at ai[k], -U(k, j) after it         */
-  PetscInt      *pos;          /* column -> position in the row being formed, or -1  */
-  PetscInt      *first, *next; /* linked lists: rows waiting on a column           */
-  PetscReal     *comp;         /* diagonal entries the compensation adds to rows to come */
-  PetscReal      pivot_tol;    /* a pivot must exceed this times A's diagonal entry  */
-  PCBlockICCType type;         /* plain IC(0), compensated, or plain unless a pivot fails */
-  PetscBool      compensated;  /* the last factorisation was compensated            */
+  PetscInt            n;            /* block rows                                       */
+  PetscInt           *ai, *aj;      /* A's upper pattern (the diagonal first in each row) */
+  void               *fa;           /* factor: D_k^-1 at ai[k], -U(k, j) after it; float or double (single) */
+  PetscScalar        *row;          /* the block row being formed, 9 per block            */
+  PetscInt           *pos;          /* column -> position in the row being formed, or -1  */
+  PetscInt           *first, *next; /* linked lists: rows waiting on a column           */
+  PetscReal          *comp;         /* diagonal entries the compensation adds to rows to come */
+  PetscReal           pivot_tol;    /* a pivot must exceed this times A's diagonal entry  */
+  PCBlockICCType      type;         /* plain IC(0), compensated, or plain unless a pivot fails */
+  PetscBool           compensated;  /* the last factorisation was compensated            */
+  PCBlockICCPrecision precision;    /* the factor's storage asked for                      */
+  PetscBool           single;       /* fa is float                                          */
+  PetscBool           widened;      /* single asked, a rounded pivot block was not positive definite: double from then on */
 } PC_BlockICC;
 
 /* The LDL^T pivots of the symmetric 3 x 3 block d (by columns) are each above tol
@@ -99,6 +120,17 @@ static PetscErrorCode PCBlockICCSamePattern(PC_BlockICC *icc, Mat A, PetscBool *
   PetscFunctionReturn(0);
 }
 
+#define BICC_T     float
+#define BICC(name) PCBlockICC##name##_Single
+#include "pcblockicc_kernels.h"
+#undef BICC_T
+#undef BICC
+#define BICC_T     double
+#define BICC(name) PCBlockICC##name##_Double
+#include "pcblockicc_kernels.h"
+#undef BICC_T
+#undef BICC
+
 static PetscErrorCode PCBlockICCSymbolic(PC pc, PC_BlockICC *icc, Mat A)
 {
   const PetscInt *ia, *ja;
@@ -107,7 +139,8 @@ static PetscErrorCode PCBlockICCSymbolic(PC pc, PC_BlockICC *icc, Mat A)
 
   PetscFunctionBeginUser;
   PetscCall(PetscFree2(icc->ai, icc->aj));
-  PetscCall(PetscFree5(icc->fa, icc->pos, icc->first, icc->next, icc->comp));
+  PetscCall(PetscFree(icc->fa));
+  PetscCall(PetscFree5(icc->pos, icc->first, icc->next, icc->comp, icc->row));
   PetscCall(MatGetRowIJ(A, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &done));
   PetscCheck(done, PetscObjectComm((PetscObject) pc), PETSC_ERR_SUP, "-pc_type blockicc could not read the matrix's block pattern");
   PetscCall(PetscMalloc2(n + 1, &icc->ai, ia[n], &icc->aj));
@@ -118,86 +151,12 @@ static PetscErrorCode PCBlockICCSymbolic(PC pc, PC_BlockICC *icc, Mat A)
   n = icc->n;
   for (PetscInt k = 0; k < n; k++)
     PetscCheck(icc->ai[k] < icc->ai[k + 1] && icc->aj[icc->ai[k]] == k, PETSC_COMM_SELF, PETSC_ERR_ARG_WRONG, "-pc_type blockicc needs every diagonal block in the matrix's pattern, and block row %" PetscInt_FMT " has none", k);
-  PetscCall(PetscMalloc5(9 * icc->ai[n], &icc->fa, n, &icc->pos, n, &icc->first, n, &icc->next, 3 * n, &icc->comp));
-  for (PetscInt k = 0; k < n; k++) icc->pos[k] = -1;
-  PetscFunctionReturn(0);
-}
-
-/* The factorisation; compensate: a dropped fill block E between rows k and j adds,
- * entry by entry, |E_rc| sqrt(a_r / a_c) to row k's diagonal entry r and |E_rc|
- * sqrt(a_c / a_r) to row j's entry c (a: A's diagonal entries), Ajiz and Jennings'
- * compensation (1984): each dropped pair becomes a positive semidefinite 2 x 2
- * added to the Schur complement, which then stays positive definite, so no pivot
- * fails. Without it, *ok says whether every pivot block passed (the factorisation
- * stops at the first that does not). */
-static PetscErrorCode PCBlockICCNumeric(PC_BlockICC *icc, Mat A, PetscBool compensate, PetscBool *ok)
-{
-  const PetscInt n = icc->n, *ai = icc->ai, *aj = icc->aj;
-  PetscInt      *pos = icc->pos, *first = icc->first, *next = icc->next;
-  MatScalar     *fa    = icc->fa, *aa;
-  PetscReal     *comp  = icc->comp;
-  PetscLogDouble flops = 0;
-
-  PetscFunctionBeginUser;
-  *ok = PETSC_TRUE;
-  PetscCall(MatSeqSBAIJGetArray(A, &aa));
-  PetscCall(PetscArraycpy(fa, aa, 9 * ai[n]));
-  PetscCall(PetscArrayzero(comp, 3 * n));
-  for (PetscInt k = 0; k < n; k++) next[k] = n; /* every list empty */
-  for (PetscInt k = 0; k < n && *ok; k++) {
-    MatScalar       *dk = fa + 9 * ai[k];
-    const MatScalar *ak = aa + 9 * ai[k];
-    for (PetscInt p = ai[k]; p < ai[k + 1]; p++) pos[aj[p]] = p;
-    for (PetscInt r = 0; r < 3; r++) dk[4 * r] += comp[3 * k + r];
-    for (PetscInt i = next[k], inext; i < n; i = inext) {
-      const MatScalar *di = fa + 9 * ai[i];
-      MatScalar       *u  = fa + 9 * first[i], w[9];
-      inext               = next[i];
-      /* w = -D_i^-1 Ubar(i, k) = -U(i, k); D_k -= U(i, k)^T Ubar(i, k) */
-      for (PetscInt c = 0; c < 3; c++)
-        for (PetscInt r = 0; r < 3; r++) w[r + 3 * c] = -(di[r] * u[3 * c] + di[r + 3] * u[3 * c + 1] + di[r + 6] * u[3 * c + 2]);
-      for (PetscInt c = 0; c < 3; c++)
-        for (PetscInt r = 0; r < 3; r++) dk[r + 3 * c] += w[3 * r] * u[3 * c] + w[3 * r + 1] * u[3 * c + 1] + w[3 * r + 2] * u[3 * c + 2];
-      PetscCall(PetscArraycpy(u, w, 9));
-      /* row k's blocks right of the diagonal: Ubar(k, j) -= U(i, k)^T Ubar(i, j) where (k, j) is in the pattern */
-      for (PetscInt p = first[i] + 1; p < ai[i + 1]; p++) {
-        const PetscInt   j = aj[p], q = pos[j];
-        const MatScalar *v = fa + 9 * p;
-        if (q >= 0) {
-          MatScalar *t = fa + 9 * q;
-          for (PetscInt c = 0; c < 3; c++)
-            for (PetscInt r = 0; r < 3; r++) t[r + 3 * c] += w[3 * r] * v[3 * c] + w[3 * r + 1] * v[3 * c + 1] + w[3 * r + 2] * v[3 * c + 2];
-        } else if (compensate) { /* fill IC(0) drops, given back to the two diagonals */
-          const MatScalar *aj_ = aa + 9 * ai[j];
-          for (PetscInt c = 0; c < 3; c++)
-            for (PetscInt r = 0; r < 3; r++) {
-              const PetscReal e = PetscAbsReal(w[3 * r] * v[3 * c] + w[3 * r + 1] * v[3 * c + 1] + w[3 * r + 2] * v[3 * c + 2]), s = PetscSqrtReal(ak[4 * r] / aj_[4 * c]);
-              dk[4 * r] += e * s;
-              comp[3 * j + c] += e / s;
-            }
-        }
-        flops += 54;
-      }
-      flops += 108;
-      BlockICCLink(icc, i, first[i] + 1);
-    }
-    {
-      MatScalar dinv[9];
-      if (!BlockInvertSPD(dk, ak, icc->pivot_tol, dinv)) { /* the dropped fill took more than the block had */
-        *ok = compensate;
-        if (!*ok) continue; /* the loop ends; the factor is made again, compensated */
-        /* round-off only: the compensated Schur complement is positive definite */
-        PetscCheck(BlockInvertSPD(ak, ak, 0, dinv), PETSC_COMM_SELF, PETSC_ERR_MAT_CH_ZRPVT, "-pc_type blockicc needs a symmetric positive definite matrix, and its diagonal block %" PetscInt_FMT " is not", k);
-      }
-      PetscCall(PetscArraycpy(dk, dinv, 9));
-    }
-    for (PetscInt p = ai[k]; p < ai[k + 1]; p++) pos[aj[p]] = -1;
-    BlockICCLink(icc, k, ai[k] + 1);
+  {
+    PetscInt maxrow = 0;
+    for (PetscInt k = 0; k < n; k++) maxrow = PetscMax(maxrow, icc->ai[k + 1] - icc->ai[k]);
+    PetscCall(PetscMalloc5(n, &icc->pos, n, &icc->first, n, &icc->next, 3 * n, &icc->comp, 9 * maxrow, &icc->row));
   }
-  if (!*ok)
-    for (PetscInt k = 0; k < n; k++) pos[k] = -1;
-  PetscCall(MatSeqSBAIJRestoreArray(A, &aa));
-  PetscCall(PetscLogFlops(flops + 30.0 * n));
+  for (PetscInt k = 0; k < n; k++) icc->pos[k] = -1;
   PetscFunctionReturn(0);
 }
 
@@ -209,6 +168,7 @@ static PetscErrorCode PCSetUp_BlockICC(PC pc)
   Mat          A   = pc->pmat;
   PetscBool    sbaij, mpi, same, ok = PETSC_FALSE;
   PetscInt     bs;
+  MatScalar   *aa;
 
   PetscFunctionBeginUser;
   PetscCall(PetscObjectTypeCompare((PetscObject) A, MATMPISBAIJ, &mpi));
@@ -219,73 +179,51 @@ static PetscErrorCode PCSetUp_BlockICC(PC pc)
              ((PetscObject) pc->pmat)->type_name, bs);
   PetscCall(PCBlockICCSamePattern(icc, A, &same));
   if (!same) PetscCall(PCBlockICCSymbolic(pc, icc, A));
-  icc->compensated = PETSC_FALSE;
-  if (icc->type != PC_BLOCKICC_COMPENSATED) {
-    PetscCall(PCBlockICCNumeric(icc, A, PETSC_FALSE, &ok));
-    PetscCheck(ok || icc->type == PC_BLOCKICC_AUTO, PETSC_COMM_SELF, PETSC_ERR_MAT_CH_ZRPVT, "-pc_blockicc_type plain: a pivot block of IC(0) is not positive definite (-pc_blockicc_type auto or compensated compensates the dropped fill)");
+  PetscCall(MatSeqSBAIJGetArray(A, &aa));
+  for (;;) { /* in single storage unless a rounded pivot block is not positive definite: then in double, from then on */
+    const PetscBool single = (PetscBool) (icc->precision == PC_BLOCKICC_SINGLE && !icc->widened);
+    PetscBool       stored = PETSC_TRUE;
+    if (!icc->fa || single != icc->single) {
+      PetscCall(PetscFree(icc->fa));
+      PetscCall(PetscMalloc(9 * icc->ai[icc->n] * (single ? sizeof(float) : sizeof(double)), &icc->fa));
+      icc->single = single;
+    }
+    icc->compensated = PETSC_FALSE;
+    ok               = PETSC_FALSE;
+    if (icc->type != PC_BLOCKICC_COMPENSATED) {
+      PetscCall(single ? PCBlockICCNumeric_Single(icc, aa, PETSC_FALSE, &ok, &stored) : PCBlockICCNumeric_Double(icc, aa, PETSC_FALSE, &ok, &stored));
+      PetscCheck(ok || !stored || icc->type == PC_BLOCKICC_AUTO, PETSC_COMM_SELF, PETSC_ERR_MAT_CH_ZRPVT,
+                 "-pc_blockicc_type plain: a pivot block of IC(0) is not positive definite (-pc_blockicc_type auto or compensated compensates the dropped fill)");
+    }
+    if (!ok && stored) {
+      PetscCall(single ? PCBlockICCNumeric_Single(icc, aa, PETSC_TRUE, &ok, &stored) : PCBlockICCNumeric_Double(icc, aa, PETSC_TRUE, &ok, &stored));
+      icc->compensated = PETSC_TRUE;
+    }
+    if (stored) break;
+    icc->widened = PETSC_TRUE;
   }
-  if (!ok) {
-    PetscCall(PCBlockICCNumeric(icc, A, PETSC_TRUE, &ok));
-    icc->compensated = PETSC_TRUE;
-  }
+  PetscCall(MatSeqSBAIJRestoreArray(A, &aa));
   PetscFunctionReturn(0);
 }
 
-/* x = (U^T D U)^-1 b with the stored blocks V = -U: forward U^T y = b (y_j += V(i,
- * j)^T y_i once y_i is final) and y_i = D_i^-1 y_i in the same pass, backward U x =
- * y (x_k += V(k, j) x_j). */
+/* x = (U^T D U)^-1 b (pcblockicc_kernels.h) */
 static PetscErrorCode PCApply_BlockICC(PC pc, Vec b, Vec x)
 {
-  PC_BlockICC   *icc = (PC_BlockICC *) pc->data;
-  const PetscInt n = icc->n, *restrict ai = icc->ai, *restrict aj = icc->aj;
-  const MatScalar *restrict fa = icc->fa;
+  PC_BlockICC       *icc = (PC_BlockICC *) pc->data;
   const PetscScalar *bb;
   PetscScalar       *y;
 
   PetscFunctionBeginUser;
   PetscCall(VecGetArrayRead(b, &bb));
   PetscCall(VecGetArrayWrite(x, &y));
-  PetscCall(PetscArraycpy(y, bb, 3 * n));
+  PetscCall(PetscArraycpy(y, bb, 3 * icc->n));
   PetscCall(VecRestoreArrayRead(b, &bb));
-  for (PetscInt i = 0; i < n; i++) {
-    const PetscScalar y0 = y[3 * i], y1 = y[3 * i + 1], y2 = y[3 * i + 2];
-    PetscPrefetchBlock(fa + 9 * ai[i + 1], 9 * (ai[i + 1] - ai[i]), 0, PETSC_PREFETCH_HINT_NTA);
-    PetscPrefetchBlock(aj + ai[i + 1], ai[i + 1] - ai[i], 0, PETSC_PREFETCH_HINT_NTA);
-    for (PetscInt p = ai[i] + 1; p < ai[i + 1]; p++) {
-      const MatScalar *v = fa + 9 * p;
-      PetscScalar     *t = y + 3 * aj[p];
-      t[0] += v[0] * y0 + v[1] * y1 + v[2] * y2;
-      t[1] += v[3] * y0 + v[4] * y1 + v[5] * y2;
-      t[2] += v[6] * y0 + v[7] * y1 + v[8] * y2;
-    }
-    {
-      const MatScalar *d = fa + 9 * ai[i];
-      PetscScalar     *t = y + 3 * i;
-      t[0]               = d[0] * y0 + d[3] * y1 + d[6] * y2;
-      t[1]               = d[1] * y0 + d[4] * y1 + d[7] * y2;
-      t[2]               = d[2] * y0 + d[5] * y1 + d[8] * y2;
-    }
-  }
-  for (PetscInt k = n - 1; k >= 0; k--) {
-    const MatScalar *d = fa + 9 * ai[k];
-    PetscScalar     *t = y + 3 * k, s0, s1, s2;
-    /* the rows go down memory, each row up it: a pattern the hardware does not
-     * prefetch (without this the pass takes 2.4 times as long), so fetch the next
-     * row's blocks and columns, assumed as long as this one */
-    PetscPrefetchBlock(d - 9 * (ai[k + 1] - ai[k]), 9 * (ai[k + 1] - ai[k]), 0, PETSC_PREFETCH_HINT_NTA);
-    PetscPrefetchBlock(aj + ai[k] - (ai[k + 1] - ai[k]), ai[k + 1] - ai[k], 0, PETSC_PREFETCH_HINT_NTA);
-    s0 = t[0], s1 = t[1], s2 = t[2];
-    for (PetscInt p = ai[k] + 1; p < ai[k + 1]; p++) {
-      const MatScalar   *v  = fa + 9 * p;
-      const PetscScalar *xj = y + 3 * aj[p];
-      s0 += v[0] * xj[0] + v[3] * xj[1] + v[6] * xj[2];
-      s1 += v[1] * xj[0] + v[4] * xj[1] + v[7] * xj[2];
-      s2 += v[2] * xj[0] + v[5] * xj[1] + v[8] * xj[2];
-    }
-    t[0] = s0, t[1] = s1, t[2] = s2;
-  }
+  if (icc->single)
+    PCBlockICCSolve_Single(icc, y);
+  else
+    PCBlockICCSolve_Double(icc, y);
   PetscCall(VecRestoreArrayWrite(x, &y));
-  PetscCall(PetscLogFlops(36.0 * (ai[n] - n) + 15.0 * n));
+  PetscCall(PetscLogFlops(36.0 * (icc->ai[icc->n] - icc->n) + 15.0 * icc->n));
   PetscFunctionReturn(0);
 }
 
@@ -295,7 +233,8 @@ static PetscErrorCode PCReset_BlockICC(PC pc)
 
   PetscFunctionBeginUser;
   PetscCall(PetscFree2(icc->ai, icc->aj));
-  PetscCall(PetscFree5(icc->fa, icc->pos, icc->first, icc->next, icc->comp));
+  PetscCall(PetscFree(icc->fa));
+  PetscCall(PetscFree5(icc->pos, icc->first, icc->next, icc->comp, icc->row));
   icc->n = 0;
   PetscFunctionReturn(0);
 }
@@ -317,6 +256,8 @@ static PetscErrorCode PCSetFromOptions_BlockICC(PC pc, PetscOptionItems *PetscOp
   PetscOptionsHeadBegin(PetscOptionsObject, "Block IC(0), positive definite");
   PetscCall(
     PetscOptionsReal("-pc_blockicc_pivot_tol", "A pivot of a 3 x 3 pivot block must exceed this times the matrix's diagonal entry, else the block is replaced by the matrix's diagonal block", "PCBLOCKICC", icc->pivot_tol, &icc->pivot_tol, NULL));
+  PetscCall(PetscOptionsEnum("-pc_blockicc_precision", "Storage of the factor: single (float: half the memory the triangular solves stream; the arithmetic stays double) or double", "PCBLOCKICC", PCBlockICCPrecisions, (PetscEnum) icc->precision,
+                             (PetscEnum *) &icc->precision, NULL));
   PetscCall(PetscOptionsEnum("-pc_blockicc_type", "auto: IC(0), compensated when a pivot block fails; plain: IC(0), an error when one fails; compensated: always", "PCBLOCKICC", PCBlockICCTypes, (PetscEnum) icc->type, (PetscEnum *) &icc->type, NULL));
   PetscCheck(icc->pivot_tol >= 0 && icc->pivot_tol < 1, PetscObjectComm((PetscObject) pc), PETSC_ERR_USER_INPUT, "-pc_blockicc_pivot_tol %g is outside [0, 1): a pivot is compared with this fraction of the matrix's diagonal entry",
              (double) icc->pivot_tol);
@@ -331,7 +272,10 @@ static PetscErrorCode PCView_BlockICC(PC pc, PetscViewer viewer)
 
   PetscFunctionBeginUser;
   PetscCall(PetscObjectTypeCompare((PetscObject) viewer, PETSCVIEWERASCII, &ascii));
-  if (ascii) PetscCall(PetscViewerASCIIPrintf(viewer, "  IC(0) in 3 x 3 blocks (%s), pivot tolerance %g; the last factorisation %s\n", PCBlockICCTypes[icc->type], (double) icc->pivot_tol, icc->compensated ? "compensated the dropped fill" : "plain"));
+  if (ascii) {
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  IC(0) in 3 x 3 blocks (%s), pivot tolerance %g; the last factorisation %s\n", PCBlockICCTypes[icc->type], (double) icc->pivot_tol, icc->compensated ? "compensated the dropped fill" : "plain"));
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  factor stored in %s precision%s\n", icc->single ? "single" : "double", icc->widened ? " (single was asked for, and a rounded pivot block was not positive definite)" : ""));
+  }
   PetscFunctionReturn(0);
 }
 

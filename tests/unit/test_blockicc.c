@@ -1,6 +1,8 @@
 static const char help[] = "Unit tests of the block IC(0) preconditioner (src/integrate/pcblockicc.c):\n"
                            "exact on a block chain (no fill), PETSc's ICC(0) where that is positive definite,\n"
-                           "symmetric and positive definite where pivot blocks are replaced.\n"
+                           "symmetric and positive definite where pivot blocks are replaced; its factor\n"
+                           "stored in single precision within float's rounding of the double one, and in\n"
+                           "double where a rounded pivot block would not be positive definite.\n"
                            "Options: -seed <int>\n\n";
 
 #include <petscksp.h>
@@ -88,78 +90,151 @@ static PetscErrorCode BuildBendMatrix(PetscInt nx, PetscInt ny, PetscReal m, Pet
   PetscFunctionReturn(0);
 }
 
-static PetscErrorCode MakePC(Mat A, PCType type, PC *pc)
+/* precision: the factor's storage for PCBLOCKICC ("single" or "double"), or NULL (the default) */
+static PetscErrorCode MakePC(Mat A, PCType type, const char *precision, PC *pc)
 {
   PetscFunctionBeginUser;
   PetscCall(PCCreate(PETSC_COMM_SELF, pc));
   PetscCall(PCSetType(*pc, type));
   PetscCall(PCSetOperators(*pc, A, A));
+  if (precision) {
+    PetscCall(PCSetOptionsPrefix(*pc, "t_"));
+    PetscCall(PetscOptionsSetValue(NULL, "-t_pc_blockicc_precision", precision));
+    PetscCall(PCSetFromOptions(*pc));
+    PetscCall(PetscOptionsClearValue(NULL, "-t_pc_blockicc_precision"));
+  }
   PetscCall(PCSetUp(*pc));
   PetscFunctionReturn(0);
 }
 
+/* |M^-1 b - y| / |y| for the PC's M */
+static PetscErrorCode ApplyError(PC pc, Vec b, Vec y, PetscReal *err)
+{
+  Vec       z;
+  PetscReal ny;
+
+  PetscFunctionBeginUser;
+  PetscCall(VecDuplicate(y, &z));
+  PetscCall(PCApply(pc, b, z));
+  PetscCall(VecAXPY(z, -1, y));
+  PetscCall(VecNorm(z, NORM_2, err));
+  PetscCall(VecNorm(y, NORM_2, &ny));
+  *err /= ny;
+  PetscCall(VecDestroy(&z));
+  PetscFunctionReturn(0);
+}
+
 /* On a chain of blocks (block tridiagonal) IC(0) drops nothing: it is the exact
- * factorisation, and M^-1 A x = x. */
+ * factorisation, and M^-1 A x = x, to round-off in double storage and to float's
+ * rounding in single (and not to double's: the single storage is float). */
 static PetscErrorCode TestChainIsExact(PetscRandom rnd)
 {
   Mat       A;
-  PC        pc;
-  Vec       x, b, y;
-  PetscReal err, nx;
+  PC        dbl, sgl;
+  Vec       x, b;
+  PetscReal err, err_single;
   PetscBool compensated;
 
   PetscFunctionBeginUser;
   PetscCall(BuildMatrix(40, 1, PETSC_FALSE, 1.0, 10.0, rnd, &A));
-  PetscCall(MakePC(A, PCBLOCKICC, &pc));
+  PetscCall(MakePC(A, PCBLOCKICC, "double", &dbl));
+  PetscCall(MakePC(A, PCBLOCKICC, "single", &sgl));
   PetscCall(MatCreateVecs(A, &x, &b));
-  PetscCall(VecDuplicate(x, &y));
   PetscCall(VecSetRandom(x, rnd));
   PetscCall(MatMult(A, x, b));
-  PetscCall(PCApply(pc, b, y));
-  PetscCall(VecAXPY(y, -1, x));
-  PetscCall(VecNorm(y, NORM_2, &err));
-  PetscCall(VecNorm(x, NORM_2, &nx));
-  PetscCall(PCBlockICCGetCompensated(pc, &compensated));
-  PetscCheck(err <= 1e-10 * nx && !compensated, PETSC_COMM_SELF, PETSC_ERR_PLIB, "block IC(0) of a block chain is not exact: |M^-1 A x - x| / |x| = %g, compensated %d", (double) (err / nx), (int) compensated);
+  PetscCall(ApplyError(dbl, b, x, &err));
+  PetscCall(ApplyError(sgl, b, x, &err_single));
+  PetscCall(PCBlockICCGetCompensated(dbl, &compensated));
+  PetscCheck(err <= 1e-10 && !compensated, PETSC_COMM_SELF, PETSC_ERR_PLIB, "block IC(0) of a block chain is not exact: |M^-1 A x - x| / |x| = %g, compensated %d", (double) err, (int) compensated);
+  PetscCheck(err_single <= 1e-5 && err_single > 1e-12, PETSC_COMM_SELF, PETSC_ERR_PLIB, "block IC(0) of a block chain stored in single precision: |M^-1 A x - x| / |x| = %g, not float's rounding", (double) err_single);
   npassed++;
   PetscCall(VecDestroy(&x));
   PetscCall(VecDestroy(&b));
-  PetscCall(VecDestroy(&y));
-  PetscCall(PCDestroy(&pc));
+  PetscCall(PCDestroy(&dbl));
+  PetscCall(PCDestroy(&sgl));
   PetscCall(MatDestroy(&A));
   PetscFunctionReturn(0);
 }
 
 /* Where PETSc's ICC(0) of the SBAIJ matrix is positive definite (mass-dominated),
- * the two preconditioners are the same to round-off. */
+ * the two preconditioners are the same to round-off (double storage), and to
+ * float's rounding (single). */
 static PetscErrorCode TestAgreesWithICC(PetscRandom rnd)
 {
   Mat       A;
-  PC        ours, petsc;
-  Vec       b, y, z;
-  PetscReal err, ny;
+  PC        dbl, sgl, petsc;
+  Vec       b, z;
+  PetscReal err, err_single;
   PetscBool compensated;
 
   PetscFunctionBeginUser;
   PetscCall(BuildMatrix(12, 9, PETSC_TRUE, 1.0, 0.5, rnd, &A));
-  PetscCall(MakePC(A, PCBLOCKICC, &ours));
-  PetscCall(MakePC(A, PCICC, &petsc));
-  PetscCall(MatCreateVecs(A, &b, &y));
-  PetscCall(VecDuplicate(y, &z));
+  PetscCall(MakePC(A, PCBLOCKICC, "double", &dbl));
+  PetscCall(MakePC(A, PCBLOCKICC, "single", &sgl));
+  PetscCall(MakePC(A, PCICC, NULL, &petsc));
+  PetscCall(MatCreateVecs(A, &b, &z));
   PetscCall(VecSetRandom(b, rnd));
-  PetscCall(PCApply(ours, b, y));
   PetscCall(PCApply(petsc, b, z));
-  PetscCall(VecNorm(z, NORM_2, &ny));
-  PetscCall(VecAXPY(y, -1, z));
-  PetscCall(VecNorm(y, NORM_2, &err));
-  PetscCall(PCBlockICCGetCompensated(ours, &compensated));
-  PetscCheck(err <= 1e-12 * ny && !compensated, PETSC_COMM_SELF, PETSC_ERR_PLIB, "block IC(0) differs from PETSc's ICC(0): relative %g, compensated %d", (double) (err / ny), (int) compensated);
+  PetscCall(ApplyError(dbl, b, z, &err));
+  PetscCall(ApplyError(sgl, b, z, &err_single));
+  PetscCall(PCBlockICCGetCompensated(dbl, &compensated));
+  PetscCheck(err <= 1e-12 && !compensated, PETSC_COMM_SELF, PETSC_ERR_PLIB, "block IC(0) differs from PETSc's ICC(0): relative %g, compensated %d", (double) err, (int) compensated);
+  PetscCheck(err_single <= 1e-5, PETSC_COMM_SELF, PETSC_ERR_PLIB, "block IC(0) stored in single precision differs from PETSc's ICC(0) by %g, more than float's rounding", (double) err_single);
   npassed++;
   PetscCall(VecDestroy(&b));
-  PetscCall(VecDestroy(&y));
   PetscCall(VecDestroy(&z));
-  PetscCall(PCDestroy(&ours));
+  PetscCall(PCDestroy(&dbl));
+  PetscCall(PCDestroy(&sgl));
   PetscCall(PCDestroy(&petsc));
+  PetscCall(MatDestroy(&A));
+  PetscFunctionReturn(0);
+}
+
+/* A pivot block conditioned beyond float: one block, eigenvalues 1, 1 and 1e-12 in
+ * a random frame. Its inverse rounded to float is indefinite (entries of 1e12 lose
+ * 6e4, against the eigenvalues 1), so the single storage asked for gives way to
+ * double, and M^-1 A x = x still holds (M = A: one block drops nothing). */
+static PetscErrorCode TestSingleWidens(PetscRandom rnd)
+{
+  Mat         A;
+  PC          pc;
+  Vec         x, b;
+  PetscReal   q[3][3], err;
+  PetscScalar a[9];
+  PetscInt    zero = 0;
+
+  PetscFunctionBeginUser;
+  for (PetscInt c = 0; c < 3; c++) { /* a random orthonormal frame (Gram-Schmidt) */
+    PetscReal s = 0;
+    for (PetscInt r = 0; r < 3; r++) {
+      PetscCall(PetscRandomGetValueReal(rnd, &q[c][r]));
+      q[c][r] -= 0.5;
+    }
+    for (PetscInt d = 0; d < c; d++) {
+      const PetscReal dot = q[c][0] * q[d][0] + q[c][1] * q[d][1] + q[c][2] * q[d][2];
+      for (PetscInt r = 0; r < 3; r++) q[c][r] -= dot * q[d][r];
+    }
+    for (PetscInt r = 0; r < 3; r++) s += q[c][r] * q[c][r];
+    for (PetscInt r = 0; r < 3; r++) q[c][r] /= PetscSqrtReal(s);
+  }
+  for (PetscInt r = 0; r < 3; r++)
+    for (PetscInt c = 0; c < 3; c++) a[r + 3 * c] = q[0][r] * q[0][c] + q[1][r] * q[1][c] + 1e-12 * q[2][r] * q[2][c];
+  PetscCall(MatCreateSeqSBAIJ(PETSC_COMM_SELF, 3, 3, 3, 1, NULL, &A));
+  PetscCall(MatSetValuesBlocked(A, 1, &zero, 1, &zero, a, INSERT_VALUES));
+  PetscCall(MatAssemblyBegin(A, MAT_FINAL_ASSEMBLY));
+  PetscCall(MatAssemblyEnd(A, MAT_FINAL_ASSEMBLY));
+  PetscCall(MakePC(A, PCBLOCKICC, "single", &pc));
+  PetscCall(MatCreateVecs(A, &x, &b));
+  for (PetscInt r = 0; r < 3; r++) PetscCall(VecSetValue(x, r, q[2][r] + 0.5 * q[0][r], INSERT_VALUES)); /* the stiff and the soft directions */
+  PetscCall(VecAssemblyBegin(x));
+  PetscCall(VecAssemblyEnd(x));
+  PetscCall(MatMult(A, x, b));
+  PetscCall(ApplyError(pc, b, x, &err));
+  PetscCheck(err <= 1e-3, PETSC_COMM_SELF, PETSC_ERR_PLIB, "block IC(0) asked to store in single precision a pivot block conditioned at 1e12: |M^-1 A x - x| / |x| = %g (it should have stored double)", (double) err);
+  npassed++;
+  PetscCall(VecDestroy(&x));
+  PetscCall(VecDestroy(&b));
+  PetscCall(PCDestroy(&pc));
   PetscCall(MatDestroy(&A));
   PetscFunctionReturn(0);
 }
@@ -180,7 +255,7 @@ static PetscErrorCode TestCompensatedIsSPD(PetscRandom rnd)
 
   PetscFunctionBeginUser;
   PetscCall(BuildBendMatrix(16, 12, 1e-6, 1.0, &A));
-  PetscCall(MakePC(A, PCBLOCKICC, &pc));
+  PetscCall(MakePC(A, PCBLOCKICC, NULL, &pc));
   PetscCall(PCBlockICCGetCompensated(pc, &compensated));
   PetscCheck(compensated, PETSC_COMM_SELF, PETSC_ERR_PLIB, "IC(0) of the bending matrix did not fail: the test does not test the compensation");
   PetscCall(MatCreateVecs(A, &x, &y));
@@ -246,6 +321,7 @@ int main(int argc, char **argv)
   PetscCall(TestChainIsExact(rnd));
   PetscCall(TestAgreesWithICC(rnd));
   PetscCall(TestCompensatedIsSPD(rnd));
+  PetscCall(TestSingleWidens(rnd));
   PetscCall(PetscRandomDestroy(&rnd));
   PetscCall(PetscPrintf(PETSC_COMM_SELF, "%" PetscInt_FMT " passed, 0 failed\n", npassed));
   PetscCall(PetscFinalize());
