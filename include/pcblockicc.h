@@ -12,7 +12,8 @@
  * fails), plain or compensated; -pc_blockicc_pivot_tol (1e-8);
  * -pc_blockicc_precision single (the default: the factor stored in float, the
  * arithmetic in double; double where a rounded pivot block would not be positive
- * definite) or double. */
+ * definite) or double; -pc_blockicc_levels 0 (the default, IC(0)) or 1 (IC(1): the
+ * fill of two of the matrix's blocks kept too). */
 #pragma once
 
 #include <petscpc.h>
@@ -24,3 +25,10 @@ PETSC_EXTERN PetscErrorCode PCBlockICCRegister(void);
 /* Whether the last factorisation compensated the dropped fill on any rank
  * (PETSC_FALSE on a PC of another type). Collective on PC. */
 PETSC_EXTERN PetscErrorCode PCBlockICCGetCompensated(PC, PetscBool *);
+/* The factor's fill: 0, the matrix's pattern (IC(0), the default); 1, also the
+ * blocks that two of the matrix's blocks fill (IC(1): fewer CG iterations, a larger
+ * factor). On a PC of another type, nothing. The next set-up makes the factor anew.
+ * Not collective. */
+PETSC_EXTERN PetscErrorCode PCBlockICCSetLevels(PC, PetscInt);
+/* The fill (-1 on a PC of another type). Not collective. */
+PETSC_EXTERN PetscErrorCode PCBlockICCGetLevels(PC, PetscInt *);

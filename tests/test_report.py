@@ -84,7 +84,7 @@ def test_prose_says_the_report(hang):
     assert f(r"in (\S+) s wall") == shown(rep["wall"], ".3f") and f(r"wall, (\S+) particle-steps/s") == shown(rep["particle_steps_per_s"], ".4e")
     assert f(r"(\S+) CG iterations per step") == shown(rep["cg_per_step"], ".2f")
     assert f(r"largest edge strain (\S+) %") == shown(100 * rep["strain_max"], ".3g")
-    assert rep["pc_switched_step"] == -1 and rep["steps_rejected_error"] == 0  # ICC(0) throughout, fixed steps
+    assert rep["pc_switched_step"] == -1 and rep["pc_fill_step"] == -1 and rep["steps_rejected_error"] == 0  # ICC(0) throughout, fixed steps
 
 
 def test_limits_without_damping_and_without_estimate():
@@ -98,7 +98,7 @@ def test_limits_without_damping_and_without_estimate():
     assert res.limits()["symplectic"] == res.report["symplectic_limit"] > 0
     assert res.stdout.splitlines()[-1].startswith('{"drape_version": ')
     assert (res.report["steps"], res.report["step"], res.report["t"]) == (0, 0, 0)
-    assert not {"snes_type", "ksp_type", "pc_type", "mat_type", "pc_switched_step"} & set(res.report)
+    assert not {"snes_type", "ksp_type", "pc_type", "mat_type", "pc_switched_step", "pc_fill_step"} & set(res.report)
     assert res.report["cg_per_step"] == 0 and res.report["solves_per_step"] == 0
     res = run(f"{base} -drape_stability_its 0", checks=False)
     assert not {"omega_max", "symplectic_limit", "euler_limit"} & set(res.report) and res.limits() is None

@@ -67,6 +67,8 @@ typedef struct {
   PetscBool pc_auto;     /* drape chose it (the PC's type was still PCDRAPE at TSSetUp): block IC(0) gives way to multigrid when it fails or is slow */
   PetscBool sub_factor;  /* -sub_pc_type lu, ilu or asm: block Jacobi's blocks need AIJ */
   PetscInt  pc_switched; /* the step at which it gave way (-1: never) */
+  PetscInt  fill_step;   /* the step at which block IC(0) took its level-1 fill (-1: never; BEUseFill) */
+  PetscBool fill_auto;   /* the options did not give the fill (-pc_blockicc_levels, -sub_pc_blockicc_levels) */
   PetscInt  lits;        /* CG iterations of the last solve */
   PetscInt  max_its;     /* -ksp_max_it (ICC(0) chosen by drape stops at BE_ICC_MAX_ITS) */
   /* step control: TSAdapt's (src/integrate/adapt.c: TSADAPTDRAPE, the default) */
@@ -318,6 +320,85 @@ static PetscErrorCode BEUseMultigrid(TS ts, TS_DrapeBE *be)
   be->J = J;
   PetscCall(PetscPrintf(PetscObjectComm((PetscObject) ts), "note: at step %" PetscInt_FMT " (t = %g s) CG with block IC(0) %s; the run goes on with algebraic multigrid (%s)\n", ts->steps, (double) ts->ptime,
                         be->lits >= BE_ICC_MAX_ITS ? "reached " PetscStringize(BE_ICC_MAX_ITS) " iterations" : "failed", ((PetscObject) pc)->type_name));
+  PetscFunctionReturn(0);
+}
+
+/* Block IC(0) takes its level-1 fill (IC(1), PCBlockICCSetLevels) for the rest of
+ * the run at the first factorisation that had to be compensated (on any rank):
+ * IC(0) then dropped more fill than its rows keep, and the compensation that keeps
+ * it positive definite makes it a weak preconditioner. The fill it dropped is what
+ * IC(1) keeps, and there it factors plainly: the Cusick scene at 161^2, 41.2
+ * against 19.9 CG iterations a step and 308 against 255 CPU s to rest. Where IC(0)
+ * factors plainly, IC(1) saves fewer iterations than its factor, 2.4 times as many
+ * bytes a solve, costs (the Cusick scene at 81^2, 5 % slower; the hang at 48^2 and
+ * 1e-2 s, 66 against 50 iterations a step, 14 % slower): BENCHMARKS.md, "Block
+ * IC(1)". */
+/* Whether drape's block IC(0) compensated its last factorisation on any rank (on
+ * several ranks, that of the blocks of its additive Schwarz or block Jacobi).
+ * Collective. */
+static PetscErrorCode BEICCCompensated(TS ts, PetscBool *compensated)
+{
+  SNES      snes;
+  KSP       ksp, *sub;
+  PC        pc, subpc;
+  PetscInt  n;
+  PetscBool asm_, bjacobi, any = PETSC_FALSE;
+
+  PetscFunctionBeginUser;
+  PetscCall(TSGetSNES(ts, &snes));
+  PetscCall(SNESGetKSP(snes, &ksp));
+  PetscCall(KSPGetPC(ksp, &pc));
+  PetscCall(PetscObjectTypeCompare((PetscObject) pc, PCASM, &asm_));
+  PetscCall(PetscObjectTypeCompare((PetscObject) pc, PCBJACOBI, &bjacobi));
+  if (!asm_ && !bjacobi) {
+    PetscCall(PCBlockICCGetCompensated(pc, compensated));
+    PetscFunctionReturn(0);
+  }
+  if (asm_)
+    PetscCall(PCASMGetSubKSP(pc, &n, NULL, &sub));
+  else
+    PetscCall(PCBJacobiGetSubKSP(pc, &n, NULL, &sub));
+  for (PetscInt i = 0; i < n; i++) {
+    PetscBool c;
+    PetscCall(KSPGetPC(sub[i], &subpc));
+    PetscCall(PCBlockICCGetCompensated(subpc, &c)); /* the block's own communicator */
+    any = (PetscBool) (any || c);
+  }
+  PetscCall(MPIU_Allreduce(&any, compensated, 1, MPIU_BOOL, MPI_LOR, PetscObjectComm((PetscObject) ts)));
+  PetscFunctionReturn(0);
+}
+
+/* Level-1 fill for drape's block IC(0): on one rank the PC, on several the blocks of
+ * its additive Schwarz (or block Jacobi); the next solve builds it. Collective. */
+static PetscErrorCode BEUseFill(TS ts, TS_DrapeBE *be)
+{
+  SNES      snes;
+  KSP       ksp, *sub;
+  PC        pc, subpc;
+  PetscInt  n;
+  PetscBool blocks;
+
+  PetscFunctionBeginUser;
+  PetscCall(TSGetSNES(ts, &snes));
+  PetscCall(SNESGetKSP(snes, &ksp));
+  PetscCall(KSPGetPC(ksp, &pc));
+  PetscCall(PetscObjectTypeCompareAny((PetscObject) pc, &blocks, PCASM, PCBJACOBI, ""));
+  if (!blocks)
+    PetscCall(PCBlockICCSetLevels(pc, 1));
+  else {
+    PetscBool asm_;
+    PetscCall(PetscObjectTypeCompare((PetscObject) pc, PCASM, &asm_));
+    if (asm_)
+      PetscCall(PCASMGetSubKSP(pc, &n, NULL, &sub));
+    else
+      PetscCall(PCBJacobiGetSubKSP(pc, &n, NULL, &sub));
+    for (PetscInt i = 0; i < n; i++) {
+      PetscCall(KSPGetPC(sub[i], &subpc));
+      PetscCall(PCBlockICCSetLevels(subpc, 1));
+    }
+  }
+  be->fill_step = ts->steps;
+  be->pc_stale  = PETSC_TRUE;
   PetscFunctionReturn(0);
 }
 
@@ -605,6 +686,11 @@ static PetscErrorCode BEStep(TS ts, TS_DrapeBE *be, PetscBool *ok)
       continue;
     }
     if (!*ok) PetscFunctionReturn(0);
+    if (rebuild && be->pc_auto && !be->pc_amg && be->fill_auto && be->fill_step < 0) { /* IC(0) compensated: IC(1) from the next solve on */
+      PetscBool compensated;
+      PetscCall(BEICCCompensated(ts, &compensated));
+      if (compensated) PetscCall(BEUseFill(ts, be));
+    }
     PetscCall(TrialState(be, be->DV));
     last    = (PetscBool) ((!be->contact && !be->self) || it + 1 >= be->contact_its);
     changes = 0;
@@ -756,6 +842,14 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
     PetscCall(SNESGetKSP(snes, &ksp));
     PetscCall(KSPGetPC(ksp, &pc));
     PetscCall(BEChoosePreconditioner(ts, be, pc));
+    { /* the fill given is the fill kept */
+      const char *prefix;
+      PetscBool   given, sub_given;
+      PetscCall(KSPGetOptionsPrefix(ksp, &prefix));
+      PetscCall(PetscOptionsHasName(NULL, prefix, "-pc_blockicc_levels", &given));
+      PetscCall(PetscOptionsHasName(NULL, prefix, "-sub_pc_blockicc_levels", &sub_given));
+      be->fill_auto = (PetscBool) !(given || sub_given);
+    }
     /* symmetric block storage (half the matrix: faster products and factorisation)
      * for the preconditioners that take it, AIJ for the others */
     PetscCall(PetscObjectTypeCompareAny((PetscObject) pc, &sbaij, PCBJACOBI, PCICC, PCBLOCKICC, PCCHOLESKY, PCJACOBI, PCNONE, ""));
@@ -936,6 +1030,21 @@ PetscErrorCode TSDrapeBEGetContactImpulse(TS ts, PetscReal impulse[3])
   PetscFunctionReturn(0);
 }
 
+static PetscErrorCode TSDrapeBEGetFillStep_DrapeBE(TS ts, PetscInt *fill_step)
+{
+  PetscFunctionBeginUser;
+  *fill_step = ((TS_DrapeBE *) ts->data)->fill_step;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode TSDrapeBEGetFillStep(TS ts, PetscInt *fill_step)
+{
+  PetscFunctionBeginUser;
+  *fill_step = -1;
+  PetscTryMethod(ts, "TSDrapeBEGetFillStep_C", (TS, PetscInt *), (ts, fill_step));
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode TSDrapeBEGetStepHistory_DrapeBE(TS ts, PetscInt *pc_switched, PetscInt *error_rejected, PetscInt *filter_cut)
 {
   TS_DrapeBE *be = (TS_DrapeBE *) ts->data;
@@ -979,7 +1088,8 @@ static PetscErrorCode TSDrapeBEGetCloth(TS ts, Cloth *cloth)
   PetscFunctionReturn(0);
 }
 
-static const char *const methods[] = {"TSDrapeBESetContact_C", "TSDrapeBESetSelfContact_C", "TSDrapeBESetStiffness_C", "TSDrapeBEGetContactImpulse_C", "TSDrapeBEGetStatistics_C", "TSDrapeBEGetStepHistory_C", "TSDrapeBEStateChanged_C"};
+static const char *const methods[] = {"TSDrapeBESetContact_C",    "TSDrapeBESetSelfContact_C", "TSDrapeBESetStiffness_C", "TSDrapeBEGetContactImpulse_C",
+                                      "TSDrapeBEGetStatistics_C", "TSDrapeBEGetStepHistory_C", "TSDrapeBEGetFillStep_C",  "TSDrapeBEStateChanged_C"};
 
 static PetscErrorCode TSDestroy_DrapeBE(TS ts)
 {
@@ -1072,6 +1182,7 @@ static PetscErrorCode TSCreate_DrapeBE(TS ts)
   be->pc_lag              = 5;
   be->pc_overlap          = 2;
   be->pc_switched         = -1;
+  be->fill_step           = -1;
   be->contact_its         = 2; /* a third solve cost 30 % more CG iterations on the stiff drop and changed the rest strain on the sphere scene by under 0.02 % (polyester 0.25 against 0.27 %, denim 3.62 % both) */
   ts->usessnes            = PETSC_TRUE;
   ts->default_adapt_type  = TSADAPTDRAPE; /* fixed steps, cut after a failed solve and grown back (adapt.c) */
@@ -1082,6 +1193,7 @@ static PetscErrorCode TSCreate_DrapeBE(TS ts)
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBEGetContactImpulse_C", TSDrapeBEGetContactImpulse_DrapeBE));
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBEGetStatistics_C", TSDrapeBEGetStatistics_DrapeBE));
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBEGetStepHistory_C", TSDrapeBEGetStepHistory_DrapeBE));
+  PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBEGetFillStep_C", TSDrapeBEGetFillStep_DrapeBE));
   PetscCall(PetscObjectComposeFunction((PetscObject) ts, "TSDrapeBEStateChanged_C", TSDrapeBEStateChanged_DrapeBE));
   /* drape's defaults; -snes_type, -ksp_type, -pc_type ... override them */
   PetscCall(TSGetSNES(ts, &snes));

@@ -18,6 +18,12 @@
  * indefinite preconditioner. A factorisation that needs no compensation is IC(0)'s,
  * the same as PETSc's ICC(0) to round-off (tests/unit/test_blockicc.c).
  *
+ * With -pc_blockicc_levels 1 (PCBlockICCSetLevels; drapebe sets it when IC(0) had
+ * to compensate) the factor's pattern also holds the level-1 fill, the blocks (k, j)
+ * that a row i < k holding both k and j fills (PCBlockICCFill): IC(1). The
+ * factorisation is the same, over that pattern; what falls outside it is dropped,
+ * or compensated, as at level 0.
+ *
  * The factor is stored in single precision unless -pc_blockicc_precision double
  * (pcblockicc_kernels.h, compiled once for each): the triangular solves stream the
  * factor once each way per CG iteration, and float halves those bytes (on one core
@@ -49,7 +55,10 @@ static const char *const PCBlockICCPrecisions[] = {"single", "double", "PCBlockI
 typedef struct {
   PetscInt            n;            /* block rows                                       */
   PetscInt           *ai, *aj;      /* A's upper pattern (the diagonal first in each row) */
-  void               *fa;           /* factor: D_k^-1 at ai[k], -U(k, j) after it; float or double (single) */
+  PetscInt            levels;       /* fill: 0, A's pattern; 1, the fill of two of A's blocks */
+  PetscInt           *fi, *fj;      /* the factor's pattern (ai, aj at level 0)           */
+  PetscInt           *amap;         /* A's block p at factor position amap[p] (NULL at level 0) */
+  void               *fa;           /* factor: D_k^-1 at fi[k], -U(k, j) after it; float or double (single) */
   PetscScalar        *row;          /* the block row being formed, 9 per block            */
   PetscInt           *pos;          /* column -> position in the row being formed, or -1  */
   PetscInt           *first, *next; /* linked lists: rows waiting on a column           */
@@ -92,8 +101,8 @@ static PetscBool BlockInvertSPD(const MatScalar *d, const MatScalar *a, PetscRea
 /* Row i waits on the column of its block at position p (if it has one). */
 static inline void BlockICCLink(PC_BlockICC *icc, PetscInt i, PetscInt p)
 {
-  if (p < icc->ai[i + 1]) {
-    const PetscInt j = icc->aj[p];
+  if (p < icc->fi[i + 1]) {
+    const PetscInt j = icc->fj[p];
     icc->first[i]    = p;
     icc->next[i]     = icc->next[j];
     icc->next[j]     = i;
@@ -131,6 +140,78 @@ static PetscErrorCode PCBlockICCSamePattern(PC_BlockICC *icc, Mat A, PetscBool *
 #undef BICC_T
 #undef BICC
 
+/* The factor's pattern with level-1 fill: row k holds A's row k and the columns j >
+ * k of the rows i < k that hold k (U(i, k) U(i, j) of two of A's blocks); sorted,
+ * the diagonal first. amap: where each of A's blocks lies in it. */
+static PetscErrorCode PCBlockICCFill(PC_BlockICC *icc)
+{
+  const PetscInt n = icc->n, *ai = icc->ai, *aj = icc->aj;
+  PetscInt      *cs, *cr, *mark, *fi, *fj, nf = 0;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscCalloc2(n + 1, &cs, n, &mark));
+  for (PetscInt p = 0; p < ai[n]; p++) cs[aj[p] + 1]++; /* A's rows holding each column (the diagonal too) */
+  for (PetscInt k = 0; k < n; k++) cs[k + 1] += cs[k];
+  PetscCall(PetscMalloc1(ai[n], &cr));
+  for (PetscInt i = 0; i < n; i++)
+    for (PetscInt p = ai[i]; p < ai[i + 1]; p++) cr[cs[aj[p]]++] = i;
+  for (PetscInt k = n; k > 0; k--) cs[k] = cs[k - 1];
+  cs[0] = 0;
+  for (PetscInt pass = 0; pass < 2; pass++) { /* count, then fill */
+    for (PetscInt k = 0; k < n; k++) mark[k] = -1;
+    nf = 0;
+    for (PetscInt k = 0; k < n; k++) {
+      const PetscInt start = nf;
+      for (PetscInt p = ai[k]; p < ai[k + 1]; p++) {
+        mark[aj[p]] = k;
+        if (pass) fj[nf] = aj[p];
+        nf++;
+      }
+      for (PetscInt q = cs[k]; q < cs[k + 1]; q++) {
+        const PetscInt i = cr[q];
+        if (i == k) continue;
+        for (PetscInt p = ai[i] + 1; p < ai[i + 1]; p++) {
+          const PetscInt j = aj[p];
+          if (j <= k || mark[j] == k) continue;
+          mark[j] = k;
+          if (pass) fj[nf] = j;
+          nf++;
+        }
+      }
+      if (pass) {
+        PetscCall(PetscSortInt(nf - start - 1, fj + start + 1));
+        fi[k + 1] = nf;
+      }
+    }
+    if (!pass) {
+      PetscCall(PetscMalloc3(n + 1, &fi, nf, &fj, ai[n], &icc->amap));
+      fi[0] = 0;
+    }
+  }
+  for (PetscInt k = 0; k < n; k++) {
+    PetscInt q = fi[k];
+    for (PetscInt p = ai[k]; p < ai[k + 1]; p++) {
+      while (fj[q] != aj[p]) q++;
+      icc->amap[p] = q;
+    }
+  }
+  icc->fi = fi, icc->fj = fj;
+  PetscCall(PetscFree2(cs, mark));
+  PetscCall(PetscFree(cr));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode PCBlockICCFreePattern(PC_BlockICC *icc)
+{
+  PetscFunctionBeginUser;
+  if (icc->amap) PetscCall(PetscFree3(icc->fi, icc->fj, icc->amap));
+  icc->fi = icc->fj = NULL;
+  PetscCall(PetscFree2(icc->ai, icc->aj));
+  PetscCall(PetscFree(icc->fa));
+  PetscCall(PetscFree5(icc->pos, icc->first, icc->next, icc->comp, icc->row));
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode PCBlockICCSymbolic(PC pc, PC_BlockICC *icc, Mat A)
 {
   const PetscInt *ia, *ja;
@@ -138,9 +219,7 @@ static PetscErrorCode PCBlockICCSymbolic(PC pc, PC_BlockICC *icc, Mat A)
   PetscBool       done;
 
   PetscFunctionBeginUser;
-  PetscCall(PetscFree2(icc->ai, icc->aj));
-  PetscCall(PetscFree(icc->fa));
-  PetscCall(PetscFree5(icc->pos, icc->first, icc->next, icc->comp, icc->row));
+  PetscCall(PCBlockICCFreePattern(icc));
   PetscCall(MatGetRowIJ(A, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &done));
   PetscCheck(done, PetscObjectComm((PetscObject) pc), PETSC_ERR_SUP, "-pc_type blockicc could not read the matrix's block pattern");
   PetscCall(PetscMalloc2(n + 1, &icc->ai, ia[n], &icc->aj));
@@ -151,9 +230,13 @@ static PetscErrorCode PCBlockICCSymbolic(PC pc, PC_BlockICC *icc, Mat A)
   n = icc->n;
   for (PetscInt k = 0; k < n; k++)
     PetscCheck(icc->ai[k] < icc->ai[k + 1] && icc->aj[icc->ai[k]] == k, PETSC_COMM_SELF, PETSC_ERR_ARG_WRONG, "-pc_type blockicc needs every diagonal block in the matrix's pattern, and block row %" PetscInt_FMT " has none", k);
+  if (icc->levels > 0)
+    PetscCall(PCBlockICCFill(icc));
+  else
+    icc->fi = icc->ai, icc->fj = icc->aj;
   {
     PetscInt maxrow = 0;
-    for (PetscInt k = 0; k < n; k++) maxrow = PetscMax(maxrow, icc->ai[k + 1] - icc->ai[k]);
+    for (PetscInt k = 0; k < n; k++) maxrow = PetscMax(maxrow, icc->fi[k + 1] - icc->fi[k]);
     PetscCall(PetscMalloc5(n, &icc->pos, n, &icc->first, n, &icc->next, 3 * n, &icc->comp, 9 * maxrow, &icc->row));
   }
   for (PetscInt k = 0; k < n; k++) icc->pos[k] = -1;
@@ -185,7 +268,7 @@ static PetscErrorCode PCSetUp_BlockICC(PC pc)
     PetscBool       stored = PETSC_TRUE;
     if (!icc->fa || single != icc->single) {
       PetscCall(PetscFree(icc->fa));
-      PetscCall(PetscMalloc(9 * icc->ai[icc->n] * (single ? sizeof(float) : sizeof(double)), &icc->fa));
+      PetscCall(PetscMalloc(9 * icc->fi[icc->n] * (single ? sizeof(float) : sizeof(double)), &icc->fa));
       icc->single = single;
     }
     icc->compensated = PETSC_FALSE;
@@ -223,7 +306,7 @@ static PetscErrorCode PCApply_BlockICC(PC pc, Vec b, Vec x)
   else
     PCBlockICCSolve_Double(icc, y);
   PetscCall(VecRestoreArrayWrite(x, &y));
-  PetscCall(PetscLogFlops(36.0 * (icc->ai[icc->n] - icc->n) + 15.0 * icc->n));
+  PetscCall(PetscLogFlops(36.0 * (icc->fi[icc->n] - icc->n) + 15.0 * icc->n));
   PetscFunctionReturn(0);
 }
 
@@ -232,9 +315,7 @@ static PetscErrorCode PCReset_BlockICC(PC pc)
   PC_BlockICC *icc = (PC_BlockICC *) pc->data;
 
   PetscFunctionBeginUser;
-  PetscCall(PetscFree2(icc->ai, icc->aj));
-  PetscCall(PetscFree(icc->fa));
-  PetscCall(PetscFree5(icc->pos, icc->first, icc->next, icc->comp, icc->row));
+  PetscCall(PCBlockICCFreePattern(icc));
   icc->n = 0;
   PetscFunctionReturn(0);
 }
@@ -244,7 +325,22 @@ static PetscErrorCode PCDestroy_BlockICC(PC pc)
   PetscFunctionBeginUser;
   PetscCall(PCReset_BlockICC(pc));
   PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCBlockICCGetCompensated_C", NULL));
+  PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCBlockICCSetLevels_C", NULL));
+  PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCBlockICCGetLevels_C", NULL));
   PetscCall(PetscFree(pc->data));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode PCBlockICCSetLevels_BlockICC(PC pc, PetscInt levels)
+{
+  PC_BlockICC *icc = (PC_BlockICC *) pc->data;
+
+  PetscFunctionBeginUser;
+  PetscCheck(levels == 0 || levels == 1, PetscObjectComm((PetscObject) pc), PETSC_ERR_ARG_OUTOFRANGE, "block IC(0) fills at level 0 or 1, not %" PetscInt_FMT, levels);
+  if (levels == icc->levels) PetscFunctionReturn(0);
+  PetscCall(PCBlockICCFreePattern(icc)); /* made again at the next set-up */
+  icc->n      = 0;
+  icc->levels = levels;
   PetscFunctionReturn(0);
 }
 
@@ -258,6 +354,13 @@ static PetscErrorCode PCSetFromOptions_BlockICC(PC pc, PetscOptionItems *PetscOp
     PetscOptionsReal("-pc_blockicc_pivot_tol", "A pivot of a 3 x 3 pivot block must exceed this times the matrix's diagonal entry, else the block is replaced by the matrix's diagonal block", "PCBLOCKICC", icc->pivot_tol, &icc->pivot_tol, NULL));
   PetscCall(PetscOptionsEnum("-pc_blockicc_precision", "Storage of the factor: single (float: half the memory the triangular solves stream; the arithmetic stays double) or double", "PCBLOCKICC", PCBlockICCPrecisions, (PetscEnum) icc->precision,
                              (PetscEnum *) &icc->precision, NULL));
+  {
+    PetscInt  levels = icc->levels;
+    PetscBool set;
+    PetscCall(PetscOptionsInt("-pc_blockicc_levels", "Fill of the factor: 0, the matrix's pattern (IC(0)); 1, also the blocks two of the matrix's blocks fill (IC(1))", "PCBLOCKICC", levels, &levels, &set));
+    PetscCheck(levels == 0 || levels == 1, PetscObjectComm((PetscObject) pc), PETSC_ERR_USER_INPUT, "-pc_blockicc_levels %" PetscInt_FMT " is not a fill this preconditioner makes: 0 (IC(0)) or 1 (IC(1))", levels);
+    if (set) PetscCall(PCBlockICCSetLevels_BlockICC(pc, levels));
+  }
   PetscCall(PetscOptionsEnum("-pc_blockicc_type", "auto: IC(0), compensated when a pivot block fails; plain: IC(0), an error when one fails; compensated: always", "PCBLOCKICC", PCBlockICCTypes, (PetscEnum) icc->type, (PetscEnum *) &icc->type, NULL));
   PetscCheck(icc->pivot_tol >= 0 && icc->pivot_tol < 1, PetscObjectComm((PetscObject) pc), PETSC_ERR_USER_INPUT, "-pc_blockicc_pivot_tol %g is outside [0, 1): a pivot is compared with this fraction of the matrix's diagonal entry",
              (double) icc->pivot_tol);
@@ -273,7 +376,8 @@ static PetscErrorCode PCView_BlockICC(PC pc, PetscViewer viewer)
   PetscFunctionBeginUser;
   PetscCall(PetscObjectTypeCompare((PetscObject) viewer, PETSCVIEWERASCII, &ascii));
   if (ascii) {
-    PetscCall(PetscViewerASCIIPrintf(viewer, "  IC(0) in 3 x 3 blocks (%s), pivot tolerance %g; the last factorisation %s\n", PCBlockICCTypes[icc->type], (double) icc->pivot_tol, icc->compensated ? "compensated the dropped fill" : "plain"));
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  IC(%" PetscInt_FMT ") in 3 x 3 blocks (%s), pivot tolerance %g; the last factorisation %s\n", icc->levels, PCBlockICCTypes[icc->type], (double) icc->pivot_tol,
+                                     icc->compensated ? "compensated the dropped fill" : "plain"));
     PetscCall(PetscViewerASCIIPrintf(viewer, "  factor stored in %s precision%s\n", icc->single ? "single" : "double", icc->widened ? " (single was asked for, and a rounded pivot block was not positive definite)" : ""));
   }
   PetscFunctionReturn(0);
@@ -283,6 +387,28 @@ static PetscErrorCode PCBlockICCGetCompensated_BlockICC(PC pc, PetscBool *compen
 {
   PetscFunctionBeginUser;
   PetscCall(MPIU_Allreduce(&((PC_BlockICC *) pc->data)->compensated, compensated, 1, MPIU_BOOL, MPI_LOR, PetscObjectComm((PetscObject) pc)));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode PCBlockICCSetLevels(PC pc, PetscInt levels)
+{
+  PetscFunctionBeginUser;
+  PetscTryMethod(pc, "PCBlockICCSetLevels_C", (PC, PetscInt), (pc, levels));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode PCBlockICCGetLevels_BlockICC(PC pc, PetscInt *levels)
+{
+  PetscFunctionBeginUser;
+  *levels = ((PC_BlockICC *) pc->data)->levels;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode PCBlockICCGetLevels(PC pc, PetscInt *levels)
+{
+  PetscFunctionBeginUser;
+  *levels = -1;
+  PetscTryMethod(pc, "PCBlockICCGetLevels_C", (PC, PetscInt *), (pc, levels));
   PetscFunctionReturn(0);
 }
 
@@ -311,6 +437,8 @@ static PetscErrorCode PCCreate_BlockICC(PC pc)
   pc->ops->setfromoptions      = PCSetFromOptions_BlockICC;
   pc->ops->view                = PCView_BlockICC;
   PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCBlockICCGetCompensated_C", PCBlockICCGetCompensated_BlockICC));
+  PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCBlockICCSetLevels_C", PCBlockICCSetLevels_BlockICC));
+  PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCBlockICCGetLevels_C", PCBlockICCGetLevels_BlockICC));
   PetscFunctionReturn(0);
 }
 

@@ -16,7 +16,7 @@
  * factorisation stops there. */
 static PetscErrorCode BICC(Numeric)(PC_BlockICC *icc, const MatScalar *aa, PetscBool compensate, PetscBool *ok, PetscBool *stored)
 {
-  const PetscInt n = icc->n, *ai = icc->ai, *aj = icc->aj;
+  const PetscInt n = icc->n, *ai = icc->fi, *aj = icc->fj, *Ai = icc->ai, *amap = icc->amap; /* ai, aj: the factor's pattern; Ai: A's */
   PetscInt      *pos = icc->pos, *first = icc->first, *next = icc->next;
   BICC_T        *fa  = (BICC_T *) icc->fa;
   PetscScalar   *row = icc->row, *dk = icc->row; /* row k being formed, its diagonal block first */
@@ -29,9 +29,14 @@ static PetscErrorCode BICC(Numeric)(PC_BlockICC *icc, const MatScalar *aa, Petsc
   for (PetscInt k = 0; k < n; k++) next[k] = n; /* every list empty */
   for (PetscInt k = 0; k < n && *ok && *stored; k++) {
     const PetscInt   rk = ai[k], len = ai[k + 1] - rk;
-    const MatScalar *ak = aa + 9 * rk;
+    const MatScalar *ak = aa + 9 * Ai[k]; /* A's row k, its diagonal block first */
     for (PetscInt p = rk; p < ai[k + 1]; p++) pos[aj[p]] = p - rk;
-    PetscCall(PetscArraycpy(row, ak, 9 * len));
+    if (!amap)
+      PetscCall(PetscArraycpy(row, ak, 9 * len));
+    else { /* A's blocks into the factor's row, the fill zero */
+      PetscCall(PetscArrayzero(row, 9 * len));
+      for (PetscInt p = Ai[k]; p < Ai[k + 1]; p++) PetscCall(PetscArraycpy(row + 9 * (amap[p] - rk), aa + 9 * p, 9));
+    }
     for (PetscInt r = 0; r < 3; r++) dk[4 * r] += comp[3 * k + r];
     for (PetscInt i = next[k], inext; i < n; i = inext) {
       const BICC_T *di = fa + 9 * ai[i];
@@ -53,7 +58,7 @@ static PetscErrorCode BICC(Numeric)(PC_BlockICC *icc, const MatScalar *aa, Petsc
           for (PetscInt c = 0; c < 3; c++)
             for (PetscInt r = 0; r < 3; r++) t[r + 3 * c] += w[3 * r] * v[3 * c] + w[3 * r + 1] * v[3 * c + 1] + w[3 * r + 2] * v[3 * c + 2];
         } else if (compensate) { /* fill IC(0) drops, given back to the two diagonals */
-          const MatScalar *aj_ = aa + 9 * ai[j];
+          const MatScalar *aj_ = aa + 9 * Ai[j];
           for (PetscInt c = 0; c < 3; c++)
             for (PetscInt r = 0; r < 3; r++) {
               const PetscReal e = PetscAbsReal(w[3 * r] * v[3 * c] + w[3 * r + 1] * v[3 * c + 1] + w[3 * r + 2] * v[3 * c + 2]), s = PetscSqrtReal(ak[4 * r] / aj_[4 * c]);
@@ -96,7 +101,7 @@ static PetscErrorCode BICC(Numeric)(PC_BlockICC *icc, const MatScalar *aa, Petsc
  * z (x_k += V(k, j) x_j). */
 static void BICC(Solve)(const PC_BlockICC *icc, PetscScalar *restrict y)
 {
-  const PetscInt n = icc->n, *restrict ai = icc->ai, *restrict aj = icc->aj;
+  const PetscInt n = icc->n, *restrict ai = icc->fi, *restrict aj = icc->fj;
   const BICC_T *restrict fa = (const BICC_T *) icc->fa;
 
   for (PetscInt i = 0; i < n; i++) {

@@ -1143,7 +1143,12 @@ static PetscErrorCode SimulationViewSummary(Simulation s, PetscViewer viewer, Pe
     PetscCall(PetscObjectTypeCompare((PetscObject) s->ts, TSDRAPEBE, &implicit));
     PetscCall(TSDrapeBEGetStepHistory(s->ts, &switched, &error_rejected, &filter_cut));
     if (implicit) PetscCall(ReportSetInt(r, "pc_switched_step", switched)); /* -1: block Jacobi/ICC(0) throughout, or the options' choice */
-    if (implicit && switched >= 0) {                                        /* the report's solver is the one the run ended with (the start-up line said the first) */
+    if (implicit) {
+      PetscInt fill;
+      PetscCall(TSDrapeBEGetFillStep(s->ts, &fill));
+      PetscCall(ReportViewInt(r, fill >= 0 ? viewer : NULL, "pc_fill_step", ", block IC(1) from step %" PetscInt_FMT, fill)); /* -1: IC(0) throughout */
+    }
+    if (implicit && switched >= 0) { /* the report's solver is the one the run ended with (the start-up line said the first) */
       SNESType st;
       KSPType  kt;
       PCType   pt;

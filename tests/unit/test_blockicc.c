@@ -2,7 +2,8 @@ static const char help[] = "Unit tests of the block IC(0) preconditioner (src/in
                            "exact on a block chain (no fill), PETSc's ICC(0) where that is positive definite,\n"
                            "symmetric and positive definite where pivot blocks are replaced; its factor\n"
                            "stored in single precision within float's rounding of the double one, and in\n"
-                           "double where a rounded pivot block would not be positive definite.\n"
+                           "double where a rounded pivot block would not be positive definite; with\n"
+                           "level-1 fill, exact on a ladder where IC(0) is not.\n"
                            "Options: -seed <int>\n\n";
 
 #include <petscksp.h>
@@ -90,20 +91,30 @@ static PetscErrorCode BuildBendMatrix(PetscInt nx, PetscInt ny, PetscReal m, Pet
   PetscFunctionReturn(0);
 }
 
-/* precision: the factor's storage for PCBLOCKICC ("single" or "double"), or NULL (the default) */
-static PetscErrorCode MakePC(Mat A, PCType type, const char *precision, PC *pc)
+/* precision: the factor's storage for PCBLOCKICC ("single" or "double"), or NULL
+ * (the default); levels: its fill ("0" or "1"), or NULL */
+static PetscErrorCode MakePCLevels(Mat A, PCType type, const char *precision, const char *levels, PC *pc)
 {
   PetscFunctionBeginUser;
   PetscCall(PCCreate(PETSC_COMM_SELF, pc));
   PetscCall(PCSetType(*pc, type));
   PetscCall(PCSetOperators(*pc, A, A));
-  if (precision) {
+  if (precision || levels) {
     PetscCall(PCSetOptionsPrefix(*pc, "t_"));
-    PetscCall(PetscOptionsSetValue(NULL, "-t_pc_blockicc_precision", precision));
+    if (precision) PetscCall(PetscOptionsSetValue(NULL, "-t_pc_blockicc_precision", precision));
+    if (levels) PetscCall(PetscOptionsSetValue(NULL, "-t_pc_blockicc_levels", levels));
     PetscCall(PCSetFromOptions(*pc));
     PetscCall(PetscOptionsClearValue(NULL, "-t_pc_blockicc_precision"));
+    PetscCall(PetscOptionsClearValue(NULL, "-t_pc_blockicc_levels"));
   }
   PetscCall(PCSetUp(*pc));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode MakePC(Mat A, PCType type, const char *precision, PC *pc)
+{
+  PetscFunctionBeginUser;
+  PetscCall(MakePCLevels(A, type, precision, NULL, pc));
   PetscFunctionReturn(0);
 }
 
@@ -186,6 +197,37 @@ static PetscErrorCode TestAgreesWithICC(PetscRandom rnd)
   PetscCall(PCDestroy(&dbl));
   PetscCall(PCDestroy(&sgl));
   PetscCall(PCDestroy(&petsc));
+  PetscCall(MatDestroy(&A));
+  PetscFunctionReturn(0);
+}
+
+/* A ladder, 2 x 20 blocks with the 4 neighbours: its exact Cholesky factor fills
+ * the block (2j + 1, 2j + 2) of each rung from the two links of block 2j, and no
+ * more. So IC(1) is exact there (M^-1 A x = x to round-off) and IC(0), which drops
+ * that fill, is not: the fill is really added, and only where it belongs. */
+static PetscErrorCode TestLevelOneExactOnLadder(PetscRandom rnd)
+{
+  Mat       A;
+  PC        ic0, ic1;
+  Vec       x, b;
+  PetscReal err0, err1;
+
+  PetscFunctionBeginUser;
+  PetscCall(BuildMatrix(2, 20, PETSC_FALSE, 1.0, 10.0, rnd, &A));
+  PetscCall(MakePCLevels(A, PCBLOCKICC, "double", "0", &ic0));
+  PetscCall(MakePCLevels(A, PCBLOCKICC, "double", "1", &ic1));
+  PetscCall(MatCreateVecs(A, &x, &b));
+  PetscCall(VecSetRandom(x, rnd));
+  PetscCall(MatMult(A, x, b));
+  PetscCall(ApplyError(ic0, b, x, &err0));
+  PetscCall(ApplyError(ic1, b, x, &err1));
+  PetscCheck(err1 <= 1e-10, PETSC_COMM_SELF, PETSC_ERR_PLIB, "block IC(1) of a ladder is not exact: |M^-1 A x - x| / |x| = %g", (double) err1);
+  PetscCheck(err0 > 1e-4, PETSC_COMM_SELF, PETSC_ERR_PLIB, "block IC(0) of a ladder is exact (|M^-1 A x - x| / |x| = %g): the test does not show the fill", (double) err0);
+  npassed++;
+  PetscCall(VecDestroy(&x));
+  PetscCall(VecDestroy(&b));
+  PetscCall(PCDestroy(&ic0));
+  PetscCall(PCDestroy(&ic1));
   PetscCall(MatDestroy(&A));
   PetscFunctionReturn(0);
 }
@@ -322,6 +364,7 @@ int main(int argc, char **argv)
   PetscCall(TestAgreesWithICC(rnd));
   PetscCall(TestCompensatedIsSPD(rnd));
   PetscCall(TestSingleWidens(rnd));
+  PetscCall(TestLevelOneExactOnLadder(rnd));
   PetscCall(PetscRandomDestroy(&rnd));
   PetscCall(PetscPrintf(PETSC_COMM_SELF, "%" PetscInt_FMT " passed, 0 failed\n", npassed));
   PetscCall(PetscFinalize());
