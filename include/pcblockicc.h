@@ -1,5 +1,6 @@
 /* The preconditioner type "blockicc" (src/integrate/pcblockicc.c): incomplete
- * Cholesky without fill, IC(0), of an SBAIJ matrix of block size 3 (on many ranks,
+ * Cholesky without fill, IC(0) (with -pc_blockicc_levels 1, its level-1 fill too:
+ * IC(1)), of an SBAIJ matrix of block size 3 (on many ranks,
  * of each rank's diagonal block: block Jacobi), in
  * 3 x 3 blocks, that stays positive definite. PETSc's ICC(0) of the same matrix
  * (PCICC on SBAIJ) inverts each pivot block as it comes: where the dropped fill

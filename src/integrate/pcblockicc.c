@@ -146,7 +146,7 @@ static PetscErrorCode PCBlockICCSamePattern(PC_BlockICC *icc, Mat A, PetscBool *
 static PetscErrorCode PCBlockICCFill(PC_BlockICC *icc)
 {
   const PetscInt n = icc->n, *ai = icc->ai, *aj = icc->aj;
-  PetscInt      *cs, *cr, *mark, *fi, *fj, nf = 0;
+  PetscInt      *cs, *cr, *mark, *fi = NULL, *fj = NULL, nf = 0;
 
   PetscFunctionBeginUser;
   PetscCall(PetscCalloc2(n + 1, &cs, n, &mark));
