@@ -343,6 +343,22 @@ def test_block_icc_takes_its_fill_where_it_must_compensate(tmp):
     refused("-ts_type drapebe -pc_blockicc_levels 2", "-pc_blockicc_levels 2 is not a fill this preconditioner makes")
 
 
+def test_restricted_schwarz_gives_way_to_its_symmetric_form():
+    """The Cusick scene at 161^2 on two ranks: CG with restricted additive Schwarz
+    (drape's default on several ranks, not a symmetric preconditioner) stalled at 300
+    iterations at step 47 on the development machine, and the run went on with ML at
+    2.5 times the CPU time. Now a stall makes the Schwarz symmetric (-pc_asm_type
+    basic, with a note) and the run never goes on with multigrid; where nothing stalls
+    (another CPU's rounding), it stays restricted, and never multigrid either."""
+    res = run("-options_file runs/cusick.opts -cloth_fabric denim -da_grid_x 161 -da_grid_y 161 -ts_max_time 0.06 -output_interval 1", np_=2, checks=False)
+    rep = res.report
+    assert rep["pc_switched_step"] == -1 and rep["pc_type"] == "asm", (rep["pc_switched_step"], rep["pc_type"], res.stdout[-2000:])
+    assert "multigrid" not in res.stdout
+    if "stalled" in res.stdout:
+        assert "the run goes on with its symmetric form (-pc_asm_type basic)" in res.stdout
+    assert rep["cg_per_step"] < 100, rep["cg_per_step"]
+
+
 def test_overlapping_blocks_on_two_ranks():
     """drapebe on several ranks (issue 26): drape's default preconditioner is block
     IC(0) on each rank's rows grown by 2 layers (restricted additive Schwarz,

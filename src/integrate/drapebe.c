@@ -333,6 +333,38 @@ static PetscErrorCode BEUseMultigrid(TS ts, TS_DrapeBE *be)
  * bytes a solve, costs (the Cusick scene at 81^2, 5 % slower; the hang at 48^2 and
  * 1e-2 s, 66 against 50 iterations a step, 14 % slower): BENCHMARKS.md, "Block
  * IC(1)". */
+/* Restricted additive Schwarz (drape's choice on several ranks, BESubBlockICC) is
+ * no symmetric preconditioner, and CG can stall with it: the Cusick scene at 161^2
+ * on two ranks reached BE_ICC_MAX_ITS at step 47 and went on with ML at 2.5 times
+ * the CPU time, where the symmetric form (-pc_asm_type basic: the blocks' results
+ * added on the overlap) went on at 25 iterations a step. The symmetric form takes
+ * more iterations where the restricted one converges (the hang at 512^2: 4.45
+ * against 3.17 a step), so drape starts restricted and, at its first failed or slow
+ * solve, makes it symmetric for the rest of the run (*switched), before any
+ * multigrid. Collective. */
+static PetscErrorCode BERestrictedSchwarz(TS ts, PetscBool *switched)
+{
+  SNES      snes;
+  KSP       ksp;
+  PC        pc;
+  PCASMType type;
+
+  PetscFunctionBeginUser;
+  *switched = PETSC_FALSE;
+  PetscCall(TSGetSNES(ts, &snes));
+  PetscCall(SNESGetKSP(snes, &ksp));
+  PetscCall(KSPGetPC(ksp, &pc));
+  PetscCall(PetscObjectTypeCompare((PetscObject) pc, PCASM, switched));
+  if (!*switched) PetscFunctionReturn(0);
+  PetscCall(PCASMGetType(pc, &type));
+  *switched = (PetscBool) (type == PC_ASM_RESTRICT);
+  if (!*switched) PetscFunctionReturn(0);
+  PetscCall(PCASMSetType(pc, PC_ASM_BASIC));
+  PetscCall(PetscPrintf(PetscObjectComm((PetscObject) ts), "note: at step %" PetscInt_FMT " (t = %g s) CG with restricted additive Schwarz, not symmetric, stalled; the run goes on with its symmetric form (-pc_asm_type basic)\n", ts->steps,
+                        (double) ts->ptime));
+  PetscFunctionReturn(0);
+}
+
 /* Whether drape's block IC(0) compensated its last factorisation on any rank (on
  * several ranks, that of the blocks of its additive Schwarz or block Jacobi).
  * Collective. */
@@ -677,6 +709,12 @@ static PetscErrorCode BEStep(TS ts, TS_DrapeBE *be, PetscBool *ok)
     }
     PetscCall(BESolve(ts, be, ok));
     if (be->pc_auto && !be->pc_amg && (!*ok || be->lits >= BE_ICC_MAX_ITS)) { /* ICC(0) failed or was slow */
+      PetscBool restricted;
+      PetscCall(BERestrictedSchwarz(ts, &restricted));
+      if (restricted) { /* first its symmetric form (BERestrictedSchwarz), the same blocks */
+        it--;
+        continue;
+      }
       if (rebuild)
         PetscCall(BEUseMultigrid(ts, be));
       else
