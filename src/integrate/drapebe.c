@@ -318,21 +318,43 @@ static PetscErrorCode BEUseMultigrid(TS ts, TS_DrapeBE *be)
   PetscCall(SNESSetJacobian(snes, J, J, BEJacobian, be));
   PetscCall(MatDestroy(&be->J));
   be->J = J;
-  PetscCall(PetscPrintf(PetscObjectComm((PetscObject) ts), "note: at step %" PetscInt_FMT " (t = %g s) CG with block IC(0) %s; the run goes on with algebraic multigrid (%s)\n", ts->steps, (double) ts->ptime,
+  PetscCall(PetscPrintf(PetscObjectComm((PetscObject) ts), "note: at step %" PetscInt_FMT " (t = %g s) CG with block IC %s; the run goes on with algebraic multigrid (%s)\n", ts->steps, (double) ts->ptime,
                         be->lits >= BE_ICC_MAX_ITS ? "reached " PetscStringize(BE_ICC_MAX_ITS) " iterations" : "failed", ((PetscObject) pc)->type_name));
   PetscFunctionReturn(0);
 }
 
-/* Block IC(0) takes its level-1 fill (IC(1), PCBlockICCSetLevels) for the rest of
- * the run at the first factorisation that had to be compensated (on any rank):
- * IC(0) then dropped more fill than its rows keep, and the compensation that keeps
- * it positive definite makes it a weak preconditioner. The fill it dropped is what
- * IC(1) keeps, and there it factors plainly: the Cusick scene at 161^2, 41.2
- * against 19.9 CG iterations a step and 308 against 255 CPU s to rest. Where IC(0)
- * factors plainly, IC(1) saves fewer iterations than its factor, 2.4 times as many
- * bytes a solve, costs (the Cusick scene at 81^2, 5 % slower; the hang at 48^2 and
- * 1e-2 s, 66 against 50 iterations a step, 14 % slower): BENCHMARKS.md, "Block
- * IC(1)". */
+/* drapebe's preconditioner. Not collective. */
+static PetscErrorCode BEGetPC(TS ts, PC *pc)
+{
+  SNES snes;
+  KSP  ksp;
+
+  PetscFunctionBeginUser;
+  PetscCall(TSGetSNES(ts, &snes));
+  PetscCall(SNESGetKSP(snes, &ksp));
+  PetscCall(KSPGetPC(ksp, pc));
+  PetscFunctionReturn(0);
+}
+
+/* Where drape's block IC lives: pc itself on one rank (*sub NULL), each of this
+ * rank's *n blocks of its additive Schwarz or block Jacobi on several. Not
+ * collective. */
+static PetscErrorCode BEBlockICCs(PC pc, PetscInt *n, KSP **sub)
+{
+  PetscBool asm_, bjacobi;
+
+  PetscFunctionBeginUser;
+  *n   = 0;
+  *sub = NULL;
+  PetscCall(PetscObjectTypeCompare((PetscObject) pc, PCASM, &asm_));
+  PetscCall(PetscObjectTypeCompare((PetscObject) pc, PCBJACOBI, &bjacobi));
+  if (asm_)
+    PetscCall(PCASMGetSubKSP(pc, n, NULL, sub));
+  else if (bjacobi)
+    PetscCall(PCBJacobiGetSubKSP(pc, n, NULL, sub));
+  PetscFunctionReturn(0);
+}
+
 /* Restricted additive Schwarz (drape's choice on several ranks, BESubBlockICC) is
  * no symmetric preconditioner, and CG can stall with it: the Cusick scene at 161^2
  * on two ranks reached BE_ICC_MAX_ITS at step 47 and went on with ML at 2.5 times
@@ -344,16 +366,11 @@ static PetscErrorCode BEUseMultigrid(TS ts, TS_DrapeBE *be)
  * multigrid. Collective. */
 static PetscErrorCode BERestrictedSchwarz(TS ts, PetscBool *switched)
 {
-  SNES      snes;
-  KSP       ksp;
   PC        pc;
   PCASMType type;
 
   PetscFunctionBeginUser;
-  *switched = PETSC_FALSE;
-  PetscCall(TSGetSNES(ts, &snes));
-  PetscCall(SNESGetKSP(snes, &ksp));
-  PetscCall(KSPGetPC(ksp, &pc));
+  PetscCall(BEGetPC(ts, &pc));
   PetscCall(PetscObjectTypeCompare((PetscObject) pc, PCASM, switched));
   if (!*switched) PetscFunctionReturn(0);
   PetscCall(PCASMGetType(pc, &type));
@@ -370,26 +387,18 @@ static PetscErrorCode BERestrictedSchwarz(TS ts, PetscBool *switched)
  * Collective. */
 static PetscErrorCode BEICCCompensated(TS ts, PetscBool *compensated)
 {
-  SNES      snes;
-  KSP       ksp, *sub;
   PC        pc, subpc;
+  KSP      *sub;
   PetscInt  n;
-  PetscBool asm_, bjacobi, any = PETSC_FALSE;
+  PetscBool any = PETSC_FALSE;
 
   PetscFunctionBeginUser;
-  PetscCall(TSGetSNES(ts, &snes));
-  PetscCall(SNESGetKSP(snes, &ksp));
-  PetscCall(KSPGetPC(ksp, &pc));
-  PetscCall(PetscObjectTypeCompare((PetscObject) pc, PCASM, &asm_));
-  PetscCall(PetscObjectTypeCompare((PetscObject) pc, PCBJACOBI, &bjacobi));
-  if (!asm_ && !bjacobi) {
+  PetscCall(BEGetPC(ts, &pc));
+  PetscCall(BEBlockICCs(pc, &n, &sub));
+  if (!sub) {
     PetscCall(PCBlockICCGetCompensated(pc, compensated));
     PetscFunctionReturn(0);
   }
-  if (asm_)
-    PetscCall(PCASMGetSubKSP(pc, &n, NULL, &sub));
-  else
-    PetscCall(PCBJacobiGetSubKSP(pc, &n, NULL, &sub));
   for (PetscInt i = 0; i < n; i++) {
     PetscBool c;
     PetscCall(KSPGetPC(sub[i], &subpc));
@@ -400,34 +409,32 @@ static PetscErrorCode BEICCCompensated(TS ts, PetscBool *compensated)
   PetscFunctionReturn(0);
 }
 
-/* Level-1 fill for drape's block IC(0): on one rank the PC, on several the blocks of
+/* Block IC(0) takes its level-1 fill (IC(1), PCBlockICCSetLevels) for the rest of
+ * the run at the first factorisation that had to be compensated (on any rank):
+ * IC(0) then dropped more fill than its rows keep, and the compensation that keeps
+ * it positive definite makes it a weak preconditioner. The fill it dropped is what
+ * IC(1) keeps, and there it factors plainly: the Cusick scene at 161^2, 41.2
+ * against 19.9 CG iterations a step and 308 against 255 CPU s to rest. Where IC(0)
+ * factors plainly, IC(1) saves fewer iterations than its factor, 2.4 times as many
+ * bytes a solve, costs (the Cusick scene at 81^2, 5 % slower; the hang at 48^2 and
+ * 1e-2 s, 66 against 50 iterations a step, 9 % slower): BENCHMARKS.md, "Block
+ * IC(1)".
+ *
+ * Level-1 fill for drape's block IC(0): on one rank the PC, on several the blocks of
  * its additive Schwarz (or block Jacobi); the next solve builds it. Collective. */
 static PetscErrorCode BEUseFill(TS ts, TS_DrapeBE *be)
 {
-  SNES      snes;
-  KSP       ksp, *sub;
-  PC        pc, subpc;
-  PetscInt  n;
-  PetscBool blocks;
+  PC       pc, subpc;
+  KSP     *sub;
+  PetscInt n;
 
   PetscFunctionBeginUser;
-  PetscCall(TSGetSNES(ts, &snes));
-  PetscCall(SNESGetKSP(snes, &ksp));
-  PetscCall(KSPGetPC(ksp, &pc));
-  PetscCall(PetscObjectTypeCompareAny((PetscObject) pc, &blocks, PCASM, PCBJACOBI, ""));
-  if (!blocks)
-    PetscCall(PCBlockICCSetLevels(pc, 1));
-  else {
-    PetscBool asm_;
-    PetscCall(PetscObjectTypeCompare((PetscObject) pc, PCASM, &asm_));
-    if (asm_)
-      PetscCall(PCASMGetSubKSP(pc, &n, NULL, &sub));
-    else
-      PetscCall(PCBJacobiGetSubKSP(pc, &n, NULL, &sub));
-    for (PetscInt i = 0; i < n; i++) {
-      PetscCall(KSPGetPC(sub[i], &subpc));
-      PetscCall(PCBlockICCSetLevels(subpc, 1));
-    }
+  PetscCall(BEGetPC(ts, &pc));
+  PetscCall(BEBlockICCs(pc, &n, &sub));
+  if (!sub) PetscCall(PCBlockICCSetLevels(pc, 1));
+  for (PetscInt i = 0; i < n; i++) {
+    PetscCall(KSPGetPC(sub[i], &subpc));
+    PetscCall(PCBlockICCSetLevels(subpc, 1));
   }
   be->fill_step = ts->steps;
   be->pc_stale  = PETSC_TRUE;

@@ -209,6 +209,7 @@ static PetscErrorCode PCBlockICCFreePattern(PC_BlockICC *icc)
   PetscCall(PetscFree2(icc->ai, icc->aj));
   PetscCall(PetscFree(icc->fa));
   PetscCall(PetscFree5(icc->pos, icc->first, icc->next, icc->comp, icc->row));
+  icc->n = 0;
   PetscFunctionReturn(0);
 }
 
@@ -316,7 +317,6 @@ static PetscErrorCode PCReset_BlockICC(PC pc)
 
   PetscFunctionBeginUser;
   PetscCall(PCBlockICCFreePattern(icc));
-  icc->n = 0;
   PetscFunctionReturn(0);
 }
 
@@ -339,7 +339,6 @@ static PetscErrorCode PCBlockICCSetLevels_BlockICC(PC pc, PetscInt levels)
   PetscCheck(levels == 0 || levels == 1, PetscObjectComm((PetscObject) pc), PETSC_ERR_ARG_OUTOFRANGE, "block IC(0) fills at level 0 or 1, not %" PetscInt_FMT, levels);
   if (levels == icc->levels) PetscFunctionReturn(0);
   PetscCall(PCBlockICCFreePattern(icc)); /* made again at the next set-up */
-  icc->n      = 0;
   icc->levels = levels;
   PetscFunctionReturn(0);
 }
