@@ -45,7 +45,7 @@ def test_cloth_rigid_motion_and_force_balance(np_):
     moment to 1e-6 (1 and 2 ranks, no leaks)."""
     run_unit_ranks("test_cloth", np_, ["-da_grid_x", "9", "-da_grid_y", "7", "-cloth_pin", "edge_corners"], 14)
 
-@pytest.mark.parametrize("np_", [1, 2])
+@pytest.mark.parametrize("np_", [1, 2, 3])
 @pytest.mark.parametrize("opts", ["", "-cloth_hessian exact -cloth_bend_hysteresis 0.01,0.01", "-cloth_model paper -cloth_partition metis"])
 def test_assembled_matrix_matches_elementwise_reference(np_, opts):
     """The implicit matrix of ClothAssembleMatrix (blocks formed alone from each
@@ -54,9 +54,11 @@ def test_assembled_matrix_matches_elementwise_reference(np_, opts):
     tiles on one rank), without and with sliding and fixed particles: AIJ (csr, coo,
     rows) and BAIJ equal to the bit, and the diagonal blocks of H too; SBAIJ (rows,
     coo) within 1e-13 (its lower half is its upper's transpose). Projected and exact
-    Hessians, the bending friction, the paper's model, a METIS partition; 1 and 2
-    ranks, no leaks. A sum in another order, a constraint left out or the kinds'
-    order broken by the tiles fails it."""
+    Hessians, the bending friction, the paper's model, a METIS partition; 1, 2
+    and 3 ranks, no leaks. A sum in another order, a constraint left out or the kinds'
+    order broken by the tiles fails it. On several ranks (S)BAIJ's rows are summed in
+    the diagonal block's own array, and a cut row's other blocks (below and above the
+    rank's columns: a middle rank of 3) are handed to PETSc."""
     run_unit_ranks("test_assembly", np_, ["-da_grid_x", "25", "-da_grid_y", "23", "-cloth_pin", "edge_corners"] + opts.split(), 12)
 
 

@@ -1392,7 +1392,8 @@ PetscErrorCode ClothDestroy(Cloth *cloth)
     PetscCall(PetscFree6(c->rb_start, c->rb_ncols, c->rb_colstart, c->rb_cols, c->rb_map, c->rb_diag));
     PetscCall(PetscFree(c->rb_val));
     PetscCall(PetscFree(c->rb_chunk));
-    PetscCall(PetscFree3(c->rb_lo, c->rb_cut, c->rb_done));
+    PetscCall(PetscFree5(c->rb_lo, c->rb_cut, c->rb_done, c->rb_vstart, c->rb_gstart));
+    PetscCall(PetscFree(c->rb_gval));
     PetscCall(PetscFree4(c->ex_row, c->ex_col, c->ex_map, c->ex_val));
     PetscCall(PetscFree2(c->px_row, c->px_col));
     if (c->friction_el.p) PetscCall(PetscFree5(c->friction_el.p, c->friction_el.own, c->friction_el.dir, c->friction_el.area, c->friction_el.kp));

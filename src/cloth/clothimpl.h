@@ -172,6 +172,13 @@ struct _p_Cloth {
   PetscInt  *rb_done;                 /* rb_split: per tile the assembly step that completes it */
   PetscInt  *rb_start, *rb_ncols, *rb_colstart, *rb_cols, *rb_map, *rb_diag;
   PetscReal *rb_val;
+  /* rb_split: no buffer of the owned columns. rb_val is the diagonal block's value
+   * array while it is assembled (its row k from rb_vstart[k]); the blocks of a cut row
+   * outside it are in rb_gval from rb_gstart[k] (below the owned range, then above).
+   * A position pos (rb_map, rb_diag, ex_map) is in rb_val if pos < rb_nva, else
+   * pos - rb_nva in rb_gval (RowBufferAt); rb_nva = PETSC_MAX_INT otherwise. */
+  PetscInt  *rb_vstart, *rb_gstart, rb_nva;
+  PetscReal *rb_gval;
   /* the order of the sums (RowBufferSchedule, forces.c): rb_ntile tiles of rb_tile
    * owned rows; per kind, the first element of each chunk (rb_ntile + 1 each) and the
    * steps its chunks lag behind the tiles */

@@ -358,8 +358,8 @@ PetscErrorCode ClothGetHessianDiagonal(Cloth c, const PetscReal **hdiag)
  * given once by MatSetPreallocationCOO (the default for other types that implement
  * COO natively; its map costs 16 bytes per nonzero, 2.6 kB per particle); or rows,
  * one MatSetValuesBlocked per block row (every other type: SBAIJ, BAIJ, dense; on
- * several ranks (S)BAIJ's rows are copied into its diagonal block's array and only
- * the blocks outside it inserted: RowBufferToBlock). */
+ * several ranks (S)BAIJ's rows are summed in its diagonal block's array and only
+ * the cut rows' blocks outside it inserted: RowBufferSplitPositions). */
 static PetscErrorCode ClothBuildRowBuffer(Cloth, Mat);
 
 PetscErrorCode ClothCreateMatrix(Cloth c, MatType type, Mat *J)
@@ -517,7 +517,19 @@ static PetscErrorCode PatternMerge(Cloth c)
  * of the block row one after the other (si = 3 ncols, sj = 1), CSR rows. By rows
  * (MatSetValuesBlocked, column-oriented) and in (S)BAIJ's own array: each block
  * whole, by columns (si = 1, sj = 3), as BAIJ and SBAIJ store their blocks. */
-static inline PetscInt RowBufferBlock(Cloth c, PetscInt k, PetscInt loc) { return c->rb_start[k] + (c->rb_block ? 9 : 3) * loc; } /* block loc of row k */
+/* The position of block loc of row k (RowBufferAt) */
+static inline PetscInt RowBufferBlock(Cloth c, PetscInt k, PetscInt loc)
+{
+  if (c->rb_split == 1) { /* the diagonal block's array, or rb_gval for the blocks outside it */
+    const PetscInt lo = c->rb_lo[k], nown = (c->rb_vstart[k + 1] - c->rb_vstart[k]) / 9;
+    if (loc >= lo && loc < lo + nown) return c->rb_vstart[k] + 9 * (loc - lo);
+    return c->rb_nva + c->rb_gstart[k] + 9 * (loc < lo ? loc : loc - nown);
+  }
+  return c->rb_start[k] + (c->rb_block ? 9 : 3) * loc;
+}
+
+/* The values at position pos (RowBufferBlock), val the buffer (rb_val) */
+static inline PetscReal *RowBufferAt(Cloth c, PetscReal *val, PetscInt pos) { return pos < c->rb_nva ? val + pos : c->rb_gval + (pos - c->rb_nva); }
 
 static inline void RowBufferStrides(Cloth c, PetscInt k, PetscInt *si, PetscInt *sj)
 {
@@ -642,6 +654,9 @@ static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
   PetscCall(PetscObjectTypeCompareAny((PetscObject) J, &sym, MATSEQSBAIJ, MATMPISBAIJ, ""));
   PetscCall(PetscFree6(c->rb_start, c->rb_ncols, c->rb_colstart, c->rb_cols, c->rb_map, c->rb_diag));
   PetscCall(PetscFree(c->rb_val));
+  PetscCall(PetscFree(c->rb_gval));
+  c->rb_split = -1; /* (the positions below are the buffer's) */
+  c->rb_nva   = PETSC_MAX_INT;
   PetscCall(PetscCalloc1(c->nowned + 1, &count));
   for (PetscInt k = 0; k < c->nowned; k++) count[k] = 1; /* the diagonal block */
   for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) {
@@ -792,6 +807,46 @@ static PetscErrorCode RowBufferToAIJ(Cloth c, Mat J)
  * run at 512^2 (perf), a cost one rank (rb_alias) does not have. The diagonal
  * block's pattern is compared with the buffer's once per matrix; where it differs
  * (rb_split 0) every row goes through MatSetValuesBlocked. */
+/* The buffer's positions (rb_map, rb_diag, ex_map) moved to the diagonal block's
+ * array and rb_gval (RowBufferBlock with rb_split 1), and the buffer freed: the
+ * rows are summed where the matrix keeps them, and only the cut rows' blocks
+ * outside the diagonal block are handed to PETSc. The same sums in the same order:
+ * the same matrix to the bit, with no copy of it (on two ranks at 512^2 the copy was
+ * 2 % of a rank's time, and the buffer a second matrix in memory). */
+static PetscErrorCode RowBufferSplitPositions(Cloth c)
+{
+  PetscInt q = 0;
+
+  PetscFunctionBeginUser;
+  for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) {
+    const PetscInt n = KindSize(kind);
+    for (PetscInt e = 0; e < KindCount(c, kind); e++) {
+      const PetscInt *p = KindParticles(c, kind, e);
+      for (PetscInt a = 0; a < n; a++)
+        for (PetscInt b = 0; b < n; b++, q++)
+          if (c->rb_map[q] >= 0) c->rb_map[q] = (c->rb_map[q] - c->rb_start[p[a]]) / 9; /* the block's place in its row */
+    }
+  }
+  for (PetscInt k = 0; k < c->nowned; k++) c->rb_diag[k] = (c->rb_diag[k] - c->rb_start[k]) / 9;
+  c->rb_split = 1;
+  c->rb_nva   = c->rb_vstart[c->nowned];
+  q           = 0;
+  for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) {
+    const PetscInt n = KindSize(kind);
+    for (PetscInt e = 0; e < KindCount(c, kind); e++) {
+      const PetscInt *p = KindParticles(c, kind, e);
+      for (PetscInt a = 0; a < n; a++)
+        for (PetscInt b = 0; b < n; b++, q++)
+          if (c->rb_map[q] >= 0) c->rb_map[q] = RowBufferBlock(c, p[a], c->rb_map[q]);
+    }
+  }
+  for (PetscInt k = 0; k < c->nowned; k++) c->rb_diag[k] = RowBufferBlock(c, k, c->rb_diag[k]);
+  PetscCall(ExtraMap(c, NULL));
+  PetscCall(PetscFree(c->rb_val));
+  PetscCall(PetscMalloc1(c->rb_gstart[c->nowned] + 1, &c->rb_gval));
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode RowBufferSplitCheck(Cloth c, Mat J)
 {
   Mat             A;
@@ -800,7 +855,7 @@ static PetscErrorCode RowBufferSplitCheck(Cloth c, Mat J)
   PetscBool       got, same;
 
   PetscFunctionBeginUser;
-  PetscCall(PetscFree3(c->rb_lo, c->rb_cut, c->rb_done));
+  PetscCall(PetscFree5(c->rb_lo, c->rb_cut, c->rb_done, c->rb_vstart, c->rb_gstart));
   c->rb_split = 0;
   c->rb_ncut  = 0;
   PetscCall(PetscObjectTypeCompareAny((PetscObject) J, &same, MATMPISBAIJ, MATMPIBAIJ, ""));
@@ -815,7 +870,7 @@ static PetscErrorCode RowBufferSplitCheck(Cloth c, Mat J)
   PetscCall(MatGetDiagonalBlock(J, &A));
   PetscCall(MatGetRowIJ(A, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &got));
   same = (PetscBool) (got && n == c->nowned && rend - rstart == c->nowned);
-  PetscCall(PetscMalloc3(c->nowned + 1, &c->rb_lo, c->nowned + 1, &c->rb_cut, c->rb_ntile + 1, &c->rb_done));
+  PetscCall(PetscMalloc5(c->nowned + 1, &c->rb_lo, c->nowned + 1, &c->rb_cut, c->rb_ntile + 1, &c->rb_done, c->nowned + 1, &c->rb_vstart, c->nowned + 1, &c->rb_gstart));
   for (PetscInt k = 0; same && k < c->nowned; k++) {
     const PetscInt m = c->rb_ncols[k], *col = c->rb_cols + c->rb_colstart[k];
     PetscInt       lo = 0, hi;
@@ -823,12 +878,18 @@ static PetscErrorCode RowBufferSplitCheck(Cloth c, Mat J)
     for (hi = lo; hi < m && col[hi] < rend; hi++) {}
     same = (PetscBool) (c->global[k] == rstart + k && ia[k + 1] - ia[k] == hi - lo);
     for (PetscInt t = 0; same && t < hi - lo; t++) same = (PetscBool) (ja[ia[k] + t] == col[lo + t] - rstart);
-    c->rb_lo[k] = lo;
+    c->rb_lo[k]     = lo;
+    c->rb_vstart[k] = 9 * ia[k];
+    c->rb_gstart[k] = k ? c->rb_gstart[k - 1] + 9 * (c->rb_ncols[k - 1] - (ia[k] - ia[k - 1])) : 0;
     if (lo > 0 || hi < m) c->rb_cut[ncut++] = k;
+  }
+  if (same) {
+    c->rb_vstart[c->nowned] = 9 * ia[c->nowned];
+    c->rb_gstart[c->nowned] = c->nowned ? c->rb_gstart[c->nowned - 1] + 9 * (c->rb_ncols[c->nowned - 1] - (ia[c->nowned] - ia[c->nowned - 1])) : 0;
   }
   if (got) PetscCall(MatRestoreRowIJ(A, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &got));
   if (!same) {
-    PetscCall(PetscFree3(c->rb_lo, c->rb_cut, c->rb_done));
+    PetscCall(PetscFree5(c->rb_lo, c->rb_cut, c->rb_done, c->rb_vstart, c->rb_gstart));
     PetscFunctionReturn(0);
   }
   /* the step of ClothAddToMatrixRows after which tile t's sums are complete: its
@@ -844,28 +905,24 @@ static PetscErrorCode RowBufferSplitCheck(Cloth c, Mat J)
           if (p[a] < c->nowned) c->rb_done[p[a] / c->rb_tile] = PetscMax(c->rb_done[p[a] / c->rb_tile], t + c->rb_lag[kind]);
       }
   }
-  c->rb_split = 1;
-  c->rb_ncut  = ncut;
+  c->rb_ncut = ncut;
+  PetscCall(RowBufferSplitPositions(c));
   PetscFunctionReturn(0);
 }
 
-/* Rows [k0, k1): the mass blocks added, then (va: the diagonal block's array) their
- * blocks in the owned columns copied there. */
-static PetscErrorCode RowBufferFinishRows(Cloth c, PetscInt k0, PetscInt k1, PetscReal a, PetscReal b, MatScalar *va, const PetscInt *ia)
+/* Rows [k0, k1): the mass blocks added. */
+static void RowBufferFinishRows(Cloth c, PetscInt k0, PetscInt k1, PetscReal a, PetscReal b)
 {
   PetscReal D[9];
 
-  PetscFunctionBeginUser;
   for (PetscInt k = k0; k < k1; k++) {
-    PetscInt si, sj;
+    PetscInt   si, sj;
+    PetscReal *v = RowBufferAt(c, c->rb_val, c->rb_diag[k]);
     RowBufferStrides(c, k, &si, &sj);
     MassBlock(c, k, a, b, D);
     for (PetscInt i = 0; i < 3; i++)
-      for (PetscInt j = 0; j < 3; j++) c->rb_val[c->rb_diag[k] + si * i + sj * j] += D[3 * i + j];
+      for (PetscInt j = 0; j < 3; j++) v[si * i + sj * j] += D[3 * i + j];
   }
-  if (va)
-    for (PetscInt k = k0; k < k1; k++) PetscCall(PetscArraycpy(va + 9 * ia[k], c->rb_val + c->rb_start[k] + 9 * c->rb_lo[k], 9 * (ia[k + 1] - ia[k])));
-  PetscFunctionReturn(0);
 }
 
 /* ---- The element blocks into the row buffer ----
@@ -955,9 +1012,9 @@ static inline void AddStretchBlocks(Cloth c, PetscBool blk, PetscReal b, const P
         const PetscInt pos = map[2 * a + q];
         if (pos < 0) continue;
         if (c->constrained)
-          AddFilteredBlock(c, blk, p, a, q, val + pos, si, b, B[a != q]);
+          AddFilteredBlock(c, blk, p, a, q, RowBufferAt(c, val, pos), si, b, B[a != q]);
         else
-          AddBlock(blk, val + pos, si, b, B[a != q]);
+          AddBlock(blk, RowBufferAt(c, val, pos), si, b, B[a != q]);
       }
     }
   }
@@ -1002,9 +1059,9 @@ static inline void AddAngleBlocks(Cloth c, PetscInt kind, PetscBool blk, PetscRe
         const PetscInt pos = map[3 * a + q];
         if (pos < 0) continue;
         if (c->constrained)
-          AddFilteredBlock(c, blk, p, a, q, val + pos, si, b, B[3 * a + q]);
+          AddFilteredBlock(c, blk, p, a, q, RowBufferAt(c, val, pos), si, b, B[3 * a + q]);
         else
-          AddBlock(blk, val + pos, si, b, B[3 * a + q]);
+          AddBlock(blk, RowBufferAt(c, val, pos), si, b, B[3 * a + q]);
       }
     }
   }
@@ -1026,10 +1083,12 @@ static void AddElementMatrices(Cloth c, PetscInt kind, PetscReal b, const PetscR
       for (PetscInt pb = 0; pb < n; pb++, map++) {
         const PetscInt pos = *map;
         PetscInt       si, sj;
+        PetscReal     *v;
         if (pos < 0) continue;
+        v = RowBufferAt(c, c->rb_val, pos);
         RowBufferStrides(c, p[pa], &si, &sj);
         for (PetscInt i = 0; i < 3; i++)
-          for (PetscInt j = 0; j < 3; j++) c->rb_val[pos + si * i + sj * j] += b * H[m * (3 * pa + i) + 3 * pb + j];
+          for (PetscInt j = 0; j < 3; j++) v[si * i + sj * j] += b * H[m * (3 * pa + i) + 3 * pb + j];
       }
     }
   }
@@ -1055,11 +1114,10 @@ static void AddKindRange(Cloth c, PetscInt kind, PetscReal b, const PetscReal *x
 
 static PetscErrorCode ClothAddToMatrixRows(Cloth c, const PetscReal *xl, PetscReal a, PetscReal b, Mat J)
 {
-  const PetscInt *map[CLOTH_KINDS], *ia = NULL, *ja = NULL;
+  const PetscInt *map[CLOTH_KINDS];
   Mat             A     = NULL;
   MatScalar      *va    = NULL;
-  PetscBool       fused = PETSC_FALSE, sym = PETSC_FALSE, got = PETSC_FALSE;
-  PetscInt        n = 0;
+  PetscBool       fused = PETSC_FALSE, sym = PETSC_FALSE;
 
   PetscFunctionBeginUser;
   if (c->rb_alias) PetscCall(RowBufferAlias(c, J, PETSC_TRUE));
@@ -1071,13 +1129,12 @@ static PetscErrorCode ClothAddToMatrixRows(Cloth c, const PetscReal *xl, PetscRe
   if (c->rb_split == 1) {
     PetscCall(MatGetDiagonalBlock(J, &A));
     PetscCall(PetscObjectTypeCompare((PetscObject) A, MATSEQSBAIJ, &sym));
-    PetscCall(MatGetRowIJ(A, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &got));
-    PetscCheck(got, PETSC_COMM_SELF, PETSC_ERR_PLIB, "The diagonal block's pattern could not be read");
     if (sym)
       PetscCall(MatSeqSBAIJGetArray(A, &va));
     else
       PetscCall(MatSeqBAIJGetArray(A, &va));
-    fused = PETSC_TRUE;
+    c->rb_val = va; /* (RowBufferSplitPositions) */
+    fused     = PETSC_TRUE;
     for (PetscInt e = 0; e < c->ex_n && fused; e++) fused = (PetscBool) (c->ex_map[e] < 0);
   }
   /* the tiles' schedule (RowBufferSchedule): at step s, the rows of tile s zeroed,
@@ -1085,7 +1142,11 @@ static PetscErrorCode ClothAddToMatrixRows(Cloth c, const PetscReal *xl, PetscRe
   for (PetscInt step = 0; step < c->rb_ntile + c->rb_lag[CLOTH_KINDS - 1]; step++) {
     if (step < c->rb_ntile) {
       const PetscInt k0 = PetscMin(step * c->rb_tile, c->nowned), k1 = PetscMin(k0 + c->rb_tile, c->nowned);
-      PetscCall(PetscArrayzero(c->rb_val + c->rb_start[k0], c->rb_start[k1] - c->rb_start[k0]));
+      if (c->rb_split == 1) {
+        PetscCall(PetscArrayzero(c->rb_val + c->rb_vstart[k0], c->rb_vstart[k1] - c->rb_vstart[k0]));
+        PetscCall(PetscArrayzero(c->rb_gval + c->rb_gstart[k0], c->rb_gstart[k1] - c->rb_gstart[k0]));
+      } else
+        PetscCall(PetscArrayzero(c->rb_val + c->rb_start[k0], c->rb_start[k1] - c->rb_start[k0]));
       PetscCall(PetscArrayzero(c->hdiag + 9 * k0, 9 * (k1 - k0)));
     }
     for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) {
@@ -1096,25 +1157,27 @@ static PetscErrorCode ClothAddToMatrixRows(Cloth c, const PetscReal *xl, PetscRe
     }
     if (fused)
       for (PetscInt t = 0; t < c->rb_ntile; t++)
-        if (c->rb_done[t] == step) PetscCall(RowBufferFinishRows(c, PetscMin(t * c->rb_tile, c->nowned), PetscMin((t + 1) * c->rb_tile, c->nowned), a, b, va, ia));
+        if (c->rb_done[t] == step) RowBufferFinishRows(c, PetscMin(t * c->rb_tile, c->nowned), PetscMin((t + 1) * c->rb_tile, c->nowned), a, b);
   }
   if (!fused) {
     for (PetscInt e = 0; e < c->ex_n; e++) {
       const PetscInt pos = c->ex_map[e];
       PetscInt       si, sj;
+      PetscReal     *v;
       if (pos < 0) continue;
+      v = RowBufferAt(c, c->rb_val, pos);
       RowBufferStrides(c, c->ex_row[e], &si, &sj);
       for (PetscInt i = 0; i < 3; i++)
-        for (PetscInt j = 0; j < 3; j++) c->rb_val[pos + si * i + sj * j] += b * c->ex_val[9 * e + 3 * i + j];
+        for (PetscInt j = 0; j < 3; j++) v[si * i + sj * j] += b * c->ex_val[9 * e + 3 * i + j];
     }
-    PetscCall(RowBufferFinishRows(c, 0, c->nowned, a, b, va, ia));
+    RowBufferFinishRows(c, 0, c->nowned, a, b);
   }
   if (va) {
+    c->rb_val = NULL;
     if (sym)
       PetscCall(MatSeqSBAIJRestoreArray(A, &va));
     else
       PetscCall(MatSeqBAIJRestoreArray(A, &va));
-    PetscCall(MatRestoreRowIJ(A, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &got));
   }
   /* the hand-off (J is rb_mat: ClothAssembleMatrix): the values already in place,
    * through COO (assembled on return), copied into AIJ's arrays, or row by row (on
@@ -1129,17 +1192,13 @@ static PetscErrorCode ClothAddToMatrixRows(Cloth c, const PetscReal *xl, PetscRe
   else if (c->rb_csr)
     PetscCall(RowBufferToAIJ(c, J));
   else if (c->rb_split == 1) {
-    PetscInt rstart, rend;
-    PetscCall(MatGetOwnershipRange(J, &rstart, &rend));
-    rstart /= 3, rend /= 3;
     PetscCall(MatSetOption(J, MAT_ROW_ORIENTED, PETSC_FALSE)); /* block after block, each by columns */
     for (PetscInt q = 0; q < c->rb_ncut; q++) {
       const PetscInt   k = c->rb_cut[q], m = c->rb_ncols[k], lo = c->rb_lo[k], *col = c->rb_cols + c->rb_colstart[k];
-      const PetscReal *row = c->rb_val + c->rb_start[k];
-      PetscInt         hi  = lo;
-      while (hi < m && col[hi] < rend) hi++;
-      if (lo > 0) PetscCall(MatSetValuesBlocked(J, 1, &c->global[k], lo, col, row, INSERT_VALUES));
-      if (hi < m) PetscCall(MatSetValuesBlocked(J, 1, &c->global[k], m - hi, col + hi, row + 9 * hi, INSERT_VALUES));
+      const PetscReal *out = c->rb_gval + c->rb_gstart[k]; /* the blocks below the owned columns, then those above */
+      const PetscInt   hi  = lo + (c->rb_vstart[k + 1] - c->rb_vstart[k]) / 9;
+      if (lo > 0) PetscCall(MatSetValuesBlocked(J, 1, &c->global[k], lo, col, out, INSERT_VALUES));
+      if (hi < m) PetscCall(MatSetValuesBlocked(J, 1, &c->global[k], m - hi, col + hi, out + 9 * lo, INSERT_VALUES));
     }
   } else {
     PetscCall(MatSetOption(J, MAT_ROW_ORIENTED, PETSC_FALSE)); /* block after block, each by columns */
