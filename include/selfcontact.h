@@ -36,7 +36,7 @@ typedef struct {
   PetscInt  failsafe;        /* particles put in impact zones (or stopped) by the fail-safe since the start */
   PetscInt  broad_phases;    /* candidate lists built */
   PetscInt  near_lists;      /* near lists made from them */
-  PetscInt  unfiltered;      /* passes that took every candidate (the motion too fast for a near list) */
+  PetscInt  live_lists;      /* passes that took the live list (the motion too fast for a near list; NearLive) */
   PetscInt  halo;            /* the largest halo of a rank at the last list, particles (0 on one rank) */
   PetscInt  gathered;        /* pairs of contact groups across ranks, gathered on every rank, since the start */
   PetscInt  failsafe_steps;  /* steps in which the fail-safe ran */
@@ -65,6 +65,10 @@ PETSC_EXTERN PetscErrorCode SelfContactFilter(SelfContact, PetscReal h, PetscSca
  * filter moved would stay where it was moved, step after step. Not collective. */
 PETSC_EXTERN PetscErrorCode SelfContactSetHeld(SelfContact, const PetscBool held[]);
 PETSC_EXTERN PetscErrorCode SelfContactGetStats(SelfContact, SelfContactStats *);
+/* The steps are implicit (TSDRAPEBE): unless -contact_self_margin was given, the
+ * candidate list's margin is half a thickness instead of one (SelfContactCreate).
+ * Before the first step. Not collective. */
+PETSC_EXTERN PetscErrorCode SelfContactSetImplicit(SelfContact, PetscBool);
 
 /* Self-contact inside an implicit step (TSDRAPEBE; src/selfcontact/implicit.c).
  * Every candidate pair within reach of the thickness H at the start of the step

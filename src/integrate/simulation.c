@@ -682,7 +682,9 @@ static PetscErrorCode SimulationSetUpTS(Simulation s)
   }
   if (s->solve) PetscCall(TSDrapeBESetContact(s->ts, s->solve));
   if (s->self) {
-    PetscBool in_solve;
+    PetscBool in_solve, implicit;
+    PetscCall(PetscObjectTypeCompare((PetscObject) s->ts, TSDRAPEBE, &implicit));
+    PetscCall(SelfContactSetImplicit(s->self, implicit));
     PetscCall(SelfContactSolveEnabled(s->self, &in_solve));
     if (in_solve) PetscCall(TSDrapeBESetSelfContact(s->ts, s->self));
   }
@@ -1181,7 +1183,7 @@ static PetscErrorCode SimulationViewSummary(Simulation s, PetscViewer viewer, Pe
     PetscCall(ReportSetInt(r, "self_failsafe", st.failsafe));
     PetscCall(ReportSetInt(r, "self_broad_phases", st.broad_phases));
     PetscCall(ReportSetInt(r, "self_near_lists", st.near_lists));
-    PetscCall(ReportSetInt(r, "self_unfiltered", st.unfiltered));
+    PetscCall(ReportSetInt(r, "self_live_lists", st.live_lists));
     PetscCall(ReportSetInt(r, "self_halo_max", st.halo));
     PetscCall(ReportSetInt(r, "self_gathered", st.gathered));
     PetscCall(ReportSetInt(r, "self_failsafe_steps", st.failsafe_steps));

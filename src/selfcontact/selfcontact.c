@@ -84,7 +84,8 @@ PetscErrorCode SelfContactSetFromOptions(SelfContact sc)
   PetscCall(PetscOptionsBool("-contact_self", "The cloth does not pass through itself (proximity impulses, continuous collisions, fail-safe)", "SelfContactSetFromOptions", sc->enabled, &sc->enabled, NULL));
   PetscCall(PetscOptionsReal("-contact_self_thickness", "Distance the cloth keeps from itself (m; 0: a quarter of the lattice spacing)", "SelfContactSetFromOptions", sc->thickness, &sc->thickness, NULL));
   PetscCall(PetscOptionsReal("-contact_self_friction", "Coulomb friction coefficient between layers of the cloth", "SelfContactSetFromOptions", sc->mu, &sc->mu, NULL));
-  PetscCall(PetscOptionsReal("-contact_self_margin", "Candidate pairs are kept while no particle moved more than this many thicknesses beyond its sweep when they were found", "SelfContactSetFromOptions", sc->margin, &sc->margin, NULL));
+  PetscCall(PetscOptionsReal("-contact_self_margin", "Candidate pairs are kept while no particle moved more than this many thicknesses beyond its sweep when they were found (default: 1; 0.5 with -ts_type drapebe)", "SelfContactSetFromOptions",
+                             sc->margin, &sc->margin, &sc->margin_set));
   PetscCall(PetscOptionsReal("-contact_self_near_radius", "The passes take the candidates closer than this many thicknesses while no particle moved far enough to bring another within reach (0: every candidate, every pass)",
                              "SelfContactSetFromOptions", sc->near, &sc->near, NULL));
   {
@@ -117,6 +118,20 @@ PetscErrorCode SelfContactSetFromOptions(SelfContact sc)
   PetscCall(DrapeCheckInt(sc->comm, "-contact_self_its", sc->its, 0, 1000));
   PetscFunctionReturn(0);
 }
+/* An implicit step scans its candidate list at every solve and every filter, and
+ * moves each particle further than an explicit one: a shorter list pays for more
+ * broad phases there. The Cusick scene at 161^2 (denim, drapebe, to rest), margin
+ * one thickness against a half, side by side: self-contact 31.2 against 22.7 s of
+ * the first second (-log_view), 227 against 338 broad phases; a quarter took 24.1 s.
+ * The symplectic sphere drop at 64^2 (0.1 ms steps) keeps one thickness: a half
+ * cost it 2 % (BENCHMARKS.md). */
+PetscErrorCode SelfContactSetImplicit(SelfContact sc, PetscBool implicit)
+{
+  PetscFunctionBeginUser;
+  if (!sc->margin_set) sc->margin = implicit ? 0.5 : 1;
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode SelfContactEnabled(SelfContact sc, PetscBool *enabled)
 {
   PetscFunctionBeginUser;
@@ -205,7 +220,8 @@ static PetscErrorCode SetFreeList(SelfSet *s)
   PetscCall(PetscFree(s->cee));
   PetscCall(PetscFree(s->npt_));
   PetscCall(PetscFree(s->nee_));
-  s->ncpt = s->ncee = s->nnpt = s->nnee = s->npt = s->nee = 0;
+  PetscCall(PetscFree3(s->dc, s->lpt_, s->lee_));
+  s->ncpt = s->ncee = s->nnpt = s->nnee = s->npt = s->nee = s->nlpt = s->nlee = 0;
   s->pt = s->ee = NULL;
   s->listed = s->has_near = PETSC_FALSE;
   PetscFunctionReturn(0);
@@ -516,6 +532,7 @@ PetscErrorCode SelfContactDestroy(SelfContact *self)
   PetscCall(SetFreeMesh(&sc->local.mesh));
   PetscCall(SetFreeList(&sc->local));
   PetscCall(PetscFree(sc->local.xr));
+  PetscCall(PetscFree(sc->local.dr));
   PetscCall(PetscSFDestroy(&sc->sf));
   if (sc->unit3 != MPI_DATATYPE_NULL) PetscCallMPI(MPI_Type_free(&sc->unit3));
   if (sc->unit9 != MPI_DATATYPE_NULL) PetscCallMPI(MPI_Type_free(&sc->unit9));
@@ -843,23 +860,30 @@ static PetscErrorCode NearMake(SelfContact sc, SelfSet *s)
   PetscFunctionBeginUser;
   if (s->nxr < 3 * s->n) {
     PetscCall(PetscFree(s->xr));
+    PetscCall(PetscFree(s->dr));
     PetscCall(PetscMalloc1(3 * s->n, &s->xr));
+    PetscCall(PetscMalloc1(6 * s->n, &s->dr));
     s->nxr = 3 * s->n;
   }
   PetscCall(PetscArraycpy(s->xr, s->x0, 3 * s->n));
-  PetscCall(PetscFree(s->npt_));
-  PetscCall(PetscFree(s->nee_));
-  PetscCall(PetscMalloc1(2 * s->ncpt + 1, &s->npt_));
-  PetscCall(PetscMalloc1(2 * s->ncee + 1, &s->nee_));
+  if (!s->dc) { /* (one list's: SetFreeList frees them with it) */
+    PetscCall(PetscFree(s->npt_));
+    PetscCall(PetscFree(s->nee_));
+    PetscCall(PetscMalloc1(2 * s->ncpt + 1, &s->npt_));
+    PetscCall(PetscMalloc1(2 * s->ncee + 1, &s->nee_));
+    PetscCall(PetscMalloc3(s->ncpt + s->ncee + 1, &s->dc, 2 * s->ncpt + 1, &s->lpt_, 2 * s->ncee + 1, &s->lee_));
+  }
   s->pt = s->cpt, s->ee = s->cee, s->nnpt = s->nnee = 0;
   for (PetscInt kind = 0; kind < 2; kind++) {
     const PetscInt *from = kind ? s->cee : s->cpt;
     PetscInt       *to = kind ? s->nee_ : s->npt_, *n = kind ? &s->nnee : &s->nnpt;
+    PetscReal      *dc = s->dc + (kind ? s->ncpt : 0);
     for (PetscInt k = 0; k < (kind ? s->ncee : s->ncpt); k++) {
       Pair      pr;
       PetscReal nrm[3];
       PairParticles(s, kind, k, pr.p);
-      if (PairClosest(kind, s->xr, &pr, nrm) >= R) continue; /* (a NaN distance is kept) */
+      dc[k] = PairClosest(kind, s->xr, &pr, nrm);
+      if (dc[k] >= R) continue; /* (a NaN distance is kept) */
       to[2 * *n] = from[2 * k], to[2 * *n + 1] = from[2 * k + 1];
       (*n)++;
     }
@@ -868,12 +892,72 @@ static PetscErrorCode NearMake(SelfContact sc, SelfSet *s)
   PetscFunctionReturn(0);
 }
 
+/* The live list: the candidates that their distance at xr (dc) and the motion
+ * since then do not keep beyond reach, in the candidates' order. Where the near
+ * list cannot hold (NearHolds: a bound on every particle's displacement, less one
+ * translation for the whole cloth), most candidates still can be left out by their
+ * own bound, with the translation of one of their particles: the Cusick scene's
+ * skirt swings about a pedestal that holds a third of the cloth, and the diagonal
+ * neighbours of a cell (2.83 thicknesses apart at rest) are most of the list. With
+ * d_i = x_i - xr_i, a primitive's points convex combinations of its particles', and
+ * m = max_i |d_i - d_0| over the pair's particles, the pair's distance is at least
+ * dc - 2 m; along the step (d interpolated) at least dc - 2 max(m at x0, m at x1);
+ * and the implicit solve's gap at the end of the free motion (weights w_i summing
+ * to 0, |w| to 2; SolveReachable) at least the distance at x0 less 2 max_i |D_i - D_0|,
+ * D = x1 - x0. A pair left out is one no pass acts on: the same pairs act, in the same
+ * order. *nlive: the candidates in the list; *fresh: every d_i at x0 is 0 (the
+ * distances are those of x0). */
+static void NearLive(SelfSet *s, PetscReal reach, PetscBool gap_at_end, PetscInt *nlive, PetscBool *fresh)
+{
+  PetscReal *dr = s->dr, zero = 0;
+
+  for (PetscInt k = 0; k < s->n; k++)
+    for (PetscInt d = 0; d < 3; d++) {
+      dr[6 * k + d]     = s->x0[3 * k + d] - s->xr[3 * k + d];
+      dr[6 * k + 3 + d] = s->x1[3 * k + d] - s->xr[3 * k + d];
+      zero              = PetscMax(zero, PetscAbsReal(dr[6 * k + d]));
+    }
+  *fresh = (PetscBool) (zero == 0);
+  s->pt = s->cpt, s->ee = s->cee, s->nlpt = s->nlee = 0; /* (PairParticles) */
+  for (PetscInt kind = 0; kind < 2; kind++) {
+    const PetscInt  *from = kind ? s->cee : s->cpt;
+    const PetscReal *dc   = s->dc + (kind ? s->ncpt : 0);
+    PetscInt        *to = kind ? s->lee_ : s->lpt_, *n = kind ? &s->nlee : &s->nlpt;
+    for (PetscInt k = 0; k < (kind ? s->ncee : s->ncpt); k++) {
+      /* left out if max(m0, m1), and with the gap m0 + mD, is below L, half of
+       * (1 - 1e-9) dc - reach (with rounding's slack); compared in squares, with
+       * (m0 + mD)^2 <= 2 (m0^2 + mD^2) */
+      const PetscReal L = ((1 - 1e-9) * dc[k] - reach) / (2 * (1 + 1e-9)), L2 = L * L;
+      PetscInt        p[4];
+      PetscReal       q0 = 0, q1 = 0, qD = 0;
+      if (L > 0) { /* (a NaN distance is kept) */
+        PairParticles(s, kind, k, p);
+        for (PetscInt i = 1; i < 4; i++) {
+          const PetscReal *a = dr + 6 * p[i], *b = dr + 6 * p[0];
+          PetscReal        r0 = 0, r1 = 0, rD = 0;
+          for (PetscInt d = 0; d < 3; d++) {
+            const PetscReal e0 = a[d] - b[d], e1 = a[3 + d] - b[3 + d];
+            r0 += e0 * e0, r1 += e1 * e1, rD += (e1 - e0) * (e1 - e0);
+          }
+          q0 = PetscMax(q0, r0), q1 = PetscMax(q1, r1), qD = PetscMax(qD, rD);
+        }
+        if (q0 < L2 && q1 < L2 && (!gap_at_end || 2 * (q0 + qD) < L2)) continue;
+      }
+      to[2 * *n] = from[2 * k], to[2 * *n + 1] = from[2 * k + 1];
+      (*n)++;
+    }
+  }
+  *nlive = s->nlpt + s->nlee;
+}
+
 /* The pairs the passes take: the near list if it holds them (made again at x0 if
- * it no longer does and a list made there would), else every candidate. */
+ * it no longer does and a list made there would), else the live list (NearLive;
+ * the distances made again at x0 when more than a quarter of the candidates are
+ * live). */
 static PetscErrorCode NearSelect(SelfContact sc, SelfSet *s, PetscReal reach, PetscBool gap_at_end)
 {
   PetscReal delta[3];
-  PetscBool use = PETSC_FALSE;
+  PetscBool use = PETSC_FALSE, live = PETSC_FALSE;
 
   PetscFunctionBeginUser;
   if (sc->near > 0) { /* (0: no near list) */
@@ -886,12 +970,24 @@ static PetscErrorCode NearSelect(SelfContact sc, SelfSet *s, PetscReal reach, Pe
       if ((use = NearHolds(sc, delta, reach, gap_at_end))) {
         PetscCall(NearMake(sc, s));
         sc->stats.near_lists++;
-      } else
-        sc->stats.unfiltered++;
+      } else {
+        PetscInt  nlive = 0;
+        PetscBool fresh = PETSC_TRUE;
+        if (s->has_near) NearLive(s, reach, gap_at_end, &nlive, &fresh);
+        if (!s->has_near || (!fresh && 4 * nlive > s->ncpt + s->ncee)) {
+          PetscCall(NearMake(sc, s));
+          sc->stats.near_lists++;
+          NearLive(s, reach, gap_at_end, &nlive, &fresh);
+        }
+        live = PETSC_TRUE;
+        sc->stats.live_lists++;
+      }
     }
   }
   if (use)
     s->pt = s->npt_, s->npt = s->nnpt, s->ee = s->nee_, s->nee = s->nnee;
+  else if (live)
+    s->pt = s->lpt_, s->npt = s->nlpt, s->ee = s->lee_, s->nee = s->nlee;
   else
     s->pt = s->cpt, s->npt = s->ncpt, s->ee = s->cee, s->nee = s->ncee;
   PetscFunctionReturn(0);

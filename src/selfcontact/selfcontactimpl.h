@@ -48,6 +48,9 @@ typedef struct {
   PetscReal *xr;                       /* the local set's positions when the near list was made (3 each) */
   PetscInt   nxr;                      /* entries xr holds */
   PetscBool  listed, has_near;         /* a candidate list exists; a near list is made from it */
+  PetscReal *dc;                       /* has_near: every candidate's distance at xr (point-triangle, then edge-edge) */
+  PetscInt   nlpt, nlee, *lpt_, *lee_; /* the live list: the candidates that distance and the motion since xr leave within reach (NearLive) */
+  PetscReal *dr;                       /* work: x0 - xr and x1 - xr, 6 each (nxr / 3 particles) */
   PetscInt   npt, nee, *pt, *ee;       /* the pairs the passes take: the near list, or every candidate */
 } SelfSet;
 
@@ -89,10 +92,11 @@ struct _p_SelfContact {
   PetscBool        enabled;
   PetscReal        thickness, mu;
   PetscInt         its;
-  PetscReal        margin; /* of the Verlet list, in thicknesses */
-  PetscReal        near;   /* radius of the near list, in thicknesses (0: none) */
-  PetscBool        hash;   /* broad phase by the spatial hash (else CGAL) */
-  PetscBool        zones;  /* fail-safe by rigid impact zones (else stop the particles) */
+  PetscReal        margin;     /* of the Verlet list, in thicknesses */
+  PetscBool        margin_set; /* -contact_self_margin given */
+  PetscReal        near;       /* radius of the near list, in thicknesses (0: none) */
+  PetscBool        hash;       /* broad phase by the spatial hash (else CGAL) */
+  PetscBool        zones;      /* fail-safe by rigid impact zones (else stop the particles) */
   PetscInt         Mx, My, N, nowned;
   PetscInt         nt, ne;          /* the whole cloth's triangles and edges (counts) */
   PetscHMapI       local_of;        /* natural -> index in the local set (absent: -1) */
