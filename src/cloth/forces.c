@@ -818,29 +818,18 @@ static PetscErrorCode RowBufferSplitPositions(Cloth c)
   PetscInt q = 0;
 
   PetscFunctionBeginUser;
-  for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) {
-    const PetscInt n = KindSize(kind);
-    for (PetscInt e = 0; e < KindCount(c, kind); e++) {
-      const PetscInt *p = KindParticles(c, kind, e);
-      for (PetscInt a = 0; a < n; a++)
-        for (PetscInt b = 0; b < n; b++, q++)
-          if (c->rb_map[q] >= 0) c->rb_map[q] = (c->rb_map[q] - c->rb_start[p[a]]) / 9; /* the block's place in its row */
-    }
-  }
-  for (PetscInt k = 0; k < c->nowned; k++) c->rb_diag[k] = (c->rb_diag[k] - c->rb_start[k]) / 9;
-  c->rb_split = 1;
+  c->rb_split = 1; /* RowBufferBlock's new positions; a block's place in its row from the buffer's (rb_start) */
   c->rb_nva   = c->rb_vstart[c->nowned];
-  q           = 0;
   for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) {
     const PetscInt n = KindSize(kind);
     for (PetscInt e = 0; e < KindCount(c, kind); e++) {
       const PetscInt *p = KindParticles(c, kind, e);
       for (PetscInt a = 0; a < n; a++)
         for (PetscInt b = 0; b < n; b++, q++)
-          if (c->rb_map[q] >= 0) c->rb_map[q] = RowBufferBlock(c, p[a], c->rb_map[q]);
+          if (c->rb_map[q] >= 0) c->rb_map[q] = RowBufferBlock(c, p[a], (c->rb_map[q] - c->rb_start[p[a]]) / 9);
     }
   }
-  for (PetscInt k = 0; k < c->nowned; k++) c->rb_diag[k] = RowBufferBlock(c, k, c->rb_diag[k]);
+  for (PetscInt k = 0; k < c->nowned; k++) c->rb_diag[k] = RowBufferBlock(c, k, (c->rb_diag[k] - c->rb_start[k]) / 9);
   PetscCall(ExtraMap(c, NULL));
   PetscCall(PetscFree(c->rb_val));
   PetscCall(PetscMalloc1(c->rb_gstart[c->nowned] + 1, &c->rb_gval));
