@@ -32,6 +32,7 @@ typedef struct {
   PetscInt    nparticles, npinned;        /* global counts                        */
   PetscInt    nactive;                    /* particles inside the cloth's outline */
   PetscInt    owned_min, owned_max, ncut; /* active particles per rank, stretch edges cut by the partition */
+  PetscInt    held_min, held_max;         /* particles per rank with the inactive ones */
   const char *partition;                  /* dmda, metis, ptscotch or parmetis    */
   PetscInt    nstretch, nshear, nbend;    /* global element counts                */
   PetscInt    nowned;                     /* particles owned by this rank         */

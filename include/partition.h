@@ -46,7 +46,8 @@ PETSC_EXTERN PetscBool PartitionIsGraph(const char *type);
 
 /* dest[k]: the rank that will own the k-th particle of this rank's home block (its
  * block's particles row by row). Only active particles (active(ctx, i, j)) are
- * vertices of the graph, weighing weight(ctx, i, j) (weight NULL: 1 each); an
- * inactive particle stays at home. A graph partition's parts are named (numbered as
- * ranks) after the home blocks they take most of. Collective. */
+ * vertices of the graph, weighing weight(ctx, i, j) (weight NULL: 1 each). A graph
+ * partition's parts are named (numbered as ranks) after the home blocks they take
+ * most of, and its inactive particles are shared equally among the ranks; with the
+ * DMDA's blocks they stay at home. Collective. */
 PETSC_EXTERN PetscErrorCode PartitionDestinations(MPI_Comm, const char *type, const PartitionBlocks *, PetscBool (*active)(void *, PetscInt, PetscInt), PetscInt (*weight)(void *, PetscInt, PetscInt), void *ctx, PetscInt *dest);

@@ -45,6 +45,18 @@ def test_graph_partition_balances_a_circular_cloth(part):
     assert graph[3] <= 1.5 * dmda[3]
 
 
+@pytest.mark.parametrize("part", ["metis", "ptscotch"])
+def test_graph_partition_shares_out_the_inactive_particles(part):
+    """The lattice points outside a disc (pinned, in no element) are shared out
+    equally by a graph partition: the particles a rank holds differ by no more than
+    its active ones do, plus one. Kept in their DMDA blocks, as they were, the ranks
+    whose parts lie by the disc's edge held over a hundred more here."""
+    base = "-da_grid_x 41 -da_grid_y 41 -cloth_shape circle -ts_max_steps 0"
+    r = run(f"{base} -cloth_partition {part}", np_=3).report
+    assert r["held_max"] - r["held_min"] <= r["owned_max"] - r["owned_min"] + 1, r
+    assert 3 * r["held_min"] <= 41 * 41 <= 3 * r["held_max"], r
+
+
 def test_ptscotch_balances_the_cusick_disc_on_4_ranks():
     """The Cusick specimen (runs/cusick.opts) on 4 ranks: PT-Scotch within 5 %."""
     res = run("-options_file runs/cusick.opts -ts_max_steps 0 -cloth_partition ptscotch", np_=4)

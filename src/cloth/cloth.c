@@ -1064,20 +1064,26 @@ static PetscErrorCode ClothBuildLayout(Cloth c, const PartitionBlocks *b, const 
     PetscCall(PetscFree4(scount, sdispl, rcount, rdispl));
     PetscCall(PetscFree2(perm, back));
   }
-  /* the box of the owned particles and their neighbours */
+  /* the box of the owned particles and their neighbours; with a graph partition, of
+   * the active ones (the inactive, in no element, are shared out over the ranks
+   * wherever they lie: PartitionDestinations), and every rank has some */
   {
     PetscInt imin = Mx, imax = -1, jmin = My, jmax = -1;
     for (PetscInt k = 0; k < c->nowned; k++) {
       const PetscInt i = owned[k] % Mx, j = owned[k] / Mx;
+      if (graph && !Active(c, i, j)) continue;
       imin = PetscMin(imin, i), imax = PetscMax(imax, i), jmin = PetscMin(jmin, j), jmax = PetscMax(jmax, j);
     }
     map->i0 = PetscMax(imin - 2, 0), map->j0 = PetscMax(jmin - 2, 0);
-    map->w = c->nowned ? PetscMin(imax + 3, Mx) - map->i0 : 0;
-    map->h = c->nowned ? PetscMin(jmax + 3, My) - map->j0 : 0;
+    map->w = imax >= 0 ? PetscMin(imax + 3, Mx) - map->i0 : 0;
+    map->h = imax >= 0 ? PetscMin(jmax + 3, My) - map->j0 : 0;
   }
   PetscCall(PetscMalloc1(map->w * map->h + 1, &map->l));
   for (PetscInt q = 0; q < map->w * map->h; q++) map->l[q] = -1;
-  for (PetscInt k = 0; k < c->nowned; k++) map->l[(owned[k] / Mx - map->j0) * map->w + owned[k] % Mx - map->i0] = k;
+  for (PetscInt k = 0; k < c->nowned; k++) {
+    const PetscInt i = owned[k] % Mx - map->i0, j = owned[k] / Mx - map->j0;
+    if (i >= 0 && i < map->w && j >= 0 && j < map->h) map->l[j * map->w + i] = k;
+  }
   /* the ghosts: the other particles of the box with an owned neighbour (a ghost's
    * number marks it; the owned are those below nowned) */
   for (PetscInt q = 0; q < map->w * map->h; q++) {
@@ -1195,7 +1201,7 @@ static PetscInt WeightCallback(void *ctx, PetscInt i, PetscInt j)
 
 PetscErrorCode ClothSetUp(Cloth c)
 {
-  PetscInt       *dest, counts[5], sums[5], lo, hi, i0, i1, j0, j1;
+  PetscInt       *dest, counts[5], sums[5], i0, i1, j0, j1;
   PetscReal       mass;
   PetscMPIInt     rank;
   PartitionBlocks blocks;
@@ -1303,14 +1309,16 @@ PetscErrorCode ClothSetUp(Cloth c)
   c->npinned  = sums[3];
   c->ncut     = sums[4];
   {
-    PetscInt act = 0;
+    PetscInt act = 0, range[4]; /* -min, max of the active particles a rank owns, and of all it owns */
     for (PetscInt k = 0; k < c->nowned; k++) act += c->active[k];
-    PetscCall(MPIU_Allreduce(&act, &lo, 1, MPIU_INT, MPI_MIN, c->comm));
-    PetscCall(MPIU_Allreduce(&act, &hi, 1, MPIU_INT, MPI_MAX, c->comm));
+    range[0] = -act, range[1] = act, range[2] = -c->nowned, range[3] = c->nowned;
+    PetscCall(MPIU_Allreduce(MPI_IN_PLACE, range, 4, MPIU_INT, MPI_MAX, c->comm));
     PetscCall(MPIU_Allreduce(&act, &sums[0], 1, MPIU_INT, MPI_SUM, c->comm));
     c->active_total = sums[0];
-    c->owned_min    = lo;
-    c->owned_max    = hi;
+    c->owned_min    = -range[0];
+    c->owned_max    = range[1];
+    c->held_min     = -range[2];
+    c->held_max     = range[3];
   }
   c->setup = PETSC_TRUE;
   PetscCall(PetscLogEventEnd(drape_log.cloth_setup, 0, 0, 0, 0));
@@ -1419,6 +1427,8 @@ PetscErrorCode ClothGetInfo(Cloth c, ClothInfo *info)
   info->nactive        = (PetscInt) c->active_total;
   info->owned_min      = c->owned_min;
   info->owned_max      = c->owned_max;
+  info->held_min       = c->held_min;
+  info->held_max       = c->held_max;
   info->ncut           = c->ncut;
   info->partition      = c->partition;
   info->model          = model_names[c->model];
@@ -1541,8 +1551,10 @@ PetscErrorCode ClothView(Cloth c, PetscViewer viewer)
     PetscMPIInt size;
     PetscCallMPI(MPI_Comm_size(c->comm, &size));
     if (size > 1)
-      PetscCall(PetscViewerASCIIPrintf(viewer, "  partition: %s on %d ranks, %" PetscInt_FMT " to %" PetscInt_FMT " active particles per rank (imbalance %.3f), %" PetscInt_FMT " of %" PetscInt_FMT " stretch edges cut\n", c->partition, size,
-                                       c->owned_min, c->owned_max, (double) (c->owned_max * size / PetscMax(c->active_total, 1)), c->ncut, c->nstretch));
+      PetscCall(PetscViewerASCIIPrintf(viewer,
+                                       "  partition: %s on %d ranks, %" PetscInt_FMT " to %" PetscInt_FMT " active particles per rank (imbalance %.3f; %" PetscInt_FMT " to %" PetscInt_FMT " with those outside the outline), %" PetscInt_FMT
+                                       " of %" PetscInt_FMT " stretch edges cut\n",
+                                       c->partition, size, c->owned_min, c->owned_max, (double) (c->owned_max * size / PetscMax(c->active_total, 1)), c->held_min, c->held_max, c->ncut, c->nstretch));
   }
   if (c->fabric[0]) PetscCall(PetscViewerASCIIPrintf(viewer, "  fabric: %s\n", c->fabric));
   PetscCall(PetscViewerASCIIPrintf(viewer, "  material: stretch %g,%g N/m, shear %g N/m, bend %g,%g,%g N m (warp, weft, bias), density %g kg/m^2, damping %g 1/s\n", (double) c->stretch[0], (double) c->stretch[1], (double) c->shear,

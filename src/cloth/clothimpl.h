@@ -134,6 +134,7 @@ struct _p_Cloth {
   PetscInt  *natural;                    /* local -> natural lattice index j Mx + i            */
   PetscInt   rstart;                     /* global block number of the first owned particle    */
   PetscInt   ncut, owned_min, owned_max; /* partition quality                      */
+  PetscInt   held_min, held_max;         /* particles a rank owns, the inactive too */
   PetscReal  active_total;
   PetscInt   Mx, My;
   PetscReal  spacing[2];

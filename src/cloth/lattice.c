@@ -2,8 +2,9 @@
  *
  * The element lists (clothimpl.h) say which elements a rank computes; this kernel
  * computes the same elements, but reads them from a rectangular patch of the
- * lattice: the bounding box of the rank's local (owned and ghost) particles, with a
- * frame of one empty slot around it. An element is named by its kind and the slot of
+ * lattice: the bounding box of the rank's ghosts and active owned particles (the
+ * inactive ones, in no element, may lie anywhere: LatticeInPatch), with a frame of
+ * one empty slot around it. An element is named by its kind and the slot of
  * its centre (or first corner), and its particles sit at fixed offsets from it: the
  * loops below run along a lattice row with unit stride and no index arrays, and the
  * compiler vectorises them (sqrt, division, and an asin of our own: KernelAsin).
@@ -53,6 +54,7 @@ struct _n_ClothLattice {
   PetscInt      *row_run;          /* runs of patch row r: row_run[r] .. row_run[r + 1] - 1          */
   LatticeRun    *run;              /* local particles by patch row, owned and ghost runs apart       */
   PetscInt       nowned;           /* local particles below nowned are owned                         */
+  PetscInt       nout, *out;       /* owned particles outside the patch (inactive): no force          */
   VecScatter     ghosts;           /* owners -> G: the ghosts' positions, local particles nowned, ... */
   Vec            G;
   PetscReal     *x[3], *f[3];    /* rings of LATTICE_RING padded rows                              */
@@ -352,6 +354,13 @@ LatticeSweepRows(const ClothLattice *L, const LatticeSweep *S)
   LatticeStoreRow(L, S, L->H - 1);
 }
 
+/* The owned particles outside the patch: no force (inactive: in no element). In the
+ * symplectic update they keep their velocity (zero, pinned) and position. */
+static void LatticeZeroOutside(const ClothLattice *L, PetscScalar *out)
+{
+  for (PetscInt q = 0; q < L->nout; q++) PetscArrayzero(out + 3 * L->out[q], 3);
+}
+
 /* The ghosts' positions, from their owners (collective). */
 static PetscErrorCode LatticeGhosts(Cloth c, const PetscScalar *x, const PetscScalar **xg)
 {
@@ -387,6 +396,7 @@ PetscErrorCode ClothLatticeComputeForce(Cloth c, const PetscScalar *x, PetscScal
   PetscFunctionBeginUser;
   PetscCall(LatticeGhosts(c, x, &S.xg));
   LatticeSweepRows(c->lattice, &S);
+  LatticeZeroOutside(c->lattice, f);
   PetscCall(VecRestoreArrayRead(c->lattice->G, &S.xg));
   PetscFunctionReturn(0);
 }
@@ -398,6 +408,7 @@ PetscErrorCode ClothLatticeComputeAcceleration(Cloth c, const PetscScalar *x, co
   PetscFunctionBeginUser;
   PetscCall(LatticeGhosts(c, x, &S.xg));
   LatticeSweepRows(c->lattice, &S);
+  LatticeZeroOutside(c->lattice, a); /* pinned: no acceleration */
   PetscCall(VecRestoreArrayRead(c->lattice->G, &S.xg));
   PetscFunctionReturn(0);
 }
@@ -471,12 +482,18 @@ PetscErrorCode ClothLatticeEnergies(Cloth c, const PetscScalar *x, PetscReal ene
   PetscFunctionReturn(0);
 }
 
+/* Is local particle l in the patch? The ghosts and the active owned particles are;
+ * an inactive owned one is in no element, and may lie far from the others (a graph
+ * partition shares the inactive particles out over the ranks). */
+static inline PetscBool LatticeInPatch(Cloth c, PetscInt l) { return (PetscBool) (l >= c->nowned || c->active[l]); }
+
 /* Padded slot of local particle l in the class arrays. */
 static inline PetscInt Slot(Cloth c, const ClothLattice *L, PetscInt l) { return (c->natural[l] / c->Mx - L->j0 + 1) * L->ld + (c->natural[l] % c->Mx - L->i0 + 1); }
 
 /* The runs of each patch row: local particles with consecutive local numbers at
  * consecutive columns (owned and ghost particles are numbered apart, each in
- * natural order: a DMDA block row is one owned run and a ghost run or two). */
+ * natural order: a DMDA block row is one owned run and a ghost run or two). Owned
+ * particles outside the patch (inactive ones: LatticeInPatch) are listed apart. */
 static PetscErrorCode LatticeBuildRuns(Cloth c, ClothLattice *L)
 {
   PetscInt *order, nrun = 0;
@@ -494,9 +511,15 @@ static PetscErrorCode LatticeBuildRuns(Cloth c, ClothLattice *L)
   }
   PetscCall(PetscCalloc1(L->H + 1, &L->row_run));
   PetscCall(PetscMalloc1(c->nlocal, &L->run));
+  PetscCall(PetscMalloc1(c->nlocal + 1, &L->out));
   for (PetscInt q = 0; q < c->nlocal; q++) {
     const PetscInt l = order[q], r = c->natural[l] / c->Mx - L->j0, p = c->natural[l] % c->Mx - L->i0;
     LatticeRun    *R = nrun ? &L->run[nrun - 1] : NULL;
+    if (!LatticeInPatch(c, l) || r < 0 || r >= L->H || p < 0 || p >= L->W) {
+      PetscCheck(l < c->nowned && !c->active[l], PETSC_COMM_SELF, PETSC_ERR_PLIB, "Local particle %" PetscInt_FMT " of the cloth lies outside the lattice kernel's patch", l);
+      L->out[L->nout++] = l;
+      continue;
+    }
     if (R && q > 0 && c->natural[order[q - 1]] / c->Mx - L->j0 == r && R->l + R->n == l && R->p + R->n == p && (R->l < c->nowned) == (l < c->nowned)) {
       R->n++;
       continue;
@@ -509,6 +532,7 @@ static PetscErrorCode LatticeBuildRuns(Cloth c, ClothLattice *L)
   }
   for (PetscInt r = 0; r < L->H; r++) L->row_run[r + 1] += L->row_run[r];
   PetscCall(PetscRealloc(nrun * sizeof(LatticeRun) + 1, &L->run));
+  PetscCall(PetscRealloc(L->nout * sizeof(PetscInt) + 1, &L->out));
   PetscCall(PetscFree(order));
   PetscFunctionReturn(0);
 }
@@ -532,9 +556,10 @@ PetscErrorCode ClothLatticeSetUp(Cloth c)
   if (kernel == 1 || be->has_law || c->hysteresis[0] > 0 || c->hysteresis[1] > 0) PetscFunctionReturn(0);
   for (PetscInt l = 0; l < c->nlocal; l++) {
     const PetscInt i = c->natural[l] % c->Mx, j = c->natural[l] / c->Mx;
+    if (!LatticeInPatch(c, l)) continue;
     imin = PetscMin(imin, i), imax = PetscMax(imax, i), jmin = PetscMin(jmin, j), jmax = PetscMax(jmax, j);
   }
-  if (!c->nlocal) imin = jmin = 0; /* an empty patch */
+  if (imax < 0) imin = jmin = 0, jmax = -1; /* an empty patch */
   PetscCall(PetscNew(&L));
   L->i0     = imin;
   L->j0     = jmin;
@@ -608,6 +633,7 @@ PetscErrorCode ClothLatticeDestroy(Cloth c)
   if (!L) PetscFunctionReturn(0);
   PetscCall(PetscFree(L->row_run));
   PetscCall(PetscFree(L->run));
+  PetscCall(PetscFree(L->out));
   PetscCall(VecScatterDestroy(&L->ghosts));
   PetscCall(VecDestroy(&L->G));
   for (PetscInt d = 0; d < 3; d++) {

@@ -1022,6 +1022,8 @@ static PetscErrorCode SimulationReportCloth(Simulation s)
   PetscCall(ReportSetString(r, "partition", info.partition));
   PetscCall(ReportSetInt(r, "owned_min", info.owned_min));
   PetscCall(ReportSetInt(r, "owned_max", info.owned_max));
+  PetscCall(ReportSetInt(r, "held_min", info.held_min));
+  PetscCall(ReportSetInt(r, "held_max", info.held_max));
   PetscCall(ReportSetInt(r, "stretch_edges_cut", info.ncut));
   PetscCall(ReportSetReal(r, "size_warp", info.size[0]));
   PetscCall(ReportSetReal(r, "size_weft", info.size[1]));

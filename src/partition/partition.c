@@ -163,7 +163,7 @@ static PetscErrorCode PartitionMetis(MPI_Comm comm, const char *type, const Part
       for (idx_t v = 0; v < nv; v++) part[v] = 0;
     if (nv >= size) PetscCall(PartitionFillEmpty(nv, size, part));
     /* each rank's home block, row by row; inactive particles (outside the cloth's
-     * outline) do no work and stay at home */
+     * outline) do no work: home here, PartitionSpreadInactive shares them out */
     PetscCall(PetscMalloc3(N, &send, size, &counts, size, &displs));
     for (PetscMPIInt r = 0, pos = 0; r < size; r++) {
       PetscInt a0, a1, b0, b1;
@@ -180,12 +180,14 @@ static PetscErrorCode PartitionMetis(MPI_Comm comm, const char *type, const Part
   PetscFunctionReturn(0);
 }
 
-/* The partitioner numbers its parts as it likes; part p goes to rank p. A rank then
- * holds its part wherever it lies, and the inactive particles of its home block
- * (outside the outline, kept at home: they do no work), and its arrays that span the
- * box around its particles (the layout's map, the activity patch, the explicit
- * kernel's patch) span both: at 2048^2 on 16 ranks a corner block's rank held a box
- * about six times its part (by the patch's memory). So each part is renamed after the home block it takes most of
+/* The partitioner numbers its parts as it likes; part p goes to rank p. Named at
+ * random, a rank's part lies anywhere, away from its home block, whose particles it
+ * sends to their owners at the set-up and whose output passes through it (the
+ * DMDA's scatter); and when the inactive particles stayed at home (before
+ * PartitionSpreadInactive), the arrays that span a box around a rank's particles
+ * spanned its part and its corner: at 2048^2 on 16 ranks a corner block's rank held
+ * a box about six times its part. So each part is renamed after the home block it
+ * takes most of
  * (counted in active particles), the blocks that give most first, and the parts left
  * take the names left in order; the parts themselves, their balance and cut do not
  * change. dest: the home block's destinations, renamed where the particle is active.
@@ -233,6 +235,42 @@ static PetscErrorCode PartitionRename(MPI_Comm comm, const PartitionBlocks *b, P
       if (active(ctx, i, j)) dest[k] = name[dest[k]];
   PetscCall(PetscFree4(all, key, name, named));
   PetscCall(PetscFree(count));
+  PetscFunctionReturn(0);
+}
+
+/* Inactive particles (outside the outline: pinned, in no element) cost a rank their
+ * state and their numbers (about 80 bytes each) and no work. Kept at home, the
+ * ranks of a disc's corner blocks held most of them (at 4096^2 on 16 ranks about
+ * 720 000 each, against 60 000-200 000 elsewhere): each rank now takes an equal
+ * share, the home blocks' inactive particles in the order of their ranks cut into P
+ * runs of equal length (the first I mod P one longer), so every rank owns about the
+ * same number of particles. They may lie far from the rank's part: the arrays that
+ * span a box around a rank's particles span its active ones (ClothBuildLayout, the
+ * lattice kernel's patch). O(P): one scan and one reduction. Collective. */
+static PetscErrorCode PartitionSpreadInactive(MPI_Comm comm, const PartitionBlocks *b, PetscBool (*active)(void *, PetscInt, PetscInt), void *ctx, PetscInt *dest)
+{
+  PetscMPIInt size, rank;
+  PetscInt64  mine = 0, first, total, base, rem;
+  PetscInt    i0, i1, j0, j1;
+
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  HomeBlock(b, rank, &i0, &i1, &j0, &j1);
+  for (PetscInt j = j0; j < j1; j++)
+    for (PetscInt i = i0; i < i1; i++) mine += !active(ctx, i, j);
+  PetscCallMPI(MPI_Scan(&mine, &first, 1, MPIU_INT64, MPI_SUM, comm));
+  total = first;
+  PetscCallMPI(MPI_Bcast(&total, 1, MPIU_INT64, size - 1, comm));
+  first -= mine;
+  base = total / size, rem = total % size;
+  for (PetscInt j = j0, k = 0; j < j1; j++)
+    for (PetscInt i = i0; i < i1; i++, k++) {
+      if (active(ctx, i, j)) continue;
+      /* runs 0 .. rem - 1 hold base + 1, the others base */
+      dest[k] = (PetscInt) (first < rem * (base + 1) ? first / (base + 1) : rem + (first - rem * (base + 1)) / base);
+      first++;
+    }
   PetscFunctionReturn(0);
 }
 
@@ -481,6 +519,9 @@ PetscErrorCode PartitionDestinations(MPI_Comm comm, const char *type, const Part
     if (size == 1) fn = PartitionDMDA; /* one part: the home block */
   }
   PetscCall(fn(comm, type, b, active, weight, ctx, dest));
-  if (fn != PartitionDMDA) PetscCall(PartitionRename(comm, b, active, ctx, dest));
+  if (fn != PartitionDMDA) {
+    PetscCall(PartitionRename(comm, b, active, ctx, dest));
+    PetscCall(PartitionSpreadInactive(comm, b, active, ctx, dest));
+  }
   PetscFunctionReturn(0);
 }
