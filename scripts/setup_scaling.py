@@ -15,6 +15,12 @@ Per run:
   partition_s     its DrapePartition event (the partitioner alone), slowest rank
   setup_stage_s   the whole Setup stage (options, cloth, solid, integrator)
   wall_s          the launch to the exit, as the shell sees it
+  setup_cpu_s, setup_cpu_rank_s
+                  the report's setup_cpu and setup_cpu_rank_max: CPU seconds of the
+                  set-up summed over ranks and the busiest rank's (oversubscribed
+                  ranks share the cores, so the wall times above grow with the ranks
+                  sharing a core; a rank's CPU time is its work, and Open MPI's
+                  spinning waits)
   rank_max_mib, rank_min_mib, total_mib
                   -memory_view's maximum process memory (resident set) of the
                   largest and smallest rank, and of all ranks together
@@ -79,6 +85,7 @@ def measure(build, n, np_, part, timeout):
         fail(PROG, f"no -memory_view summary in the {n} x {n} {part} run on {np_} ranks:\n{r.tail()}")
     total, hi, lo = (float(x) for x in m.groups())
     return {"total": total, "max": hi, "min": lo, "hwm": r.maxrss, "wall": wall, "cloth": event(r.stdout, "DrapeClothSetUp"),
+            "cpu": r.report.get("setup_cpu"), "cpu_rank": r.report.get("setup_cpu_rank_max"),
             "partition": event(r.stdout, "DrapePartition"), "stage": stage(r.stdout, "Setup"), "report": r.report}
 
 
@@ -128,6 +135,8 @@ def main():
                        "cloth_setup_s": f"{m['cloth']:.3f}" if m["cloth"] is not None else "",
                        "partition_s": f"{m['partition']:.3f}" if m["partition"] is not None else "",
                        "setup_stage_s": f"{m['stage']:.3f}" if m["stage"] is not None else "", "wall_s": f"{m['wall']:.2f}",
+                       "setup_cpu_s": f"{m['cpu']:.3f}" if m["cpu"] is not None else "",
+                       "setup_cpu_rank_s": f"{m['cpu_rank']:.3f}" if m["cpu_rank"] is not None else "",
                        "rank_max_mib": f"{m['max'] / 2**20:.1f}", "rank_min_mib": f"{m['min'] / 2**20:.1f}",
                        "total_mib": f"{m['total'] / 2**20:.1f}", "hwm_mib": f"{m['hwm'] / 2**20:.1f}",
                        "fixed_mib": f"{fixed[part] / 2**20:.1f}",
@@ -135,19 +144,21 @@ def main():
                        "imbalance": f"{m['report']['owned_max'] * np_ / max(m['report']['active_particles'], 1):.3f}"}
                 rows.append(row)
                 print(f"  {n:5d}^2 {np_:2d} ranks {part:8s} cloth set-up {row['cloth_setup_s']:>8s} s (partition {row['partition_s'] or '-':>7s} s), "
-                      f"Setup stage {row['setup_stage_s']:>8s} s, per rank {row['rank_min_mib']}-{row['rank_max_mib']} MiB "
+                      f"Setup stage {row['setup_stage_s']:>8s} s, CPU {row['setup_cpu_rank_s']:>7s} s a rank ({row['setup_cpu_s']} s all), per rank {row['rank_min_mib']}-{row['rank_max_mib']} MiB "
                       f"(fixed {row['fixed_mib']}, max/share {row['max_over_share']}), HWM {row['hwm_mib']} MiB", flush=True)
     write_csv(out / "setup_scaling.csv", rows)
     try:
         commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, cwd=ROOT).stdout.strip()
     except OSError:
         commit = "unknown"
-    hdr = ["N", "ranks", "partition", "ClothSetUp (s)", "partitioner (s)", "Setup stage (s)", "per rank max (MiB)", "per rank min (MiB)",
-           "all ranks (MiB)", "fixed (MiB)", "max / share", "imbalance"]
+    hdr = ["N", "ranks", "partition", "ClothSetUp (s)", "partitioner (s)", "Setup stage (s)", "set-up CPU, busiest rank (s)", "set-up CPU, all ranks (s)",
+           "per rank max (MiB)", "per rank min (MiB)", "all ranks (MiB)", "fixed (MiB)", "max / share", "imbalance"]
     md = [f"# Set-up on many ranks (drape {commit}, {machine()})", "",
-          "Circular cloth in an N x N lattice, -ts_max_steps 0 -drape_stability_its 0; times the slowest rank's (-log_view), memory "
+          "Circular cloth in an N x N lattice, -ts_max_steps 0 -drape_stability_its 0; times the slowest rank's (-log_view, wall), CPU the report's "
+          "setup_cpu_rank_max and setup_cpu, memory "
           "-memory_view's maximum resident set; fixed: the same on a 16 x 16 lattice; max / share = (max - fixed) / ((all - P fixed) / P).", "",
-          md_table(hdr, [[r["N"], r["ranks"], r["partition"], r["cloth_setup_s"], r["partition_s"], r["setup_stage_s"], r["rank_max_mib"],
+          md_table(hdr, [[r["N"], r["ranks"], r["partition"], r["cloth_setup_s"], r["partition_s"], r["setup_stage_s"], r.get("setup_cpu_rank_s", ""),
+                          r.get("setup_cpu_s", ""), r["rank_max_mib"],
                           r["rank_min_mib"], r["total_mib"], r["fixed_mib"], r["max_over_share"], r["imbalance"]] for r in rows]), ""]
     text = "\n".join(md) + "\n"
     (out / "setup_scaling.md").write_text(text)
@@ -158,7 +169,8 @@ def main():
 
 def plot(rows, path):
     """Per-rank peak memory (and the fixed cost plus the one-rank run's share, the
-    ideal) and the Setup stage's time, against the ranks, one line per N and partition."""
+    ideal) and the busiest rank's set-up CPU time (and the one-rank run's over P),
+    against the ranks, one line per N and partition."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -171,9 +183,13 @@ def plot(rows, path):
         if key[1] == "dmda" and one:
             share = float(one[0]["rank_max_mib"]) - float(one[0]["fixed_mib"])
             a1.loglog(ranks, [float(r["fixed_mib"]) + share / int(r["ranks"]) for r in mine], ":", color=line.get_color(), label=f"{key[0]}²: fixed + share")
-        a2.loglog(ranks, [float(r["setup_stage_s"]) for r in mine if r["setup_stage_s"]], "o-", color=line.get_color(), label=f"{key[0]}² {key[1]}")
+        cpu = [(int(r["ranks"]), float(r["setup_cpu_rank_s"])) for r in mine if r.get("setup_cpu_rank_s")]
+        if cpu:
+            a2.loglog([p for p, _ in cpu], [t for _, t in cpu], "o-", color=line.get_color(), label=f"{key[0]}² {key[1]}")
+            if key[1] == "dmda" and cpu[0][0] == 1:
+                a2.loglog([p for p, _ in cpu], [cpu[0][1] / p for p, _ in cpu], ":", color=line.get_color(), label=f"{key[0]}²: one rank's / P")
     a1.set_ylabel("peak memory of the largest rank (MiB)")
-    a2.set_ylabel("Setup stage (s, slowest rank)")
+    a2.set_ylabel("set-up CPU time of the busiest rank (s)")
     for ax in (a1, a2):
         ax.set_xlabel("ranks (past 2 oversubscribed on 2 cores)")
         ax.grid(True, which="both", alpha=0.3)

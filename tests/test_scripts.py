@@ -267,8 +267,8 @@ def test_bad_input_from_the_command_line(tmp_path):
 
 def test_setup_scaling_quick(tmp_path):
     """scripts/setup_scaling.py --quick: a 64^2 disc set up on 1 and 2 ranks with the
-    DMDA's blocks and PT-Scotch; every row has its times, memory per rank above the
-    fixed cost, and a balanced partition."""
+    DMDA's blocks and PT-Scotch; every row has its times (the set-up's CPU time too),
+    memory per rank above the fixed cost, and a balanced partition."""
     import csv
     res = script("setup_scaling.py", "--quick", "--out", tmp_path)
     assert res.returncode == 0, res.stdout + res.stderr
@@ -279,4 +279,7 @@ def test_setup_scaling_quick(tmp_path):
         assert r["N"] == "64" and float(r["cloth_setup_s"]) > 0 and float(r["setup_stage_s"]) >= float(r["cloth_setup_s"])
         assert float(r["rank_max_mib"]) >= float(r["rank_min_mib"]) > float(r["fixed_mib"]) * 0.9 > 0
         assert float(r["imbalance"]) < 1.1
+        # the set-up's CPU time: the busiest rank's is part of the sum, and all of it on one rank
+        cpu, rank = float(r["setup_cpu_s"]), float(r["setup_cpu_rank_s"])
+        assert 0 < rank <= cpu and (r["ranks"] != "1" or rank == cpu), r
     assert "| 64 | 2 | ptscotch |" in (tmp_path / "setup_scaling.md").read_text()

@@ -95,6 +95,7 @@ struct _p_Simulation {
   /* progress */
   PetscReal      wall0, wall_last;
   PetscLogDouble rss0; /* resident memory before the set-up, bytes */
+  PetscLogDouble cpu0; /* this rank's CPU time then, s              */
 };
 
 static const char *const supported_types[] = {TSEULER, TSBASICSYMPLECTIC, TSDRAPEBE, TSRK, TSSSP, NULL};
@@ -454,6 +455,7 @@ PetscErrorCode SimulationCreate(MPI_Comm comm, Simulation *sim)
   PetscFunctionBeginUser;
   PetscCall(PetscNew(&s));
   PetscCall(PetscMemoryGetCurrentUsage(&s->rss0));
+  PetscCall(ReportCPUTime(&s->cpu0));
   s->comm              = comm;
   s->stability_its     = 30;
   s->divergence_factor = 1.0;
@@ -1013,6 +1015,17 @@ static PetscErrorCode SimulationReportCloth(Simulation s)
     mine = rss - s->rss0;
     PetscCall(MPIU_Allreduce(&mine, &sum, 1, MPIU_PETSCLOGDOUBLE, MPI_SUM, s->comm));
     PetscCall(ReportSetReal(r, "setup_bytes_per_particle", (PetscReal) (sum / info.nparticles)));
+  }
+  {
+    /* the set-up's CPU time, summed over ranks and the busiest rank's: with ranks
+     * sharing cores (oversubscribed) its wall time says nothing of a rank's work */
+    PetscLogDouble cpu, mine[2];
+    PetscCall(ReportCPUTime(&cpu));
+    mine[0] = cpu - s->cpu0, mine[1] = mine[0];
+    PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &mine[0], 1, MPIU_PETSCLOGDOUBLE, MPI_SUM, s->comm));
+    PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &mine[1], 1, MPIU_PETSCLOGDOUBLE, MPI_MAX, s->comm));
+    PetscCall(ReportSetReal(r, "setup_cpu", (PetscReal) mine[0]));
+    PetscCall(ReportSetReal(r, "setup_cpu_rank_max", (PetscReal) mine[1]));
   }
   PetscCall(ReportSetInt(r, "active_particles", info.nactive));
   PetscCall(ReportSetInt(r, "pinned", info.npinned));
