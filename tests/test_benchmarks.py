@@ -90,7 +90,7 @@ def test_scaling_columns_and_memory(scaling):
     for col in ("scheme", "N", "particles", "dt", "steps", "s_per_step", "s_per_simulated_s", "peak_rss_bytes", "bytes_per_particle"):
         assert col in sc[0]
     got = {(r["scheme"], int(r["N"])) for r in sc}
-    assert got == {(s, n) for s in ("symplectic", "explicit", "beuler") for n in (16, 32)} | {("symplectic", 48), ("explicit", 48)}
+    assert got == {(s, n) for s in ("symplectic", "explicit", "beuler") for n in (16, 32)} | {("symplectic", 96), ("explicit", 96)}
     for r in sc:
         assert float(r["s_per_step"]) > 0 and float(r["s_per_simulated_s"]) > 0
         assert int(r["peak_rss_bytes"]) > 10 * 2**20
