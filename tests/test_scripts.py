@@ -2,6 +2,7 @@
 small real runs (a square cloth over a sphere, a circle Cusick specimen), and their
 one-line errors on bad input."""
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -283,3 +284,21 @@ def test_setup_scaling_quick(tmp_path):
         cpu, rank = float(r["setup_cpu_s"]), float(r["setup_cpu_rank_s"])
         assert 0 < rank <= cpu and (r["ranks"] != "1" or rank == cpu), r
     assert "| 64 | 2 | ptscotch |" in (tmp_path / "setup_scaling.md").read_text()
+
+
+def test_cusick_lattices_quick(tmp_path):
+    """scripts/cusick_lattices.py --quick: the flat specimen and specimen 1 on 21^2 and
+    25^2; every run has a DC between 0 and 1 and its folds; the table has a row per
+    lattice, the finest at distance 0 from itself, and the plot is written."""
+    import csv
+    res = script("cusick_lattices.py", "--quick", "--out", tmp_path)
+    assert res.returncode == 0, res.stdout + res.stderr
+    with open(tmp_path / "lattices.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert sorted((r["grid"], r["specimen"]) for r in rows) == [("21", "1"), ("21", "flat"), ("25", "1"), ("25", "flat")]
+    for r in rows:
+        assert r["status"] == "ok" and 0 < float(r["drape_coefficient"]) < 1 and int(r["drape_folds"]) > 0, r
+    md = (tmp_path / "lattices.md").read_text()
+    assert md.count("\n| 2") == 2 and "| 25² | 12.50 |" in md
+    assert re.search(r"\| 25² \|[^\n]*\| 0\.0000 \| yes \|", md), md
+    assert (tmp_path / "lattices.png").stat().st_size > 1000
