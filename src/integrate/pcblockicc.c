@@ -377,7 +377,8 @@ static PetscErrorCode PCView_BlockICC(PC pc, PetscViewer viewer)
   if (ascii) {
     PetscCall(PetscViewerASCIIPrintf(viewer, "  IC(%" PetscInt_FMT ") in 3 x 3 blocks (%s), pivot tolerance %g; the last factorisation %s\n", icc->levels, PCBlockICCTypes[icc->type], (double) icc->pivot_tol,
                                      icc->compensated ? "compensated the dropped fill" : "plain"));
-    PetscCall(PetscViewerASCIIPrintf(viewer, "  factor stored in %s precision%s\n", icc->single ? "single" : "double", icc->widened ? " (single was asked for, and a rounded pivot block was not positive definite)" : ""));
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  factor stored in %s precision%s, %.2f blocks a block row (the matrix's upper triangle: %.2f)\n", icc->single ? "single" : "double",
+                                     icc->widened ? " (single was asked for, and a rounded pivot block was not positive definite)" : "", icc->n ? (double) icc->fi[icc->n] / icc->n : 0.0, icc->n ? (double) icc->ai[icc->n] / icc->n : 0.0));
   }
   PetscFunctionReturn(0);
 }
