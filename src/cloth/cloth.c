@@ -1397,7 +1397,8 @@ PetscErrorCode ClothDestroy(Cloth *cloth)
     PetscCall(PetscFree(c->natural));
     PetscCall(PetscFree3(c->ctype, c->cnormal, c->cblock));
     PetscCall(PetscFree(c->hdiag));
-    PetscCall(PetscFree6(c->rb_start, c->rb_ncols, c->rb_colstart, c->rb_cols, c->rb_map, c->rb_diag));
+    PetscCall(PetscFree5(c->rb_start, c->rb_ncols, c->rb_colstart, c->rb_map, c->rb_diag));
+    PetscCall(PetscFree(c->rb_cols));
     PetscCall(PetscFree(c->rb_val));
     PetscCall(PetscFree(c->rb_chunk));
     PetscCall(PetscFree5(c->rb_lo, c->rb_cut, c->rb_done, c->rb_vstart, c->rb_gstart));

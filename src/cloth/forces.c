@@ -652,7 +652,8 @@ static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
 
   PetscFunctionBeginUser;
   PetscCall(PetscObjectTypeCompareAny((PetscObject) J, &sym, MATSEQSBAIJ, MATMPISBAIJ, ""));
-  PetscCall(PetscFree6(c->rb_start, c->rb_ncols, c->rb_colstart, c->rb_cols, c->rb_map, c->rb_diag));
+  PetscCall(PetscFree5(c->rb_start, c->rb_ncols, c->rb_colstart, c->rb_map, c->rb_diag));
+  PetscCall(PetscFree(c->rb_cols));
   PetscCall(PetscFree(c->rb_val));
   PetscCall(PetscFree(c->rb_gval));
   c->rb_split = -1; /* (the positions below are the buffer's) */
@@ -673,7 +674,8 @@ static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
   for (PetscInt e = 0; e < c->px_n; e++)
     if (BlockHeld(c, sym, c->px_row[e], c->px_col[e])) count[c->px_row[e]]++;
   for (PetscInt k = 0; k < c->nowned; k++) total += count[k];
-  PetscCall(PetscMalloc6(c->nowned + 1, &c->rb_start, c->nowned, &c->rb_ncols, c->nowned + 1, &c->rb_colstart, total, &c->rb_cols, npairs, &c->rb_map, c->nowned, &c->rb_diag));
+  PetscCall(PetscMalloc5(c->nowned + 1, &c->rb_start, c->nowned, &c->rb_ncols, c->nowned + 1, &c->rb_colstart, npairs, &c->rb_map, c->nowned, &c->rb_diag));
+  PetscCall(PetscMalloc1(total + 1, &c->rb_cols));
   c->rb_colstart[0] = 0;
   for (PetscInt k = 0; k < c->nowned; k++) {
     c->rb_colstart[k + 1]                            = c->rb_colstart[k] + count[k];
@@ -697,6 +699,23 @@ static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
     c->rb_start[k + 1] = c->rb_start[k] + 9 * c->rb_ncols[k];
     PetscCall(PetscFindInt(c->global[k], c->rb_ncols[k], c->rb_cols + c->rb_colstart[k], &c->rb_diag[k]));
     c->rb_diag[k] = RowBufferBlock(c, k, c->rb_diag[k]);
+  }
+  {
+    /* the rows' columns close up: each row had room for every element's blocks (about
+     * 81 a particle on the lattice, 17 once the repeats are gone; 256 bytes a
+     * particle kept for the run) */
+    PetscInt *cols, q = 0;
+    for (PetscInt k = 0; k < c->nowned; k++) q += c->rb_ncols[k];
+    PetscCall(PetscMalloc1(q + 1, &cols));
+    q = 0;
+    for (PetscInt k = 0; k < c->nowned; k++) {
+      PetscCall(PetscArraycpy(cols + q, c->rb_cols + c->rb_colstart[k], c->rb_ncols[k]));
+      c->rb_colstart[k] = q;
+      q += c->rb_ncols[k];
+    }
+    c->rb_colstart[c->nowned] = q;
+    PetscCall(PetscFree(c->rb_cols));
+    c->rb_cols = cols;
   }
   npairs = 0;
   for (PetscInt kind = 0; kind < CLOTH_KINDS; kind++) {
