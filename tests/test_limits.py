@@ -32,16 +32,17 @@ def test_index_limit_is_three_unknowns_per_particle(tmp):
 
 
 def test_implicit_step_says_what_it_needs(tmp):
-    """drapebe needs about 3.1 kB per particle (the matrix and its preconditioner),
-    the explicit schemes about 0.25 kB: under a 500 MB address-space limit a 450 x 450
-    lattice sets up and steps with symplectic Euler (with 32- and 64-bit indices), and drapebe is refused before
-    its matrix with the bytes per rank it needs."""
+    """drapebe needs at least 2.3 kB per particle (the matrix and its block IC(0)
+    preconditioner), the explicit schemes about 0.25 kB: under a 500 MB address-space
+    limit a 520 x 520 lattice sets up and steps with symplectic Euler (with 32- and
+    64-bit indices), and drapebe is refused before its matrix with the bytes per rank
+    it needs."""
     def limit():
         resource.setrlimit(resource.RLIMIT_AS, (500 << 20, 500 << 20))
-    base = ["-da_grid_x", "450", "-da_grid_y", "450", "-ts_max_steps", "1", "-drape_stability_its", "0", "-drape_progress", "0"]
+    base = ["-da_grid_x", "520", "-da_grid_y", "520", "-ts_max_steps", "1", "-drape_stability_its", "0", "-drape_progress", "0"]
     res = drape(base + ["-ts_type", "basicsymplectic", "-ts_dt", "1e-6"], tmp, preexec_fn=limit)
     assert res.returncode == 0, res.stdout + res.stderr
-    error = refused(drape(base + ["-ts_type", "drapebe"], tmp, preexec_fn=limit), "The implicit step (drapebe) on a 450 x 450 lattice needs at least 0.6 GB per rank (3100 bytes per particle")
+    error = refused(drape(base + ["-ts_type", "drapebe"], tmp, preexec_fn=limit), "The implicit step (drapebe) on a 520 x 520 lattice needs at least 0.6 GB per rank (2300 bytes per particle")
     assert "-ts_type basicsymplectic" in error, error
 
 

@@ -285,9 +285,10 @@ static PetscBool InsideOutline(Cloth c, PetscReal x, PetscReal y)
  * A 64-bit PetscInt lifts all but METIS's; memory then bounds the lattice. */
 #define CLOTH_LIST_ENTRIES   12  /* per local particle, in a rank's longest element list */
 #define CLOTH_MATRIX_ENTRIES 225 /* per owned particle, in a rank's implicit matrix: 25 blocks of 9 */
-/* drapebe's memory per particle, measured (BENCHMARKS.md: 3171 bytes with ICC, more
- * with ML): what a rank needs at least on top of the explicit schemes' */
-#define CLOTH_IMPLICIT_BYTES 3100.0
+/* drapebe's memory per particle, measured (BENCHMARKS.md, "drapebe's memory a
+ * particle, by preconditioner": 2.32 kB with block IC(0), the default's first
+ * choice; 2.73 kB with IC(1), 12.8 kB with ML): what a rank needs at least */
+#define CLOTH_IMPLICIT_BYTES 2300.0
 
 /* Does PetscInt index a lattice of Mx x My, and does the memory each rank has hold
  * it? Refused with a sentence before anything of its size is allocated. */
