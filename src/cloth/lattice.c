@@ -515,8 +515,7 @@ static PetscErrorCode LatticeBuildRuns(Cloth c, ClothLattice *L)
   for (PetscInt q = 0; q < c->nlocal; q++) {
     const PetscInt l = order[q], r = c->natural[l] / c->Mx - L->j0, p = c->natural[l] % c->Mx - L->i0;
     LatticeRun    *R = nrun ? &L->run[nrun - 1] : NULL;
-    if (!LatticeInPatch(c, l) || r < 0 || r >= L->H || p < 0 || p >= L->W) {
-      PetscCheck(l < c->nowned && !c->active[l], PETSC_COMM_SELF, PETSC_ERR_PLIB, "Local particle %" PetscInt_FMT " of the cloth lies outside the lattice kernel's patch", l);
+    if (!LatticeInPatch(c, l)) { /* (the patch is the box of the others) */
       L->out[L->nout++] = l;
       continue;
     }

@@ -246,7 +246,7 @@ static PetscErrorCode PartitionRename(MPI_Comm comm, const PartitionBlocks *b, P
  * runs of equal length (the first I mod P one longer), so every rank owns about the
  * same number of particles. They may lie far from the rank's part: the arrays that
  * span a box around a rank's particles span its active ones (ClothBuildLayout, the
- * lattice kernel's patch). O(P): one scan and one reduction. Collective. */
+ * lattice kernel's patch). One scan and one broadcast. Collective. */
 static PetscErrorCode PartitionSpreadInactive(MPI_Comm comm, const PartitionBlocks *b, PetscBool (*active)(void *, PetscInt, PetscInt), void *ctx, PetscInt *dest)
 {
   PetscMPIInt size, rank;
