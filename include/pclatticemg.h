@@ -1,0 +1,32 @@
+/* The preconditioner type "latticemg" (src/integrate/pclatticemg.c): geometric
+ * multigrid on the cloth's lattice for drapebe's SBAIJ matrix (block size 3), on
+ * one rank. Each coarser level keeps every other lattice node of the one below
+ * (bilinear interpolation of each displacement component, filtered by the contact
+ * constraints: a constrained direction takes no coarse correction); its operator is
+ * the Galerkin product P^T A P, formed block by block on the lattice's stencil (5 x 5
+ * blocks a node: the stretch, shear and bending couplings reach two nodes, and so do
+ * their coarse products). Smoothing: block IC(0) on the finest level (PCBLOCKICC,
+ * options prefix -mg_fine_), symmetric block Gauss-Seidel on the coarser ones, a
+ * dense Cholesky factorisation on the coarsest (at most 64 nodes). A V(1,1) cycle,
+ * symmetric, so CG takes it.
+ *
+ * Options: -pc_latticemg_levels (the most levels; 0, the default: down to the
+ * coarsest), -pc_latticemg_coarse_nodes (64). */
+#pragma once
+
+#include <petscpc.h>
+#include <cloth.h>
+
+#define PCLATTICEMG "latticemg"
+
+/* Register the type with PCRegister() (again: no harm). Not collective. */
+PETSC_EXTERN PetscErrorCode PCLatticeMGRegister(void);
+/* The lattice (Mx x My nodes) and, for each of the matrix's n block rows, its node
+ * (j Mx + i) and whether it is pinned (its row decoupled: no coarse correction).
+ * node and pinned are copied. On a PC of another type, nothing. Not collective. */
+PETSC_EXTERN PetscErrorCode PCLatticeMGSetLattice(PC, PetscInt Mx, PetscInt My, PetscInt n, const PetscInt node[], const PetscBool pinned[]);
+/* The contact constraints of the rows (ClothSetConstraints: free, sliding along the
+ * surface of outward normal n, fixed; type NULL: none), copied; the next set-up
+ * filters the interpolation with them. On a PC of another type, nothing. Not
+ * collective. */
+PETSC_EXTERN PetscErrorCode PCLatticeMGSetConstraints(PC, const ClothConstraint type[], const PetscReal normal[]);

@@ -1,0 +1,750 @@
+/* PCLATTICEMG: geometric multigrid on the cloth's lattice (include/pclatticemg.h).
+ *
+ * Why: block IC(0) and IC(1) take CG iterations that grow with the lattice (the
+ * Cusick scene: 14.5, 22.7 and 47.7 a step at 81^2, 161^2 and 241^2; BENCHMARKS.md),
+ * and drape's AMG (ML) holds 12.8 kB a particle. The lattice is a grid: its coarse
+ * levels need no aggregation, and their interpolation no storage.
+ *
+ * Levels. Level 0 is the matrix (one block row per particle, its lattice node
+ * node[k]); level l + 1 keeps the nodes of level l with even indices along each
+ * direction that has more than 3 nodes (n -> n / 2 + 1). Interpolation is bilinear,
+ * one weight for the three components: an even fine node takes its coarse node, an
+ * odd one half of each of its two neighbours (a quarter of four on the diagonals).
+ * On level 0 it is filtered by the rows' constraints, P_k = S_k w (S_k: I, I - n n^T
+ * when sliding, 0 when fixed or pinned), as in Tamstorf, Jones & McCormick (2015):
+ * the constrained directions are decoupled in the matrix (S J S + (I - S) D) and take
+ * no coarse correction. The coarse operator is P^T A P, each of A's blocks (upper
+ * triangle, and its transpose) added to the coarse blocks its nodes' weights reach.
+ * A fine coupling of at most two nodes gives a coarse one of at most two, so every
+ * coarse level is stored as 5 x 5 blocks a node; a coupling beyond (a self-contact
+ * pair across a fold) keeps its diagonal parts and drops its coarse cross terms,
+ * which leaves the coarse operator positive semi-definite.
+ *
+ * The cycle: V(1,1), symmetric. Finest level: block IC(0) (an inner PCBLOCKICC of
+ * the same matrix) before and after the coarse correction, with a product with A
+ * for each residual. Coarser levels: block Gauss-Seidel forward before, backward
+ * after, each diagonal block inverted by an LDL^T that drops a pivot below 1e-10 of
+ * its diagonal entry or 1e-9 of the level's largest (a direction every fine row's
+ * filter removed: a generalised inverse, exact on the residuals, which have no
+ * component there). Coarsest: a dense LDL^T with the same drop, if it has at most
+ * -pc_latticemg_coarse_nodes nodes, else one symmetric Gauss-Seidel sweep.
+ *
+ * Blocks are PETSc's: 9 values by columns, B(r, c) = b[r + 3 c]. */
+#include <petsc/private/pcimpl.h>
+#include <pclatticemg.h>
+#include <pcblockicc.h>
+
+#define LMG_W          5               /* a node's stencil: offsets -2 .. 2 along each direction */
+#define LMG_S          (LMG_W * LMG_W) /* blocks a node */
+#define LMG_C          (2 * LMG_W + 2) /* the node's own block */
+#define LMG_DROP_OWN   1.0e-10         /* a pivot at most this times its diagonal entry is dropped */
+#define LMG_DROP_LEVEL 1.0e-9          /* ... or this times the level's largest diagonal entry */
+
+typedef struct {
+  PetscInt     nx, ny, n; /* nodes along x and y, n = nx ny (node j nx + i)             */
+  float       *a;         /* 25 blocks a node: block (I, I + (dx, dy)) at 9 (25 I + (dy + 2) 5 + dx + 2); single precision (half the bytes the sweeps stream) */
+  PetscScalar *g;         /* the diagonal blocks' generalised inverses (not on a dense coarsest level) */
+  PetscScalar *b, *x, *r; /* right-hand side, correction, residual: 3 n each              */
+} LMGLevel;
+
+typedef enum {
+  LMG_SMOOTH_SGS,
+  LMG_SMOOTH_BLOCKICC
+} LMGSmoother;
+static const char *const LMGSmoothers[] = {"sgs", "blockicc", "LMGSmoother", "LMG_SMOOTH_", NULL};
+
+typedef struct {
+  PetscInt       Mx, My;   /* the lattice                                                */
+  PetscInt       nrows;    /* the matrix's block rows                                    */
+  PetscInt      *node;     /* each row's node, j Mx + i                                  */
+  PetscBool     *pinned;   /* each row's pin                                             */
+  unsigned char *kind;     /* each row: 0 free, 1 sliding, 2 fixed or pinned (the filter) */
+  PetscReal     *normal;   /* a sliding row's normal, 3 a row                            */
+  PetscInt       nlevels;  /* coarse levels                                              */
+  LMGLevel      *lev;      /* lev[0] the first coarse level, lev[nlevels - 1] the coarsest */
+  PetscScalar   *dense;    /* the coarsest level's LDL^T (L below the diagonal, D on it), or NULL */
+  LMGSmoother    smoother; /* the finest level's: block Gauss-Seidel, or block IC (fine)  */
+  PetscScalar   *dinv;     /* block Gauss-Seidel: the matrix's diagonal blocks inverted, 9 a row */
+  PC             fine;     /* block IC                                                   */
+  Vec            w, y;     /* fine work vectors                                          */
+  PetscInt       max_levels, coarse_nodes;
+  PetscInt       coarse_lag; /* the coarse levels are made again at every coarse_lag-th set-up */
+  PetscInt       setups;     /* set-ups since the coarse levels were made                 */
+  PetscBool      fill_auto;  /* block IC smoother: IC(1) once IC(0) had to compensate     */
+} PC_LatticeMG;
+
+static inline PetscInt LMGCoarseSize(PetscInt n) { return n <= 3 ? n : n / 2 + 1; }
+
+/* The coarse nodes of fine index i along a direction of n nodes, and their weights. */
+static inline PetscInt LMGSupport1(PetscInt n, PetscInt i, PetscInt c[2], PetscReal w[2])
+{
+  if (n <= 3 || !(i & 1)) {
+    c[0] = n <= 3 ? i : i / 2;
+    w[0] = 1;
+    return 1;
+  }
+  c[0] = i / 2, c[1] = i / 2 + 1;
+  w[0] = w[1] = 0.5;
+  return 2;
+}
+
+/* The coarse nodes (their coordinates) of fine node (i, j) of an nx x ny level. */
+static inline PetscInt LMGSupport(PetscInt nx, PetscInt ny, PetscInt i, PetscInt j, PetscInt ci[4], PetscInt cj[4], PetscReal w[4])
+{
+  PetscInt  cx[2], cy[2], mx, my, m = 0;
+  PetscReal wx[2], wy[2];
+
+  mx = LMGSupport1(nx, i, cx, wx);
+  my = LMGSupport1(ny, j, cy, wy);
+  for (PetscInt b = 0; b < my; b++)
+    for (PetscInt a = 0; a < mx; a++, m++) ci[m] = cx[a], cj[m] = cy[b], w[m] = wx[a] * wy[b];
+  return m;
+}
+
+/* y = S_k y for a row's filter */
+static inline void LMGFilter(const PC_LatticeMG *mg, PetscInt k, PetscScalar y[3])
+{
+  if (mg->kind[k] == 1) {
+    const PetscReal *n = mg->normal + 3 * k, d = n[0] * y[0] + n[1] * y[1] + n[2] * y[2];
+    for (PetscInt r = 0; r < 3; r++) y[r] -= d * n[r];
+  } else if (mg->kind[k] == 2)
+    y[0] = y[1] = y[2] = 0;
+}
+
+/* b = S_k b S_m for sliding rows k or m (b by columns; fixed rows are skipped before) */
+static inline void LMGFilterBlock(const PC_LatticeMG *mg, PetscInt k, PetscInt m, PetscScalar b[9])
+{
+  if (mg->kind[k] == 1) { /* (I - n n^T) b: each column */
+    const PetscReal *n = mg->normal + 3 * k;
+    for (PetscInt c = 0; c < 3; c++) {
+      const PetscScalar d = n[0] * b[3 * c] + n[1] * b[1 + 3 * c] + n[2] * b[2 + 3 * c];
+      for (PetscInt r = 0; r < 3; r++) b[r + 3 * c] -= d * n[r];
+    }
+  }
+  if (mg->kind[m] == 1) { /* b (I - n n^T): each row */
+    const PetscReal *n = mg->normal + 3 * m;
+    for (PetscInt r = 0; r < 3; r++) {
+      const PetscScalar d = b[r] * n[0] + b[r + 3] * n[1] + b[r + 6] * n[2];
+      for (PetscInt c = 0; c < 3; c++) b[r + 3 * c] -= d * n[c];
+    }
+  }
+}
+
+/* LDL^T of the symmetric n x n matrix a (by columns, leading dimension n) in place,
+ * a pivot dropped (set to 0) where at most LMG_DROP_OWN times its diagonal entry or
+ * tol: L below the diagonal, D on it. */
+static void LMGFactorDense(PetscInt n, PetscScalar *a, PetscReal tol)
+{
+  for (PetscInt j = 0; j < n; j++) {
+    const PetscReal ajj = PetscRealPart(a[j + n * j]);
+    PetscScalar     d   = a[j + n * j];
+    for (PetscInt k = 0; k < j; k++) d -= a[j + n * k] * a[j + n * k] * a[k + n * k];
+    if (!(PetscRealPart(d) > LMG_DROP_OWN * ajj && PetscRealPart(d) > tol)) {
+      a[j + n * j] = 0;
+      for (PetscInt i = j + 1; i < n; i++) a[i + n * j] = 0;
+      continue;
+    }
+    a[j + n * j] = d;
+    for (PetscInt i = j + 1; i < n; i++) {
+      PetscScalar s = a[i + n * j];
+      for (PetscInt k = 0; k < j; k++) s -= a[i + n * k] * a[j + n * k] * a[k + n * k];
+      a[i + n * j] = s / d;
+    }
+  }
+}
+
+/* x = (L D L^T)^+ x with the factor of LMGFactorDense (a dropped pivot gives 0) */
+static void LMGSolveDense(PetscInt n, const PetscScalar *a, PetscScalar *x)
+{
+  for (PetscInt j = 0; j < n; j++)
+    for (PetscInt i = j + 1; i < n; i++) x[i] -= a[i + n * j] * x[j];
+  for (PetscInt j = 0; j < n; j++) x[j] = a[j + n * j] != 0.0 ? x[j] / a[j + n * j] : 0;
+  for (PetscInt j = n - 1; j >= 0; j--)
+    for (PetscInt i = j + 1; i < n; i++) x[j] -= a[i + n * j] * x[i];
+}
+
+/* The generalised inverse of a symmetric 3 x 3 block */
+static void LMGBlockInverse(const PetscScalar *d, PetscReal tol, PetscScalar *g)
+{
+  PetscScalar f[9];
+
+  for (PetscInt c = 0; c < 3; c++)
+    for (PetscInt r = 0; r < 3; r++) f[r + 3 * c] = 0.5 * (d[r + 3 * c] + d[c + 3 * r]);
+  LMGFactorDense(3, f, tol);
+  for (PetscInt c = 0; c < 3; c++) {
+    PetscScalar e[3] = {0, 0, 0};
+    e[c]             = 1;
+    LMGSolveDense(3, f, e);
+    for (PetscInt r = 0; r < 3; r++) g[r + 3 * c] = e[r];
+  }
+}
+
+static PetscErrorCode LMGFreeLevels(PC_LatticeMG *mg)
+{
+  PetscFunctionBeginUser;
+  for (PetscInt l = 0; l < mg->nlevels; l++) {
+    PetscCall(PetscFree(mg->lev[l].a));
+    PetscCall(PetscFree(mg->lev[l].g));
+    PetscCall(PetscFree3(mg->lev[l].b, mg->lev[l].x, mg->lev[l].r));
+  }
+  PetscCall(PetscFree(mg->lev));
+  PetscCall(PetscFree(mg->dense));
+  mg->nlevels = 0;
+  mg->setups  = 0;
+  PetscFunctionReturn(0);
+}
+
+/* The levels' sizes and storage, made once for the lattice */
+static PetscErrorCode LMGCreateLevels(PC_LatticeMG *mg)
+{
+  PetscInt nx = mg->Mx, ny = mg->My, nl = 0, cx[64], cy[64];
+
+  PetscFunctionBeginUser;
+  for (;;) {
+    const PetscInt ncx = LMGCoarseSize(nx), ncy = LMGCoarseSize(ny);
+    cx[nl] = ncx, cy[nl] = ncy, nl++;
+    if (ncx * ncy <= mg->coarse_nodes || (mg->max_levels > 0 && nl + 1 >= mg->max_levels) || (ncx == nx && ncy == ny) || nl == 64) break;
+    nx = ncx, ny = ncy;
+  }
+  PetscCall(PetscCalloc1(nl, &mg->lev));
+  mg->nlevels = nl;
+  for (PetscInt l = 0; l < nl; l++) {
+    LMGLevel *L = &mg->lev[l];
+    L->nx = cx[l], L->ny = cy[l], L->n = cx[l] * cy[l];
+    PetscCall(PetscMalloc1(9 * LMG_S * L->n, &L->a));
+    PetscCall(PetscMalloc3(3 * L->n, &L->b, 3 * L->n, &L->x, 3 * L->n, &L->r));
+    if (l < nl - 1 || L->n > mg->coarse_nodes) PetscCall(PetscMalloc1(9 * L->n, &L->g));
+  }
+  {
+    const LMGLevel *L = &mg->lev[nl - 1];
+    if (L->n <= mg->coarse_nodes) PetscCall(PetscMalloc1(9 * L->n * L->n, &mg->dense));
+  }
+  PetscFunctionReturn(0);
+}
+
+/* Add wt B (and to the transposed position wt B^T, when transpose) to the coarse
+ * blocks of fine nodes (i, j) and (i2, j2) of level (nx, ny), coarse level C. */
+static inline void LMGAddProduct(LMGLevel *C, PetscInt nx, PetscInt ny, PetscInt i, PetscInt j, PetscInt i2, PetscInt j2, const PetscScalar *B, PetscBool transpose)
+{
+  PetscInt  ai[4], aj[4], bi[4], bj[4];
+  PetscReal aw[4], bw[4];
+  PetscInt  na = LMGSupport(nx, ny, i, j, ai, aj, aw), nb = LMGSupport(nx, ny, i2, j2, bi, bj, bw);
+
+  for (PetscInt p = 0; p < na; p++) {
+    const PetscInt ic = aj[p] * C->nx + ai[p];
+    for (PetscInt q = 0; q < nb; q++) {
+      const PetscInt  dx = bi[q] - ai[p], dy = bj[q] - aj[p];
+      const PetscReal wt = aw[p] * bw[q];
+      if (dx < -2 || dx > 2 || dy < -2 || dy > 2) continue; /* a far pair's cross terms */
+      {
+        float *c = C->a + 9 * (LMG_S * ic + (dy + 2) * LMG_W + dx + 2);
+        for (PetscInt s = 0; s < 9; s++) c[s] += wt * B[s];
+      }
+      if (transpose) {
+        const PetscInt jc = bj[q] * C->nx + bi[q];
+        float         *c  = C->a + 9 * (LMG_S * jc + (2 - dy) * LMG_W + 2 - dx);
+        for (PetscInt r = 0; r < 3; r++)
+          for (PetscInt s = 0; s < 3; s++) c[r + 3 * s] += wt * B[s + 3 * r];
+      }
+    }
+  }
+}
+
+/* The first coarse level's operator, P^T A P from A's upper triangle of blocks */
+static PetscErrorCode LMGGalerkinFine(PC pc, PC_LatticeMG *mg, Mat A)
+{
+  LMGLevel       *C = &mg->lev[0];
+  const PetscInt *ia, *ja, Mx = mg->Mx;
+  PetscInt        n;
+  PetscBool       done;
+  MatScalar      *aa;
+
+  PetscFunctionBeginUser;
+  PetscCall(MatGetRowIJ(A, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &done));
+  PetscCheck(done && n == mg->nrows, PetscObjectComm((PetscObject) pc), PETSC_ERR_ARG_WRONG, "-pc_type latticemg: the matrix has %" PetscInt_FMT " block rows and the lattice given %" PetscInt_FMT " particles", n, mg->nrows);
+  PetscCall(MatSeqSBAIJGetArray(A, &aa));
+  PetscCall(PetscArrayzero(C->a, 9 * LMG_S * C->n));
+  for (PetscInt k = 0; k < n; k++) {
+    if (mg->kind[k] == 2) continue;
+    for (PetscInt p = ia[k]; p < ia[k + 1]; p++) {
+      const PetscInt m = ja[p];
+      PetscScalar    B[9];
+      if (mg->kind[m] == 2) continue;
+      PetscCall(PetscArraycpy(B, aa + 9 * p, 9));
+      if (mg->kind[k] == 1 || mg->kind[m] == 1) LMGFilterBlock(mg, k, m, B);
+      LMGAddProduct(C, mg->Mx, mg->My, mg->node[k] % Mx, mg->node[k] / Mx, mg->node[m] % Mx, mg->node[m] / Mx, B, (PetscBool) (m != k));
+    }
+  }
+  PetscCall(PetscLogFlops(18.0 * 9 * ia[n]));
+  PetscCall(MatSeqSBAIJRestoreArray(A, &aa));
+  PetscCall(MatRestoreRowIJ(A, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &done));
+  PetscFunctionReturn(0);
+}
+
+/* Level l + 1's operator from level l's (every block, both triangles) */
+static PetscErrorCode LMGGalerkinCoarse(PC_LatticeMG *mg, PetscInt l)
+{
+  const LMGLevel *F = &mg->lev[l];
+  LMGLevel       *C = &mg->lev[l + 1];
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscArrayzero(C->a, 9 * LMG_S * C->n));
+  for (PetscInt j = 0; j < F->ny; j++)
+    for (PetscInt i = 0; i < F->nx; i++)
+      for (PetscInt dy = PetscMax(-2, -j); dy <= PetscMin(2, F->ny - 1 - j); dy++)
+        for (PetscInt dx = PetscMax(-2, -i); dx <= PetscMin(2, F->nx - 1 - i); dx++) {
+          const float *b = F->a + 9 * (LMG_S * (j * F->nx + i) + (dy + 2) * LMG_W + dx + 2);
+          PetscScalar  B[9];
+          for (PetscInt q = 0; q < 9; q++) B[q] = b[q];
+          LMGAddProduct(C, F->nx, F->ny, i, j, i + dx, j + dy, B, PETSC_FALSE);
+        }
+  PetscCall(PetscLogFlops(18.0 * 9 * LMG_S * F->n));
+  PetscFunctionReturn(0);
+}
+
+/* The level's smoother: the diagonal blocks' inverses, or the dense factor */
+static PetscErrorCode LMGSetUpSmoother(PC_LatticeMG *mg, PetscInt l)
+{
+  LMGLevel *L   = &mg->lev[l];
+  PetscReal big = 0, tol;
+
+  PetscFunctionBeginUser;
+  for (PetscInt ic = 0; ic < L->n; ic++)
+    for (PetscInt r = 0; r < 3; r++) big = PetscMax(big, PetscRealPart(L->a[9 * (LMG_S * ic + LMG_C) + 4 * r]));
+  tol = LMG_DROP_LEVEL * big;
+  if (L->g)
+    for (PetscInt ic = 0; ic < L->n; ic++) {
+      PetscScalar d[9];
+      for (PetscInt q = 0; q < 9; q++) d[q] = L->a[9 * (LMG_S * ic + LMG_C) + q];
+      LMGBlockInverse(d, tol, L->g + 9 * ic);
+    }
+  if (l == mg->nlevels - 1 && mg->dense) {
+    const PetscInt N = 3 * L->n;
+    PetscCall(PetscArrayzero(mg->dense, N * N));
+    for (PetscInt j = 0; j < L->ny; j++)
+      for (PetscInt i = 0; i < L->nx; i++)
+        for (PetscInt dy = PetscMax(-2, -j); dy <= PetscMin(2, L->ny - 1 - j); dy++)
+          for (PetscInt dx = PetscMax(-2, -i); dx <= PetscMin(2, L->nx - 1 - i); dx++) {
+            const PetscInt ic = j * L->nx + i, jc = (j + dy) * L->nx + i + dx;
+            const float   *B = L->a + 9 * (LMG_S * ic + (dy + 2) * LMG_W + dx + 2);
+            for (PetscInt c = 0; c < 3; c++)
+              for (PetscInt r = 0; r < 3; r++) mg->dense[3 * ic + r + N * (3 * jc + c)] = B[r + 3 * c];
+          }
+    LMGFactorDense(N, mg->dense, tol);
+  }
+  PetscFunctionReturn(0);
+}
+
+/* One block Gauss-Seidel sweep on level L, forward or backward:
+ * x_I = G_I (b_I - sum over the other blocks of row I of A_IJ x_J) */
+static void LMGSweep(const LMGLevel *L, PetscBool forward)
+{
+  for (PetscInt t = 0; t < L->n; t++) {
+    const PetscInt ic = forward ? t : L->n - 1 - t, i = ic % L->nx, j = ic / L->nx;
+    PetscScalar    s[3] = {L->b[3 * ic], L->b[3 * ic + 1], L->b[3 * ic + 2]};
+    for (PetscInt dy = PetscMax(-2, -j); dy <= PetscMin(2, L->ny - 1 - j); dy++)
+      for (PetscInt dx = PetscMax(-2, -i); dx <= PetscMin(2, L->nx - 1 - i); dx++) {
+        const PetscInt     o  = (dy + 2) * LMG_W + dx + 2;
+        const float       *B  = L->a + 9 * (LMG_S * ic + o);
+        const PetscScalar *xj = L->x + 3 * (ic + dy * L->nx + dx);
+        if (o == LMG_C) continue;
+        for (PetscInt r = 0; r < 3; r++) s[r] -= B[r] * xj[0] + B[r + 3] * xj[1] + B[r + 6] * xj[2];
+      }
+    {
+      const PetscScalar *g = L->g + 9 * ic;
+      for (PetscInt r = 0; r < 3; r++) L->x[3 * ic + r] = g[r] * s[0] + g[r + 3] * s[1] + g[r + 6] * s[2];
+    }
+  }
+}
+
+/* r = b - A x on level L */
+static void LMGResidual(LMGLevel *L)
+{
+  for (PetscInt j = 0; j < L->ny; j++)
+    for (PetscInt i = 0; i < L->nx; i++) {
+      const PetscInt ic = j * L->nx + i;
+      PetscScalar   *s  = L->r + 3 * ic;
+      for (PetscInt r = 0; r < 3; r++) s[r] = L->b[3 * ic + r];
+      for (PetscInt dy = PetscMax(-2, -j); dy <= PetscMin(2, L->ny - 1 - j); dy++)
+        for (PetscInt dx = PetscMax(-2, -i); dx <= PetscMin(2, L->nx - 1 - i); dx++) {
+          const float       *B  = L->a + 9 * (LMG_S * ic + (dy + 2) * LMG_W + dx + 2);
+          const PetscScalar *xj = L->x + 3 * (ic + dy * L->nx + dx);
+          for (PetscInt r = 0; r < 3; r++) s[r] -= B[r] * xj[0] + B[r + 3] * xj[1] + B[r + 6] * xj[2];
+        }
+    }
+}
+
+/* C->b = R r (the transpose of the interpolation) from level F's vector r of (nx, ny) nodes */
+static void LMGRestrict(PetscInt nx, PetscInt ny, const PetscScalar *r, LMGLevel *C)
+{
+  for (PetscInt ic = 0; ic < 3 * C->n; ic++) C->b[ic] = 0;
+  for (PetscInt j = 0; j < ny; j++)
+    for (PetscInt i = 0; i < nx; i++) {
+      PetscInt           ci[4], cj[4], m;
+      PetscReal          w[4];
+      const PetscScalar *rk = r + 3 * (j * nx + i);
+      m                     = LMGSupport(nx, ny, i, j, ci, cj, w);
+      for (PetscInt p = 0; p < m; p++)
+        for (PetscInt s = 0; s < 3; s++) C->b[3 * (cj[p] * C->nx + ci[p]) + s] += w[p] * rk[s];
+    }
+}
+
+/* x += P C->x on a level of (nx, ny) nodes */
+static void LMGProlong(PetscInt nx, PetscInt ny, const LMGLevel *C, PetscScalar *x)
+{
+  for (PetscInt j = 0; j < ny; j++)
+    for (PetscInt i = 0; i < nx; i++) {
+      PetscInt  ci[4], cj[4], m;
+      PetscReal w[4];
+      m = LMGSupport(nx, ny, i, j, ci, cj, w);
+      for (PetscInt p = 0; p < m; p++)
+        for (PetscInt s = 0; s < 3; s++) x[3 * (j * nx + i) + s] += w[p] * C->x[3 * (cj[p] * C->nx + ci[p]) + s];
+    }
+}
+
+/* The cycle from coarse level l down: lev[l].x from lev[l].b */
+static void LMGCycle(PC_LatticeMG *mg, PetscInt l)
+{
+  LMGLevel *L = &mg->lev[l];
+
+  for (PetscInt ic = 0; ic < 3 * L->n; ic++) L->x[ic] = 0;
+  if (l == mg->nlevels - 1 && mg->dense) {
+    for (PetscInt ic = 0; ic < 3 * L->n; ic++) L->x[ic] = L->b[ic];
+    LMGSolveDense(3 * L->n, mg->dense, L->x);
+    return;
+  }
+  LMGSweep(L, PETSC_TRUE);
+  if (l < mg->nlevels - 1) {
+    LMGLevel *C = &mg->lev[l + 1];
+    LMGResidual(L);
+    LMGRestrict(L->nx, L->ny, L->r, C);
+    LMGCycle(mg, l + 1);
+    LMGProlong(L->nx, L->ny, C, L->x);
+  }
+  LMGSweep(L, PETSC_FALSE);
+}
+
+/* The finest level's smoother set up for the matrix A */
+static PetscErrorCode LMGFineSetUp(PC_LatticeMG *mg, Mat A)
+{
+  const PetscInt *ia, *ja;
+  PetscInt        n;
+  PetscBool       done;
+  MatScalar      *aa;
+
+  PetscFunctionBeginUser;
+  if (mg->smoother == LMG_SMOOTH_BLOCKICC) {
+    PetscInt levels;
+    PetscCall(PCSetUp(mg->fine));
+    PetscCall(PCBlockICCGetLevels(mg->fine, &levels));
+    if (mg->fill_auto && levels == 0) { /* a compensated IC(0) smooths poorly: IC(1), from now on */
+      PetscBool compensated;
+      PetscCall(PCBlockICCGetCompensated(mg->fine, &compensated));
+      if (compensated) {
+        PetscCall(PCBlockICCSetLevels(mg->fine, 1));
+        PetscCall((*mg->fine->ops->setup)(mg->fine));
+      }
+    }
+    PetscFunctionReturn(0);
+  }
+  if (!mg->dinv) PetscCall(PetscMalloc1(9 * mg->nrows, &mg->dinv));
+  PetscCall(MatGetRowIJ(A, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &done));
+  PetscCall(MatSeqSBAIJGetArray(A, &aa));
+  for (PetscInt k = 0; k < n; k++) {
+    PetscCheck(ia[k] < ia[k + 1] && ja[ia[k]] == k, PETSC_COMM_SELF, PETSC_ERR_ARG_WRONG, "-pc_type latticemg needs every diagonal block in the matrix's pattern, and block row %" PetscInt_FMT " has none", k);
+    LMGBlockInverse(aa + 9 * ia[k], 0, mg->dinv + 9 * k);
+  }
+  PetscCall(MatSeqSBAIJRestoreArray(A, &aa));
+  PetscCall(MatRestoreRowIJ(A, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &done));
+  PetscFunctionReturn(0);
+}
+
+/* x = M^-1 b (pre) or M^-T b (post): block IC, symmetric; or block Gauss-Seidel,
+ * M = D + L (a forward sweep from 0, in place: each row's update taken from the rows
+ * below it through the upper triangle's blocks, transposed) and M^T = D + U (a
+ * backward substitution through the upper triangle) */
+static PetscErrorCode LMGFineSmooth(PC pc, PC_LatticeMG *mg, PetscBool pre, Vec b, Vec x)
+{
+  const PetscInt    *ia, *ja;
+  PetscInt           n;
+  PetscBool          done;
+  MatScalar         *aa;
+  PetscScalar       *y;
+  const PetscScalar *bb;
+
+  PetscFunctionBeginUser;
+  if (mg->smoother == LMG_SMOOTH_BLOCKICC) {
+    PetscCall(PCApply(mg->fine, b, x));
+    PetscFunctionReturn(0);
+  }
+  PetscCall(MatGetRowIJ(pc->pmat, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &done));
+  PetscCall(MatSeqSBAIJGetArray(pc->pmat, &aa));
+  PetscCall(VecGetArrayRead(b, &bb));
+  PetscCall(VecGetArrayWrite(x, &y));
+  if (pre) {
+    PetscCall(PetscArraycpy(y, bb, 3 * n));
+    for (PetscInt k = 0; k < n; k++) {
+      const PetscScalar *d = mg->dinv + 9 * k, t[3] = {y[3 * k], y[3 * k + 1], y[3 * k + 2]};
+      PetscScalar        yk[3];
+      for (PetscInt r = 0; r < 3; r++) yk[r] = y[3 * k + r] = d[r] * t[0] + d[r + 3] * t[1] + d[r + 6] * t[2];
+      for (PetscInt p = ia[k] + 1; p < ia[k + 1]; p++) {
+        const MatScalar *B  = aa + 9 * p;
+        PetscScalar     *yj = y + 3 * ja[p];
+        for (PetscInt r = 0; r < 3; r++) yj[r] -= B[3 * r] * yk[0] + B[3 * r + 1] * yk[1] + B[3 * r + 2] * yk[2];
+      }
+    }
+  } else {
+    for (PetscInt k = n - 1; k >= 0; k--) {
+      const PetscScalar *d    = mg->dinv + 9 * k;
+      PetscScalar        t[3] = {bb[3 * k], bb[3 * k + 1], bb[3 * k + 2]};
+      for (PetscInt p = ia[k] + 1; p < ia[k + 1]; p++) {
+        const MatScalar   *B  = aa + 9 * p;
+        const PetscScalar *yj = y + 3 * ja[p];
+        for (PetscInt r = 0; r < 3; r++) t[r] -= B[r] * yj[0] + B[r + 3] * yj[1] + B[r + 6] * yj[2];
+      }
+      for (PetscInt r = 0; r < 3; r++) y[3 * k + r] = d[r] * t[0] + d[r + 3] * t[1] + d[r + 6] * t[2];
+    }
+  }
+  PetscCall(VecRestoreArrayWrite(x, &y));
+  PetscCall(VecRestoreArrayRead(b, &bb));
+  PetscCall(PetscLogFlops(18.0 * (ia[n] + n)));
+  PetscCall(MatSeqSBAIJRestoreArray(pc->pmat, &aa));
+  PetscCall(MatRestoreRowIJ(pc->pmat, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &done));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode PCApply_LatticeMG(PC pc, Vec b, Vec x)
+{
+  PC_LatticeMG      *mg = (PC_LatticeMG *) pc->data;
+  LMGLevel          *C  = &mg->lev[0];
+  const PetscScalar *w;
+  PetscScalar       *xx;
+  const PetscInt     Mx = mg->Mx;
+
+  PetscFunctionBeginUser;
+  PetscCall(LMGFineSmooth(pc, mg, PETSC_TRUE, b, x)); /* pre-smoothing from 0 */
+  PetscCall(MatMult(pc->pmat, x, mg->w));
+  PetscCall(VecAYPX(mg->w, -1.0, b));
+  PetscCall(VecGetArrayRead(mg->w, &w));
+  PetscCall(PetscArrayzero(C->b, 3 * C->n));
+  for (PetscInt k = 0; k < mg->nrows; k++) { /* restriction, filtered */
+    PetscInt    ci[4], cj[4], m;
+    PetscReal   wt[4];
+    PetscScalar rk[3] = {w[3 * k], w[3 * k + 1], w[3 * k + 2]};
+    if (mg->kind[k] == 2) continue;
+    LMGFilter(mg, k, rk);
+    m = LMGSupport(mg->Mx, mg->My, mg->node[k] % Mx, mg->node[k] / Mx, ci, cj, wt);
+    for (PetscInt p = 0; p < m; p++)
+      for (PetscInt s = 0; s < 3; s++) C->b[3 * (cj[p] * C->nx + ci[p]) + s] += wt[p] * rk[s];
+  }
+  PetscCall(VecRestoreArrayRead(mg->w, &w));
+  LMGCycle(mg, 0);
+  PetscCall(VecGetArray(x, &xx));
+  for (PetscInt k = 0; k < mg->nrows; k++) { /* interpolation, filtered */
+    PetscInt    ci[4], cj[4], m;
+    PetscReal   wt[4];
+    PetscScalar e[3] = {0, 0, 0};
+    if (mg->kind[k] == 2) continue;
+    m = LMGSupport(mg->Mx, mg->My, mg->node[k] % Mx, mg->node[k] / Mx, ci, cj, wt);
+    for (PetscInt p = 0; p < m; p++)
+      for (PetscInt s = 0; s < 3; s++) e[s] += wt[p] * C->x[3 * (cj[p] * C->nx + ci[p]) + s];
+    LMGFilter(mg, k, e);
+    for (PetscInt s = 0; s < 3; s++) xx[3 * k + s] += e[s];
+  }
+  PetscCall(VecRestoreArray(x, &xx));
+  PetscCall(MatMult(pc->pmat, x, mg->w)); /* post-smoothing */
+  PetscCall(VecAYPX(mg->w, -1.0, b));
+  PetscCall(LMGFineSmooth(pc, mg, PETSC_FALSE, mg->w, mg->y));
+  PetscCall(VecAXPY(x, 1.0, mg->y));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode PCSetUp_LatticeMG(PC pc)
+{
+  PC_LatticeMG *mg = (PC_LatticeMG *) pc->data;
+  PetscMPIInt   size;
+  PetscBool     sbaij;
+  PetscInt      bs;
+
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_size(PetscObjectComm((PetscObject) pc), &size));
+  PetscCheck(size == 1, PetscObjectComm((PetscObject) pc), PETSC_ERR_SUP, "-pc_type latticemg runs on one rank, and this run has %d: leave -pc_type out on several ranks (drape's additive Schwarz)", size);
+  PetscCheck(mg->node, PetscObjectComm((PetscObject) pc), PETSC_ERR_ARG_WRONGSTATE, "-pc_type latticemg needs the cloth's lattice (PCLatticeMGSetLattice): it is drapebe's preconditioner");
+  PetscCall(PetscObjectTypeCompare((PetscObject) pc->pmat, MATSEQSBAIJ, &sbaij));
+  PetscCall(MatGetBlockSize(pc->pmat, &bs));
+  PetscCheck(sbaij && bs == 3, PetscObjectComm((PetscObject) pc), PETSC_ERR_SUP, "-pc_type latticemg takes an SBAIJ matrix of block size 3, and this one is %s with block size %" PetscInt_FMT, ((PetscObject) pc->pmat)->type_name, bs);
+  if (!mg->lev) PetscCall(LMGCreateLevels(mg));
+  if (!mg->w) PetscCall(MatCreateVecs(pc->pmat, &mg->w, &mg->y));
+  PetscCall(PCSetOperators(mg->fine, pc->mat, pc->pmat)); /* drapebe makes a new matrix when self-contact's pairs leave its pattern */
+  PetscCall(LMGFineSetUp(mg, pc->pmat));
+  if (mg->setups++ % mg->coarse_lag == 0) {
+    PetscCall(LMGGalerkinFine(pc, mg, pc->pmat));
+    for (PetscInt l = 0; l < mg->nlevels - 1; l++) PetscCall(LMGGalerkinCoarse(mg, l));
+    for (PetscInt l = 0; l < mg->nlevels; l++) PetscCall(LMGSetUpSmoother(mg, l));
+  }
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode PCLatticeMGSetLattice_LatticeMG(PC pc, PetscInt Mx, PetscInt My, PetscInt n, const PetscInt node[], const PetscBool pinned[])
+{
+  PC_LatticeMG *mg = (PC_LatticeMG *) pc->data;
+
+  PetscFunctionBeginUser;
+  PetscCheck(Mx > 0 && My > 0 && n >= 0, PETSC_COMM_SELF, PETSC_ERR_ARG_OUTOFRANGE, "a lattice of %" PetscInt_FMT " x %" PetscInt_FMT " nodes and %" PetscInt_FMT " rows", Mx, My, n);
+  PetscCall(LMGFreeLevels(mg));
+  PetscCall(PetscFree4(mg->node, mg->pinned, mg->kind, mg->normal));
+  PetscCall(PetscMalloc4(n, &mg->node, n, &mg->pinned, n, &mg->kind, 3 * n, &mg->normal));
+  for (PetscInt k = 0; k < n; k++) {
+    PetscCheck(node[k] >= 0 && node[k] < Mx * My, PETSC_COMM_SELF, PETSC_ERR_ARG_OUTOFRANGE, "row %" PetscInt_FMT "'s node %" PetscInt_FMT " is outside the %" PetscInt_FMT " x %" PetscInt_FMT " lattice", k, node[k], Mx, My);
+    mg->node[k]   = node[k];
+    mg->pinned[k] = pinned ? pinned[k] : PETSC_FALSE;
+    mg->kind[k]   = mg->pinned[k] ? 2 : 0;
+  }
+  mg->Mx = Mx, mg->My = My, mg->nrows = n;
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode PCLatticeMGSetConstraints_LatticeMG(PC pc, const ClothConstraint type[], const PetscReal normal[])
+{
+  PC_LatticeMG *mg = (PC_LatticeMG *) pc->data;
+
+  PetscFunctionBeginUser;
+  for (PetscInt k = 0; k < mg->nrows; k++) {
+    const ClothConstraint t = type ? type[k] : CLOTH_FREE;
+    mg->kind[k]             = mg->pinned[k] || t == CLOTH_FIXED ? 2 : t == CLOTH_SLIDE ? 1 : 0;
+    if (mg->kind[k] == 1)
+      for (PetscInt s = 0; s < 3; s++) mg->normal[3 * k + s] = normal[3 * k + s];
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode PCLatticeMGSetLattice(PC pc, PetscInt Mx, PetscInt My, PetscInt n, const PetscInt node[], const PetscBool pinned[])
+{
+  PetscFunctionBeginUser;
+  PetscTryMethod(pc, "PCLatticeMGSetLattice_C", (PC, PetscInt, PetscInt, PetscInt, const PetscInt[], const PetscBool[]), (pc, Mx, My, n, node, pinned));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode PCLatticeMGSetConstraints(PC pc, const ClothConstraint type[], const PetscReal normal[])
+{
+  PetscFunctionBeginUser;
+  PetscTryMethod(pc, "PCLatticeMGSetConstraints_C", (PC, const ClothConstraint[], const PetscReal[]), (pc, type, normal));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode PCReset_LatticeMG(PC pc)
+{
+  PC_LatticeMG *mg = (PC_LatticeMG *) pc->data;
+
+  PetscFunctionBeginUser;
+  PetscCall(LMGFreeLevels(mg));
+  PetscCall(VecDestroy(&mg->w));
+  PetscCall(VecDestroy(&mg->y));
+  if (mg->fine) PetscCall(PCReset(mg->fine));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode PCDestroy_LatticeMG(PC pc)
+{
+  PC_LatticeMG *mg = (PC_LatticeMG *) pc->data;
+
+  PetscFunctionBeginUser;
+  PetscCall(PCReset_LatticeMG(pc));
+  PetscCall(PCDestroy(&mg->fine));
+  PetscCall(PetscFree4(mg->node, mg->pinned, mg->kind, mg->normal));
+  PetscCall(PetscFree(mg->dinv));
+  PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCLatticeMGSetLattice_C", NULL));
+  PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCLatticeMGSetConstraints_C", NULL));
+  PetscCall(PetscFree(pc->data));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode PCSetFromOptions_LatticeMG(PC pc, PetscOptionItems *PetscOptionsObject)
+{
+  PC_LatticeMG *mg = (PC_LatticeMG *) pc->data;
+
+  PetscFunctionBeginUser;
+  PetscOptionsHeadBegin(PetscOptionsObject, "Geometric multigrid on the cloth's lattice");
+  PetscCall(PetscOptionsInt("-pc_latticemg_levels", "The most levels, the finest included (0: down to -pc_latticemg_coarse_nodes)", "PCLATTICEMG", mg->max_levels, &mg->max_levels, NULL));
+  PetscCheck(mg->max_levels == 0 || mg->max_levels >= 2, PetscObjectComm((PetscObject) pc), PETSC_ERR_USER_INPUT, "-pc_latticemg_levels %" PetscInt_FMT " is not a multigrid: give 2 or more, or 0 (as many as the lattice has)", mg->max_levels);
+  PetscCall(PetscOptionsInt("-pc_latticemg_coarse_nodes", "The coarsest level is factored (dense) when it has at most this many nodes", "PCLATTICEMG", mg->coarse_nodes, &mg->coarse_nodes, NULL));
+  PetscCheck(mg->coarse_nodes >= 1 && mg->coarse_nodes <= 1000, PetscObjectComm((PetscObject) pc), PETSC_ERR_USER_INPUT, "-pc_latticemg_coarse_nodes %" PetscInt_FMT " is outside [1, 1000]: the coarsest level is a dense matrix of 3 rows a node",
+             mg->coarse_nodes);
+  PetscCall(PetscOptionsInt("-pc_latticemg_coarse_lag", "Make the coarse levels' operators again at every this many set-ups (the finest level's smoother at every one)", "PCLATTICEMG", mg->coarse_lag, &mg->coarse_lag, NULL));
+  PetscCheck(mg->coarse_lag >= 1, PetscObjectComm((PetscObject) pc), PETSC_ERR_USER_INPUT, "-pc_latticemg_coarse_lag %" PetscInt_FMT " is not a number of set-ups: give 1 or more", mg->coarse_lag);
+  PetscCall(PetscOptionsEnum("-pc_latticemg_smoother", "The finest level's smoother: sgs (block Gauss-Seidel, forward before the coarse correction and backward after) or blockicc (block IC, options -mg_fine_pc_blockicc_*)", "PCLATTICEMG",
+                             LMGSmoothers, (PetscEnum) mg->smoother, (PetscEnum *) &mg->smoother, NULL));
+  PetscOptionsHeadEnd();
+  PetscCall(PCSetFromOptions(mg->fine));
+  {
+    const char *prefix;
+    PetscBool   given;
+    PetscCall(PCGetOptionsPrefix(mg->fine, &prefix));
+    PetscCall(PetscOptionsHasName(NULL, prefix, "-pc_blockicc_levels", &given));
+    mg->fill_auto = (PetscBool) !given;
+  }
+  PetscCall(LMGFreeLevels(mg)); /* made again at the next set-up */
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode PCView_LatticeMG(PC pc, PetscViewer viewer)
+{
+  PC_LatticeMG *mg = (PC_LatticeMG *) pc->data;
+  PetscBool     ascii;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectTypeCompare((PetscObject) viewer, PETSCVIEWERASCII, &ascii));
+  if (ascii) {
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  geometric multigrid on the %" PetscInt_FMT " x %" PetscInt_FMT " lattice, V(1,1), %" PetscInt_FMT " levels:", mg->Mx, mg->My, mg->nlevels + 1));
+    for (PetscInt l = 0; l < mg->nlevels; l++) PetscCall(PetscViewerASCIIPrintf(viewer, " %" PetscInt_FMT " x %" PetscInt_FMT, mg->lev[l].nx, mg->lev[l].ny));
+    PetscCall(PetscViewerASCIIPrintf(viewer, " (coarsest: %s)\n", mg->dense ? "dense LDL^T" : "symmetric block Gauss-Seidel"));
+    if (mg->smoother == LMG_SMOOTH_SGS)
+      PetscCall(PetscViewerASCIIPrintf(viewer, "  finest level's smoother: block Gauss-Seidel, forward before, backward after\n"));
+    else {
+      PetscCall(PetscViewerASCIIPrintf(viewer, "  finest level's smoother:\n"));
+      PetscCall(PetscViewerASCIIPushTab(viewer));
+      PetscCall(PCView(mg->fine, viewer));
+      PetscCall(PetscViewerASCIIPopTab(viewer));
+    }
+  }
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode PCCreate_LatticeMG(PC pc)
+{
+  PC_LatticeMG *mg;
+  const char   *prefix;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscNew(&mg));
+  mg->coarse_nodes = 64;
+  mg->coarse_lag   = 4;
+  mg->smoother     = LMG_SMOOTH_BLOCKICC;
+  mg->fill_auto    = PETSC_TRUE;
+  PetscCall(PCCreate(PetscObjectComm((PetscObject) pc), &mg->fine));
+  PetscCall(PetscObjectIncrementTabLevel((PetscObject) mg->fine, (PetscObject) pc, 1));
+  PetscCall(PCGetOptionsPrefix(pc, &prefix));
+  PetscCall(PCSetOptionsPrefix(mg->fine, prefix));
+  PetscCall(PCAppendOptionsPrefix(mg->fine, "mg_fine_"));
+  PetscCall(PCBlockICCRegister());
+  PetscCall(PCSetType(mg->fine, PCBLOCKICC));
+  pc->data                     = mg;
+  pc->ops->setup               = PCSetUp_LatticeMG;
+  pc->ops->apply               = PCApply_LatticeMG;
+  pc->ops->applysymmetricleft  = NULL;
+  pc->ops->applysymmetricright = NULL;
+  pc->ops->reset               = PCReset_LatticeMG;
+  pc->ops->destroy             = PCDestroy_LatticeMG;
+  pc->ops->setfromoptions      = PCSetFromOptions_LatticeMG;
+  pc->ops->view                = PCView_LatticeMG;
+  PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCLatticeMGSetLattice_C", PCLatticeMGSetLattice_LatticeMG));
+  PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCLatticeMGSetConstraints_C", PCLatticeMGSetConstraints_LatticeMG));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode PCLatticeMGRegister(void)
+{
+  PetscFunctionBeginUser;
+  PetscCall(PCRegister(PCLATTICEMG, PCCreate_LatticeMG));
+  PetscFunctionReturn(0);
+}
