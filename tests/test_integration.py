@@ -232,16 +232,18 @@ def test_backward_euler_direct_solve_matches_cg(tmp):
 
 def test_backward_euler_survives_a_huge_step(tmp):
     """At h = 0.1 s on the paper's falling cloth (320 x the symplectic limit, (h
-    Omega_max)^2 = 4e5) drape chooses smoothed-aggregation multigrid for CG (block
-    Jacobi's incomplete factorisation loses definiteness there), and the run
-    completes with finite frames on the floor."""
-    out = tmp / "huge.h5"
-    res = run(f"-options_file runs/fall.opts -drape_rest_tol 0 -da_grid_x 56 -da_grid_y 56 -ts_max_time 0.5 "
-              f"-ts_type drapebe -ts_dt 0.1 -output_interval 0.1 -output_file {out}")
-    assert res.report["pc_type"] in ("ml", "gamg"), res.stdout
-    fr = drape_h5.load(out)
-    assert len(fr.time) == 6 and np.all(np.isfinite(fr.positions))
-    assert fr.positions[-1, ..., 2].min() >= 0  # on or above the floor
+    Omega_max)^2 = 4e5) drape chooses multigrid for CG (block Jacobi's incomplete
+    factorisation loses definiteness there): geometric multigrid on the lattice on
+    one rank, smoothed aggregation on two; the runs complete with finite frames on
+    the floor."""
+    for np_, pcs in ((1, ("latticemg",)), (2, ("ml", "gamg"))):
+        out = tmp / f"huge{np_}.h5"
+        res = run(f"-options_file runs/fall.opts -drape_rest_tol 0 -da_grid_x 56 -da_grid_y 56 -ts_max_time 0.5 "
+                  f"-ts_type drapebe -ts_dt 0.1 -output_interval 0.1 -output_file {out}", np_=np_)
+        assert res.report["pc_type"] in pcs, res.stdout
+        fr = drape_h5.load(out)
+        assert len(fr.time) == 6 and np.all(np.isfinite(fr.positions))
+        assert fr.positions[-1, ..., 2].min() >= 0  # on or above the floor
 
 
 def test_tsadapt_chooses_the_backward_euler_step(tmp):
@@ -298,9 +300,9 @@ def test_solver_options_win_over_drapebe_defaults(tmp):
     assert outer("-snes_type newtonls -snes_atol 1e-12", "-snes_view")[0] == "1e-12"
     assert run(base).report["mat_type"] == "seqsbaij"
     assert run(f"{base} -sub_pc_type lu").report["mat_type"] == "seqaij"
-    # ML from the start ((h Omega_max)^2 > 5e4): drape's threshold, unless given
+    # ML from the start on several ranks ((h Omega_max)^2 > 5e4): drape's threshold, unless given
     ml = "-options_file runs/hang.opts -da_grid_x 16 -da_grid_y 16 -ts_dt 0.2 -ts_max_time 1 -output_interval 1"
-    cg = {o: run(f"{ml} {o} -output_file {tmp / 'm.h5'}").report for o in ("", "-pc_ml_Threshold 0.02", "-pc_ml_Threshold 0")}
+    cg = {o: run(f"{ml} {o} -output_file {tmp / 'm.h5'}", np_=2).report for o in ("", "-pc_ml_Threshold 0.02", "-pc_ml_Threshold 0")}  # on one rank: multigrid on the lattice
     assert cg[""]["pc_type"] == "ml" and cg[""]["cg_per_step"] == cg["-pc_ml_Threshold 0.02"]["cg_per_step"] != cg["-pc_ml_Threshold 0"]["cg_per_step"], cg
     bad = run(f"{base} -pc_type drape", check=False)
     assert bad.returncode != 0 and "-pc_type drape is drapebe's default" in bad.stderr and "PETSC ERROR" not in bad.stdout + bad.stderr, bad.stderr
@@ -328,17 +330,17 @@ def test_block_icc_takes_its_fill_where_it_must_compensate(tmp):
     additive Schwarz); CG then takes at most 0.6 times the iterations of IC(0) kept
     (-pc_blockicc_levels 0 given: the options' fill is kept), and the cloth hangs the
     same to the solves' tolerance. Where IC(0) factors plainly (the hang at 48^2 and
-    1e-2 s), it stays."""
+    1e-2 s, multigrid on the lattice held off: -drape_mg_its 0), it stays."""
     base = "-cloth_fabric denim -cloth_size 0.075 -da_grid_x 41 -da_grid_y 41 -cloth_pin edge_corners -ts_type drapebe -ts_dt 1e-3 -ts_max_time 0.1 -output_interval 0.1"
     auto = run(f"{base} -output_file {tmp / 'a.h5'}")
-    kept = run(f"{base} -pc_blockicc_levels 0 -output_file {tmp / 'k.h5'}")
+    kept = run(f"{base} -pc_blockicc_levels 0 -drape_mg_its 0 -output_file {tmp / 'k.h5'}")
     assert auto.report["pc_fill_step"] == 0 and "block IC(1) from step 0" in auto.stdout, auto.stdout
     assert kept.report["pc_fill_step"] == -1 and "block IC(1)" not in kept.stdout
     assert auto.report["cg_per_step"] <= 0.6 * kept.report["cg_per_step"], (auto.report["cg_per_step"], kept.report["cg_per_step"])
     xa, xk = drape_h5.load(tmp / "a.h5").positions[-1], drape_h5.load(tmp / "k.h5").positions[-1]
     assert np.abs(xa - xk).max() < 1e-4, np.abs(xa - xk).max()
     assert run(base, np_=2).report["pc_fill_step"] == 0
-    plain = run("-da_grid_x 48 -da_grid_y 48 -cloth_pin edge_corners -ts_type drapebe -ts_dt 1e-2 -ts_max_steps 30").report
+    plain = run("-da_grid_x 48 -da_grid_y 48 -cloth_pin edge_corners -ts_type drapebe -ts_dt 1e-2 -ts_max_steps 30 -drape_mg_its 0").report
     assert plain["pc_fill_step"] == -1 and plain["pc_type"] == "blockicc", plain
     refused("-ts_type drapebe -pc_blockicc_levels 2", "-pc_blockicc_levels 2 is not a fill this preconditioner makes")
 

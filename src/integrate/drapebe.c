@@ -34,11 +34,13 @@
 #include <petsc/private/tsimpl.h>
 #include <petsc/private/kspimpl.h> /* KSP's norm type as the options left it (KSPGetNormType resolves the default) */
 #include <pcblockicc.h>
+#include <pclatticemg.h>
 #include <drapebe.h>
 #include <stability.h>
 #include <drape.h>
 
 static PetscErrorCode TSDrapeBEGetCloth(TS, Cloth *);
+static PetscErrorCode BEGetPC(TS, PC *);
 
 typedef struct {
   Cloth              cloth;
@@ -49,6 +51,7 @@ typedef struct {
   Vec                DV, R, W;   /* W: work vector of the CG start */
   Vec                nullvec[6]; /* near null space (BENearNullSpace) */
   Mat                J;
+  PC                 pc; /* the linear solve's preconditioner */
   PetscScalar       *xt, *vt, *at;
   const PetscScalar *x0, *v0;
   const PetscReal   *mass;
@@ -67,6 +70,10 @@ typedef struct {
   PetscBool pc_auto;     /* drape chose it (the PC's type was still PCDRAPE at TSSetUp): block IC(0) gives way to multigrid when it fails or is slow */
   PetscBool sub_factor;  /* -sub_pc_type lu, ilu or asm: block Jacobi's blocks need AIJ */
   PetscInt  pc_switched; /* the step at which it gave way (-1: never) */
+  PetscBool pc_mg;       /* it is geometric multigrid on the lattice (PCLATTICEMG) */
+  PetscReal its_mean;    /* CG iterations a solve, a moving mean (BEWatchIterations) */
+  PetscReal mg_its;      /* -drape_mg_its: past this mean block IC gives way to multigrid on the lattice (0: never) */
+  PetscInt  its_solves;  /* solves in it */
   PetscInt  fill_step;   /* the step at which block IC(0) took its level-1 fill (-1: never; BEUseFill) */
   PetscBool fill_auto;   /* the options did not give the fill (-pc_blockicc_levels, -sub_pc_blockicc_levels) */
   PetscInt  lits;        /* CG iterations of the last solve */
@@ -157,6 +164,7 @@ static PetscErrorCode BESetConstraints(TS_DrapeBE *be, PetscInt pc_changes)
   PetscCall(ContactSolveGetConstraints(be->contact, &type, &normal, &block));
   PetscCall(ClothSetConstraints(be->cloth, type, normal, block));
   if (be->self) PetscCall(SelfContactSolveSetConstraints(be->self, type, normal));
+  PetscCall(PCLatticeMGSetConstraints(be->pc, type, normal)); /* its interpolation's filter */
   /* a constraint that comes or goes changes its row of the matrix, and a factorisation
    * (ICC) of the old one is then a poor preconditioner: rebuilt (cheap); an algebraic
    * multigrid hierarchy, costly to build, copes with a few particles more or less in
@@ -188,6 +196,7 @@ static PetscErrorCode BESetConstraints(TS_DrapeBE *be, PetscInt pc_changes)
  * 161^2), and ICC(0) where it failed. */
 #define BE_AMG_STIFFNESS 5e4
 #define BE_ICC_MAX_ITS   300
+#define BE_MG_ITS        25
 
 static PetscErrorCode BESetMultigrid(PC pc)
 {
@@ -275,7 +284,10 @@ static PetscErrorCode BEChoosePreconditioner(TS ts, TS_DrapeBE *be, PC pc)
     be->omega = lim.omega;
   }
   PetscCallMPI(MPI_Comm_size(PetscObjectComm((PetscObject) ts), &size));
-  if (PetscSqr(ts->time_step * be->omega) > BE_AMG_STIFFNESS)
+  if (PetscSqr(ts->time_step * be->omega) > BE_AMG_STIFFNESS && size == 1) {
+    PetscCall(PCSetType(pc, PCLATTICEMG));
+    be->pc_mg = PETSC_TRUE;
+  } else if (PetscSqr(ts->time_step * be->omega) > BE_AMG_STIFFNESS)
     PetscCall(BESetMultigrid(pc));
   else if (size > 1 && be->pc_overlap > 0) { /* block IC(0) on overlapping blocks (BESubBlockICC) */
     PetscCall(PCSetType(pc, PCASM));
@@ -311,6 +323,7 @@ static PetscErrorCode BEUseMultigrid(TS ts, TS_DrapeBE *be)
   PetscCall(PCSetFromOptions(pc));
   PetscCall(KSPSetTolerances(ksp, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, be->max_its));
   be->pc_amg      = PETSC_TRUE;
+  be->pc_mg       = PETSC_FALSE;
   be->mattype     = MATAIJ;
   be->pc_stale    = PETSC_TRUE;
   be->pc_switched = ts->steps;
@@ -320,6 +333,61 @@ static PetscErrorCode BEUseMultigrid(TS ts, TS_DrapeBE *be)
   be->J = J;
   PetscCall(PetscPrintf(PetscObjectComm((PetscObject) ts), "note: at step %" PetscInt_FMT " (t = %g s) CG with block IC %s; the run goes on with algebraic multigrid (%s)\n", ts->steps, (double) ts->ptime,
                         be->lits >= BE_ICC_MAX_ITS ? "reached " PetscStringize(BE_ICC_MAX_ITS) " iterations" : "failed", ((PetscObject) pc)->type_name));
+  PetscFunctionReturn(0);
+}
+
+/* On one rank, block IC, chosen by drape, gives way to geometric multigrid on the
+ * lattice (PCLATTICEMG, include/pclatticemg.h) for the rest of the run: the same
+ * SBAIJ matrix, a new preconditioner at the next solve. Why, and when
+ * (BEWatchIterations, BEStep): a V-cycle costs about five CG iterations with block
+ * IC, and takes 4-5 iterations a step where IC's grow with the lattice and the step
+ * (the Cusick scene: 4.1 and 4.4 at 81^2 and 161^2 against 16.5 and 20.0; the hang
+ * at 48^2 and 1e-2 s: 5.2 against 66, half the CPU time). Not collective (one rank). */
+static PetscErrorCode BEUseLatticeMG(TS ts, TS_DrapeBE *be, const char *why)
+{
+  PC              pc;
+  ClothInfo       info;
+  const PetscInt *natural;
+
+  PetscFunctionBeginUser;
+  PetscCall(BEGetPC(ts, &pc));
+  PetscCall(PCReset(pc));
+  PetscCall(PCSetType(pc, PCLATTICEMG));
+  PetscCall(PCSetFromOptions(pc));
+  PetscCall(ClothGetInfo(be->cloth, &info));
+  PetscCall(ClothGetNatural(be->cloth, &natural));
+  PetscCall(PCLatticeMGSetLattice(pc, info.Mx, info.My, be->n / 3, natural, be->pinned));
+  if (be->contact) {
+    const ClothConstraint *type;
+    const PetscReal       *normal;
+    PetscCall(ContactSolveGetConstraints(be->contact, &type, &normal, NULL));
+    PetscCall(PCLatticeMGSetConstraints(pc, type, normal));
+  }
+  be->pc_mg       = PETSC_TRUE;
+  be->pc_stale    = PETSC_TRUE;
+  be->pc_switched = ts->steps;
+  PetscCall(PetscPrintf(PetscObjectComm((PetscObject) ts), "note: at step %" PetscInt_FMT " (t = %g s) CG with block IC %s; the run goes on with geometric multigrid on the lattice (%s)\n", ts->steps, (double) ts->ptime, why, PCLATTICEMG));
+  PetscFunctionReturn(0);
+}
+
+/* The moving mean of CG iterations a solve with drape's block IC on one rank; past
+ * -drape_mg_its (BE_MG_ITS; over at least 10 solves) block IC gives way to geometric multigrid
+ * (BEUseLatticeMG): where IC takes 16.5 a step (the Cusick scene at 81^2) multigrid
+ * was 10 % slower, at 20 (161^2) 8 % faster. Not collective (one rank). */
+static PetscErrorCode BEWatchIterations(TS ts, TS_DrapeBE *be)
+{
+  PetscMPIInt size;
+
+  PetscFunctionBeginUser;
+  if (!be->pc_auto || be->pc_amg || be->pc_mg) PetscFunctionReturn(0);
+  PetscCallMPI(MPI_Comm_size(PetscObjectComm((PetscObject) ts), &size));
+  if (size > 1) PetscFunctionReturn(0);
+  be->its_mean = be->its_solves ? 0.8 * be->its_mean + 0.2 * be->lits : be->lits;
+  if (++be->its_solves >= 10 && be->mg_its > 0 && be->its_mean > be->mg_its) {
+    char why[128];
+    PetscCall(PetscSNPrintf(why, sizeof why, "took %.1f iterations a solve", (double) be->its_mean));
+    PetscCall(BEUseLatticeMG(ts, be, why));
+  }
   PetscFunctionReturn(0);
 }
 
@@ -722,15 +790,21 @@ static PetscErrorCode BEStep(TS ts, TS_DrapeBE *be, PetscBool *ok)
         it--;
         continue;
       }
-      if (rebuild)
-        PetscCall(BEUseMultigrid(ts, be));
-      else
+      if (rebuild) {
+        PetscMPIInt size;
+        PetscCallMPI(MPI_Comm_size(PetscObjectComm((PetscObject) ts), &size));
+        if (size == 1 && !be->pc_mg)
+          PetscCall(BEUseLatticeMG(ts, be, be->lits >= BE_ICC_MAX_ITS ? "reached " PetscStringize(BE_ICC_MAX_ITS) " iterations" : "failed"));
+        else
+          PetscCall(BEUseMultigrid(ts, be));
+      } else
         be->pc_stale = PETSC_TRUE; /* first with a fresh factorisation */
       if (be->self) PetscCall(BESelfBlocks(ts, be));
       it--;
       continue;
     }
     if (!*ok) PetscFunctionReturn(0);
+    PetscCall(BEWatchIterations(ts, be));
     if (rebuild && be->pc_auto && !be->pc_amg && be->fill_auto && be->fill_step < 0) { /* IC(0) compensated: IC(1) from the next solve on */
       PetscBool compensated;
       PetscCall(BEICCCompensated(ts, &compensated));
@@ -897,7 +971,7 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
     }
     /* symmetric block storage (half the matrix: faster products and factorisation)
      * for the preconditioners that take it, AIJ for the others */
-    PetscCall(PetscObjectTypeCompareAny((PetscObject) pc, &sbaij, PCBJACOBI, PCICC, PCBLOCKICC, PCCHOLESKY, PCJACOBI, PCNONE, ""));
+    PetscCall(PetscObjectTypeCompareAny((PetscObject) pc, &sbaij, PCBJACOBI, PCICC, PCBLOCKICC, PCLATTICEMG, PCCHOLESKY, PCJACOBI, PCNONE, ""));
     if (!sbaij && be->pc_auto) PetscCall(PetscObjectTypeCompare((PetscObject) pc, PCASM, &sbaij)); /* drape's overlapping blocks: block IC(0) */
     if (sbaij && be->sub_factor) sbaij = PETSC_FALSE;                                              /* block Jacobi's blocks: not with an LU or ILU of their own */
     PetscCall(PetscObjectTypeCompareAny((PetscObject) pc, &be->pc_amg, PCGAMG, PCML, PCHYPRE, PCHMG, ""));
@@ -905,12 +979,19 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
     PetscCall(KSPGetTolerances(ksp, NULL, NULL, NULL, &be->max_its));
     if (be->pc_auto && !be->pc_amg) PetscCall(KSPSetTolerances(ksp, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, PetscMin(be->max_its, BE_ICC_MAX_ITS)));
     PetscCall(ClothCreateMatrix(be->cloth, be->mattype, &be->J));
+    be->pc = pc;
+    { /* the lattice, for geometric multigrid */
+      const PetscInt *natural;
+      PetscCall(ClothGetNatural(be->cloth, &natural));
+      PetscCall(PCLatticeMGSetLattice(pc, info.Mx, info.My, be->n / 3, natural, be->pinned));
+    }
     if (be->pc_auto && !be->pc_amg) { /* -drape_mat_type chose a storage block IC(0) does not factor: PETSc's block Jacobi/ILU(0) */
       PetscBool sym;
       PetscCall(PetscObjectTypeCompareAny((PetscObject) be->J, &sym, MATSEQSBAIJ, MATMPISBAIJ, ""));
       if (!sym) {
         PetscCall(PCSetModifySubMatrices(pc, NULL, NULL));
         PetscCall(PCSetType(pc, PCBJACOBI));
+        be->pc_mg = PETSC_FALSE;
       }
     }
     /* the preconditioner lags with the single linearisation and an iterative KSP; a
@@ -1169,6 +1250,9 @@ static PetscErrorCode TSSetFromOptions_DrapeBE(TS ts, PetscOptionItems *PetscOpt
   }
   PetscOptionsHeadEnd();
   PetscCall(DrapeCheckInt(PetscObjectComm((PetscObject) ts), "-drape_pc_lag", be->pc_lag, 1, 1000000));
+  PetscCall(
+    PetscOptionsReal("-drape_mg_its", "On one rank, drape's block IC gives way to geometric multigrid on the lattice once CG takes more than this many iterations a solve (a moving mean; 0: never)", "TSStep_DrapeBE", be->mg_its, &be->mg_its, NULL));
+  PetscCall(DrapeCheckReal(PetscObjectComm((PetscObject) ts), "-drape_mg_its", 1, &be->mg_its, 0, 1e6, "iterations"));
   PetscCall(DrapeCheckInt(PetscObjectComm((PetscObject) ts), "-drape_contact_its", be->contact_its, 1, 1000));
   PetscCall(DrapeCheckInt(PetscObjectComm((PetscObject) ts), "-drape_pc_overlap", be->pc_overlap, 0, 100));
   {
@@ -1225,6 +1309,7 @@ static PetscErrorCode TSCreate_DrapeBE(TS ts)
   ts->ops->setfromoptions = TSSetFromOptions_DrapeBE;
   ts->ops->evaluatewlte   = TSEvaluateWLTE_DrapeBE;
   be->pc_lag              = 5;
+  be->mg_its              = BE_MG_ITS;
   be->pc_overlap          = 2;
   be->pc_switched         = -1;
   be->fill_step           = -1;
@@ -1268,5 +1353,6 @@ PetscErrorCode DrapeTSRegister(void)
   PetscCall(PCRegister(PCDRAPE, PCCreate_Drape));
   PetscCall(DrapeTSAdaptRegister());
   PetscCall(PCBlockICCRegister());
+  PetscCall(PCLatticeMGRegister());
   PetscFunctionReturn(0);
 }
