@@ -7,11 +7,17 @@
  * blocks a node: the stretch, shear and bending couplings reach two nodes, and so do
  * their coarse products). Smoothing: block IC(0) on the finest level (PCBLOCKICC,
  * options prefix -mg_fine_), symmetric block Gauss-Seidel on the coarser ones, a
- * dense Cholesky factorisation on the coarsest (at most 64 nodes). A V(1,1) cycle,
- * symmetric, so CG takes it.
+ * dense LDL^T factorisation on the coarsest (at most 64 nodes). A V(1,1) cycle,
+ * symmetric, so CG takes it; positive definite where 2 M - A is, M the finest
+ * level's smoother. Where it is not (block IC(0) of a stiff step can miss A by more
+ * than a factor 2 in some direction: CG stops with an indefinite preconditioner),
+ * the hybrid cycle M^-1 + (I - M^-1 A) Q (I - A M^-1), Q the coarse correction, is
+ * positive definite for any positive definite M, at the same cost and somewhat
+ * more iterations (PCLatticeMGSetHybrid; drapebe takes it at such a failure).
  *
  * Options: -pc_latticemg_levels (the most levels; 0, the default: down to the
- * coarsest), -pc_latticemg_coarse_nodes (64). */
+ * coarsest), -pc_latticemg_coarse_nodes (64), -pc_latticemg_coarse_lag (4),
+ * -pc_latticemg_smoother (blockicc or sgs), -pc_latticemg_hybrid. */
 #pragma once
 
 #include <petscpc.h>
@@ -30,3 +36,9 @@ PETSC_EXTERN PetscErrorCode PCLatticeMGSetLattice(PC, PetscInt Mx, PetscInt My, 
  * filters the interpolation with them. On a PC of another type, nothing. Not
  * collective. */
 PETSC_EXTERN PetscErrorCode PCLatticeMGSetConstraints(PC, const ClothConstraint type[], const PetscReal normal[]);
+/* The hybrid cycle instead of V(1,1) (or back); on a PC of another type, nothing.
+ * Not collective. */
+PETSC_EXTERN PetscErrorCode PCLatticeMGSetHybrid(PC, PetscBool);
+/* Whether it takes the hybrid cycle (PETSC_FALSE on a PC of another type). Not
+ * collective. */
+PETSC_EXTERN PetscErrorCode PCLatticeMGGetHybrid(PC, PetscBool *);

@@ -313,11 +313,13 @@ static PetscErrorCode BEUseMultigrid(TS ts, TS_DrapeBE *be)
   KSP  ksp;
   PC   pc;
   Mat  J;
+  char was[64];
 
   PetscFunctionBeginUser;
   PetscCall(TSGetSNES(ts, &snes));
   PetscCall(SNESGetKSP(snes, &ksp));
   PetscCall(KSPGetPC(ksp, &pc));
+  PetscCall(PetscStrncpy(was, ((PetscObject) pc)->type_name, sizeof was));
   PetscCall(PCReset(pc));
   PetscCall(BESetMultigrid(pc));
   PetscCall(PCSetFromOptions(pc));
@@ -331,8 +333,8 @@ static PetscErrorCode BEUseMultigrid(TS ts, TS_DrapeBE *be)
   PetscCall(SNESSetJacobian(snes, J, J, BEJacobian, be));
   PetscCall(MatDestroy(&be->J));
   be->J = J;
-  PetscCall(PetscPrintf(PetscObjectComm((PetscObject) ts), "note: at step %" PetscInt_FMT " (t = %g s) CG with block IC %s; the run goes on with algebraic multigrid (%s)\n", ts->steps, (double) ts->ptime,
-                        be->lits >= BE_ICC_MAX_ITS ? "reached " PetscStringize(BE_ICC_MAX_ITS) " iterations" : "failed", ((PetscObject) pc)->type_name));
+  PetscCall(PetscPrintf(PetscObjectComm((PetscObject) ts), "note: at step %" PetscInt_FMT " (t = %g s) CG with %s %s; the run goes on with algebraic multigrid (%s)\n", ts->steps, (double) ts->ptime,
+                        strcmp(was, PCLATTICEMG) ? "block IC" : "the lattice multigrid", be->lits >= BE_ICC_MAX_ITS ? "reached " PetscStringize(BE_ICC_MAX_ITS) " iterations" : "failed", ((PetscObject) pc)->type_name));
   PetscFunctionReturn(0);
 }
 
@@ -783,7 +785,19 @@ static PetscErrorCode BEStep(TS ts, TS_DrapeBE *be, PetscBool *ok)
       if (be->contact) PetscCall(ContactSolveSetPreconditioned(be->contact));
     }
     PetscCall(BESolve(ts, be, ok));
-    if (be->pc_auto && !be->pc_amg && (!*ok || be->lits >= BE_ICC_MAX_ITS)) { /* ICC(0) failed or was slow */
+    if (!*ok) { /* the lattice multigrid's V-cycle indefinite: its hybrid cycle is not (PCLatticeMGSetHybrid), the same solve again */
+      PetscBool mg, hybrid;
+      PetscCall(PetscObjectTypeCompare((PetscObject) be->pc, PCLATTICEMG, &mg));
+      PetscCall(PCLatticeMGGetHybrid(be->pc, &hybrid));
+      if (mg && !hybrid) {
+        PetscCall(PCLatticeMGSetHybrid(be->pc, PETSC_TRUE));
+        PetscCall(PetscPrintf(PetscObjectComm((PetscObject) ts), "note: at step %" PetscInt_FMT " (t = %g s) CG with the lattice multigrid's V-cycle failed (%s); the run goes on with its hybrid cycle, positive definite (-pc_latticemg_hybrid)\n",
+                              ts->steps, (double) ts->ptime, be->failure));
+        it--;
+        continue;
+      }
+    }
+    if (be->pc_auto && !be->pc_amg && (!*ok || be->lits >= BE_ICC_MAX_ITS)) { /* block IC (or the lattice multigrid) failed or was slow */
       PetscBool restricted;
       PetscCall(BERestrictedSchwarz(ts, &restricted));
       if (restricted) { /* first its symmetric form (BERestrictedSchwarz), the same blocks */

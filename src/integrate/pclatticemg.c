@@ -71,6 +71,7 @@ typedef struct {
   PetscInt       coarse_lag; /* the coarse levels are made again at every coarse_lag-th set-up */
   PetscInt       setups;     /* set-ups since the coarse levels were made                 */
   PetscBool      fill_auto;  /* block IC smoother: IC(1) once IC(0) had to compensate     */
+  PetscBool      hybrid;     /* M^-1 + (I - M^-1 A) Q (I - A M^-1) instead of the V(1,1) cycle: SPD for any SPD smoother */
 } PC_LatticeMG;
 
 static inline PetscInt LMGCoarseSize(PetscInt n) { return n <= 3 ? n : n / 2 + 1; }
@@ -513,21 +514,19 @@ static PetscErrorCode LMGFineSmooth(PC pc, PC_LatticeMG *mg, PetscBool pre, Vec 
   PetscFunctionReturn(0);
 }
 
-static PetscErrorCode PCApply_LatticeMG(PC pc, Vec b, Vec x)
+/* x += sign P B_c P^T r: the coarse levels' cycle (B_c) on the restricted r, the
+ * interpolation and restriction filtered by the rows' constraints */
+static PetscErrorCode LMGCoarseCorrect(PC_LatticeMG *mg, Vec r, PetscReal sign, Vec x)
 {
-  PC_LatticeMG      *mg = (PC_LatticeMG *) pc->data;
   LMGLevel          *C  = &mg->lev[0];
+  const PetscInt     Mx = mg->Mx;
   const PetscScalar *w;
   PetscScalar       *xx;
-  const PetscInt     Mx = mg->Mx;
 
   PetscFunctionBeginUser;
-  PetscCall(LMGFineSmooth(pc, mg, PETSC_TRUE, b, x)); /* pre-smoothing from 0 */
-  PetscCall(MatMult(pc->pmat, x, mg->w));
-  PetscCall(VecAYPX(mg->w, -1.0, b));
-  PetscCall(VecGetArrayRead(mg->w, &w));
+  PetscCall(VecGetArrayRead(r, &w));
   PetscCall(PetscArrayzero(C->b, 3 * C->n));
-  for (PetscInt k = 0; k < mg->nrows; k++) { /* restriction, filtered */
+  for (PetscInt k = 0; k < mg->nrows; k++) {
     PetscInt    ci[4], cj[4], m;
     PetscReal   wt[4];
     PetscScalar rk[3] = {w[3 * k], w[3 * k + 1], w[3 * k + 2]};
@@ -537,10 +536,10 @@ static PetscErrorCode PCApply_LatticeMG(PC pc, Vec b, Vec x)
     for (PetscInt p = 0; p < m; p++)
       for (PetscInt s = 0; s < 3; s++) C->b[3 * (cj[p] * C->nx + ci[p]) + s] += wt[p] * rk[s];
   }
-  PetscCall(VecRestoreArrayRead(mg->w, &w));
+  PetscCall(VecRestoreArrayRead(r, &w));
   LMGCycle(mg, 0);
   PetscCall(VecGetArray(x, &xx));
-  for (PetscInt k = 0; k < mg->nrows; k++) { /* interpolation, filtered */
+  for (PetscInt k = 0; k < mg->nrows; k++) {
     PetscInt    ci[4], cj[4], m;
     PetscReal   wt[4];
     PetscScalar e[3] = {0, 0, 0};
@@ -549,9 +548,33 @@ static PetscErrorCode PCApply_LatticeMG(PC pc, Vec b, Vec x)
     for (PetscInt p = 0; p < m; p++)
       for (PetscInt s = 0; s < 3; s++) e[s] += wt[p] * C->x[3 * (cj[p] * C->nx + ci[p]) + s];
     LMGFilter(mg, k, e);
-    for (PetscInt s = 0; s < 3; s++) xx[3 * k + s] += e[s];
+    for (PetscInt s = 0; s < 3; s++) xx[3 * k + s] += sign * e[s];
   }
   PetscCall(VecRestoreArray(x, &xx));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode PCApply_LatticeMG(PC pc, Vec b, Vec x)
+{
+  PC_LatticeMG *mg = (PC_LatticeMG *) pc->data;
+
+  PetscFunctionBeginUser;
+  if (mg->hybrid) { /* x = M^-1 b + (I - M^-1 A) Q (I - A M^-1) b, Q = P B_c P^T: SPD for any SPD M */
+    PetscCall(LMGFineSmooth(pc, mg, PETSC_TRUE, b, x));
+    PetscCall(MatMult(pc->pmat, x, mg->w));
+    PetscCall(VecAYPX(mg->w, -1.0, b));
+    PetscCall(VecZeroEntries(mg->y));
+    PetscCall(LMGCoarseCorrect(mg, mg->w, 1.0, mg->y)); /* e = Q w */
+    PetscCall(VecAXPY(x, 1.0, mg->y));
+    PetscCall(MatMult(pc->pmat, mg->y, mg->w)); /* A e */
+    PetscCall(LMGFineSmooth(pc, mg, PETSC_FALSE, mg->w, mg->y));
+    PetscCall(VecAXPY(x, -1.0, mg->y));
+    PetscFunctionReturn(0);
+  }
+  PetscCall(LMGFineSmooth(pc, mg, PETSC_TRUE, b, x)); /* pre-smoothing from 0 */
+  PetscCall(MatMult(pc->pmat, x, mg->w));
+  PetscCall(VecAYPX(mg->w, -1.0, b));
+  PetscCall(LMGCoarseCorrect(mg, mg->w, 1.0, x));
   PetscCall(MatMult(pc->pmat, x, mg->w)); /* post-smoothing */
   PetscCall(VecAYPX(mg->w, -1.0, b));
   PetscCall(LMGFineSmooth(pc, mg, PETSC_FALSE, mg->w, mg->y));
@@ -618,6 +641,35 @@ static PetscErrorCode PCLatticeMGSetConstraints_LatticeMG(PC pc, const ClothCons
   PetscFunctionReturn(0);
 }
 
+static PetscErrorCode PCLatticeMGSetHybrid_LatticeMG(PC pc, PetscBool hybrid)
+{
+  PetscFunctionBeginUser;
+  ((PC_LatticeMG *) pc->data)->hybrid = hybrid;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode PCLatticeMGSetHybrid(PC pc, PetscBool hybrid)
+{
+  PetscFunctionBeginUser;
+  PetscTryMethod(pc, "PCLatticeMGSetHybrid_C", (PC, PetscBool), (pc, hybrid));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode PCLatticeMGGetHybrid_LatticeMG(PC pc, PetscBool *hybrid)
+{
+  PetscFunctionBeginUser;
+  *hybrid = ((PC_LatticeMG *) pc->data)->hybrid;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode PCLatticeMGGetHybrid(PC pc, PetscBool *hybrid)
+{
+  PetscFunctionBeginUser;
+  *hybrid = PETSC_FALSE;
+  PetscTryMethod(pc, "PCLatticeMGGetHybrid_C", (PC, PetscBool *), (pc, hybrid));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode PCLatticeMGSetLattice(PC pc, PetscInt Mx, PetscInt My, PetscInt n, const PetscInt node[], const PetscBool pinned[])
 {
   PetscFunctionBeginUser;
@@ -655,6 +707,8 @@ static PetscErrorCode PCDestroy_LatticeMG(PC pc)
   PetscCall(PetscFree(mg->dinv));
   PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCLatticeMGSetLattice_C", NULL));
   PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCLatticeMGSetConstraints_C", NULL));
+  PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCLatticeMGSetHybrid_C", NULL));
+  PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCLatticeMGGetHybrid_C", NULL));
   PetscCall(PetscFree(pc->data));
   PetscFunctionReturn(0);
 }
@@ -672,6 +726,8 @@ static PetscErrorCode PCSetFromOptions_LatticeMG(PC pc, PetscOptionItems *PetscO
              mg->coarse_nodes);
   PetscCall(PetscOptionsInt("-pc_latticemg_coarse_lag", "Make the coarse levels' operators again at every this many set-ups (the finest level's smoother at every one)", "PCLATTICEMG", mg->coarse_lag, &mg->coarse_lag, NULL));
   PetscCheck(mg->coarse_lag >= 1, PetscObjectComm((PetscObject) pc), PETSC_ERR_USER_INPUT, "-pc_latticemg_coarse_lag %" PetscInt_FMT " is not a number of set-ups: give 1 or more", mg->coarse_lag);
+  PetscCall(PetscOptionsBool("-pc_latticemg_hybrid", "The finest level's smoother once, before the coarse correction and its own correction after (positive definite for any positive definite smoother) instead of the V(1,1) cycle", "PCLATTICEMG",
+                             mg->hybrid, &mg->hybrid, NULL));
   PetscCall(PetscOptionsEnum("-pc_latticemg_smoother", "The finest level's smoother: sgs (block Gauss-Seidel, forward before the coarse correction and backward after) or blockicc (block IC, options -mg_fine_pc_blockicc_*)", "PCLATTICEMG",
                              LMGSmoothers, (PetscEnum) mg->smoother, (PetscEnum *) &mg->smoother, NULL));
   PetscOptionsHeadEnd();
@@ -695,7 +751,8 @@ static PetscErrorCode PCView_LatticeMG(PC pc, PetscViewer viewer)
   PetscFunctionBeginUser;
   PetscCall(PetscObjectTypeCompare((PetscObject) viewer, PETSCVIEWERASCII, &ascii));
   if (ascii) {
-    PetscCall(PetscViewerASCIIPrintf(viewer, "  geometric multigrid on the %" PetscInt_FMT " x %" PetscInt_FMT " lattice, V(1,1), %" PetscInt_FMT " levels:", mg->Mx, mg->My, mg->nlevels + 1));
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  geometric multigrid on the %" PetscInt_FMT " x %" PetscInt_FMT " lattice, %s, %" PetscInt_FMT " levels:", mg->Mx, mg->My,
+                                     mg->hybrid ? "hybrid (smoother once, coarse correction, its correction)" : "V(1,1)", mg->nlevels + 1));
     for (PetscInt l = 0; l < mg->nlevels; l++) PetscCall(PetscViewerASCIIPrintf(viewer, " %" PetscInt_FMT " x %" PetscInt_FMT, mg->lev[l].nx, mg->lev[l].ny));
     PetscCall(PetscViewerASCIIPrintf(viewer, " (coarsest: %s)\n", mg->dense ? "dense LDL^T" : "symmetric block Gauss-Seidel"));
     if (mg->smoother == LMG_SMOOTH_SGS)
@@ -739,6 +796,8 @@ static PetscErrorCode PCCreate_LatticeMG(PC pc)
   pc->ops->view                = PCView_LatticeMG;
   PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCLatticeMGSetLattice_C", PCLatticeMGSetLattice_LatticeMG));
   PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCLatticeMGSetConstraints_C", PCLatticeMGSetConstraints_LatticeMG));
+  PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCLatticeMGSetHybrid_C", PCLatticeMGSetHybrid_LatticeMG));
+  PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCLatticeMGGetHybrid_C", PCLatticeMGGetHybrid_LatticeMG));
   PetscFunctionReturn(0);
 }
 
