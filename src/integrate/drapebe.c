@@ -193,7 +193,12 @@ static PetscErrorCode BESetConstraints(TS_DrapeBE *be, PetscInt pc_changes)
  * a step still took 20.8 CPU s against ML's 30.1 at 23.8 iterations).
  * A fixed rule on (h Omega)^2 alone (2e3 until 2026-11-25) chose ML where ICC(0)
  * was 1.4-3 x faster (the hang at 128^2 up to 3.2e4; the Cusick scene at 121^2 and
- * 161^2), and ICC(0) where it failed. */
+ * 161^2), and ICC(0) where it failed.
+ * On one rank the multigrid is the lattice's own (PCLATTICEMG, BEUseLatticeMG):
+ * from the start above BE_AMG_STIFFNESS (the hang at 241^2 and 1e-2 s: 19 CPU s and
+ * 244 MB against ML's 95 s and 601 MB), after a failed or slow solve, and once block
+ * IC takes more than -drape_mg_its (BE_MG_ITS) iterations a solve (BEWatchIterations);
+ * ML where the lattice multigrid fails too. */
 #define BE_AMG_STIFFNESS 5e4
 #define BE_ICC_MAX_ITS   300
 #define BE_MG_ITS        25
