@@ -201,7 +201,7 @@ static PetscErrorCode BESetConstraints(TS_DrapeBE *be, PetscInt pc_changes)
  * ML where the lattice multigrid fails too. */
 #define BE_AMG_STIFFNESS 5e4
 #define BE_ICC_MAX_ITS   300
-#define BE_MG_ITS        25
+#define BE_MG_ITS        40
 
 static PetscErrorCode BESetMultigrid(PC pc)
 {
@@ -380,7 +380,9 @@ static PetscErrorCode BEUseLatticeMG(TS ts, TS_DrapeBE *be, const char *why)
 /* The moving mean of CG iterations a solve with drape's block IC on one rank; past
  * -drape_mg_its (BE_MG_ITS; over at least 10 solves) block IC gives way to geometric multigrid
  * (BEUseLatticeMG): where IC takes 16.5 a step (the Cusick scene at 81^2) multigrid
- * was 10 % slower, at 20 (161^2) 8 % faster. Not collective (one rank). */
+ * was 10 % slower, at 20 (161^2) 8 % faster, at 26 (the Cusick scene at 61^2, from
+ * step 54) 9 % slower, at 66 (the hang at 48^2 and 1e-2 s) twice as fast: 40. Not
+ * collective (one rank). */
 static PetscErrorCode BEWatchIterations(TS ts, TS_DrapeBE *be)
 {
   PetscMPIInt size;
