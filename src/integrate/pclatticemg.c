@@ -2,7 +2,8 @@
  *
  * Why: block IC(0) and IC(1) take CG iterations that grow with the lattice (the
  * Cusick scene: 14.5, 22.7 and 47.7 a step at 81^2, 161^2 and 241^2; BENCHMARKS.md),
- * and drape's AMG (ML) holds 12.8 kB a particle. The lattice is a grid: its coarse
+ * and drape's AMG (ML) holds 12.8 kB a particle. With this: 4.1, 4.4 and 9.2 at
+ * 81^2, 161^2 and 321^2, 3.2 kB a particle. The lattice is a grid: its coarse
  * levels need no aggregation, and their interpolation no storage.
  *
  * Levels. Level 0 is the matrix (one block row per particle, its lattice node
@@ -20,9 +21,17 @@
  * pair across a fold) keeps its diagonal parts and drops its coarse cross terms,
  * which leaves the coarse operator positive semi-definite.
  *
- * The cycle: V(1,1), symmetric. Finest level: block IC(0) (an inner PCBLOCKICC of
- * the same matrix) before and after the coarse correction, with a product with A
- * for each residual. Coarser levels: block Gauss-Seidel forward before, backward
+ * The cycle: V(1,1), symmetric. Finest level: block IC (an inner PCBLOCKICC of the
+ * same matrix, options prefix -mg_fine_; IC(1) from its first factorisation that
+ * compensated, a poor smoother otherwise) before and after the coarse correction,
+ * with a product with A for each residual; or block Gauss-Seidel (-pc_latticemg_
+ * smoother sgs), forward before and backward after. V(1,1) is positive definite
+ * where 2 M - A is (M the finest smoother); the hybrid cycle (-pc_latticemg_hybrid)
+ * M^-1 + (I - M^-1 A) Q (I - A M^-1) for any positive definite M, with the same
+ * products and solves (BENCHMARKS.md: the Cusick scene at 81^2 and 4 ms steps, where
+ * block IC(0) misses A by more than 2). The coarse levels' operators are made again
+ * at every -pc_latticemg_coarse_lag-th set-up, stored in single precision (the
+ * sweeps stream half the bytes; the same CG iterations). Coarser levels: block Gauss-Seidel forward before, backward
  * after, each diagonal block inverted by an LDL^T that drops a pivot below 1e-10 of
  * its diagonal entry or 1e-9 of the level's largest (a direction every fine row's
  * filter removed: a generalised inverse, exact on the residuals, which have no
