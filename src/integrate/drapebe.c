@@ -40,7 +40,6 @@
 #include <drape.h>
 
 static PetscErrorCode TSDrapeBEGetCloth(TS, Cloth *);
-static PetscErrorCode BEGetPC(TS, PC *);
 
 typedef struct {
   Cloth              cloth;
@@ -70,7 +69,6 @@ typedef struct {
   PetscBool pc_auto;     /* drape chose it (the PC's type was still PCDRAPE at TSSetUp): block IC(0) gives way to multigrid when it fails or is slow */
   PetscBool sub_factor;  /* -sub_pc_type lu, ilu or asm: block Jacobi's blocks need AIJ */
   PetscInt  pc_switched; /* the step at which it gave way (-1: never) */
-  PetscBool pc_mg;       /* it is geometric multigrid on the lattice (PCLATTICEMG) */
   PetscReal its_mean;    /* CG iterations a solve, a moving mean (BEWatchIterations) */
   PetscReal mg_its;      /* -drape_mg_its: past this mean block IC gives way to multigrid on the lattice (0: never) */
   PetscInt  its_solves;  /* solves in it */
@@ -289,10 +287,9 @@ static PetscErrorCode BEChoosePreconditioner(TS ts, TS_DrapeBE *be, PC pc)
     be->omega = lim.omega;
   }
   PetscCallMPI(MPI_Comm_size(PetscObjectComm((PetscObject) ts), &size));
-  if (PetscSqr(ts->time_step * be->omega) > BE_AMG_STIFFNESS && size == 1) {
+  if (PetscSqr(ts->time_step * be->omega) > BE_AMG_STIFFNESS && size == 1)
     PetscCall(PCSetType(pc, PCLATTICEMG));
-    be->pc_mg = PETSC_TRUE;
-  } else if (PetscSqr(ts->time_step * be->omega) > BE_AMG_STIFFNESS)
+  else if (PetscSqr(ts->time_step * be->omega) > BE_AMG_STIFFNESS)
     PetscCall(BESetMultigrid(pc));
   else if (size > 1 && be->pc_overlap > 0) { /* block IC(0) on overlapping blocks (BESubBlockICC) */
     PetscCall(PCSetType(pc, PCASM));
@@ -330,7 +327,6 @@ static PetscErrorCode BEUseMultigrid(TS ts, TS_DrapeBE *be)
   PetscCall(PCSetFromOptions(pc));
   PetscCall(KSPSetTolerances(ksp, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, be->max_its));
   be->pc_amg      = PETSC_TRUE;
-  be->pc_mg       = PETSC_FALSE;
   be->mattype     = MATAIJ;
   be->pc_stale    = PETSC_TRUE;
   be->pc_switched = ts->steps;
@@ -343,6 +339,20 @@ static PetscErrorCode BEUseMultigrid(TS ts, TS_DrapeBE *be)
   PetscFunctionReturn(0);
 }
 
+/* The lattice (and which rows are pinned) to a lattice multigrid PC; nothing for
+ * another type. Not collective. */
+static PetscErrorCode BELatticeMGSetLattice(TS_DrapeBE *be, PC pc)
+{
+  ClothInfo       info;
+  const PetscInt *natural;
+
+  PetscFunctionBeginUser;
+  PetscCall(ClothGetInfo(be->cloth, &info));
+  PetscCall(ClothGetNatural(be->cloth, &natural));
+  PetscCall(PCLatticeMGSetLattice(pc, info.Mx, info.My, be->n / 3, natural, be->pinned));
+  PetscFunctionReturn(0);
+}
+
 /* On one rank, block IC, chosen by drape, gives way to geometric multigrid on the
  * lattice (PCLATTICEMG, include/pclatticemg.h) for the rest of the run: the same
  * SBAIJ matrix, a new preconditioner at the next solve. Why, and when
@@ -352,25 +362,19 @@ static PetscErrorCode BEUseMultigrid(TS ts, TS_DrapeBE *be)
  * at 48^2 and 1e-2 s: 5.2 against 66, half the CPU time). Not collective (one rank). */
 static PetscErrorCode BEUseLatticeMG(TS ts, TS_DrapeBE *be, const char *why)
 {
-  PC              pc;
-  ClothInfo       info;
-  const PetscInt *natural;
+  PC pc = be->pc;
 
   PetscFunctionBeginUser;
-  PetscCall(BEGetPC(ts, &pc));
   PetscCall(PCReset(pc));
   PetscCall(PCSetType(pc, PCLATTICEMG));
   PetscCall(PCSetFromOptions(pc));
-  PetscCall(ClothGetInfo(be->cloth, &info));
-  PetscCall(ClothGetNatural(be->cloth, &natural));
-  PetscCall(PCLatticeMGSetLattice(pc, info.Mx, info.My, be->n / 3, natural, be->pinned));
+  PetscCall(BELatticeMGSetLattice(be, pc));
   if (be->contact) {
     const ClothConstraint *type;
     const PetscReal       *normal;
     PetscCall(ContactSolveGetConstraints(be->contact, &type, &normal, NULL));
     PetscCall(PCLatticeMGSetConstraints(pc, type, normal));
   }
-  be->pc_mg       = PETSC_TRUE;
   be->pc_stale    = PETSC_TRUE;
   be->pc_switched = ts->steps;
   PetscCall(PetscPrintf(PetscObjectComm((PetscObject) ts), "note: at step %" PetscInt_FMT " (t = %g s) CG with block IC %s; the run goes on with geometric multigrid on the lattice (%s)\n", ts->steps, (double) ts->ptime, why, PCLATTICEMG));
@@ -386,9 +390,11 @@ static PetscErrorCode BEUseLatticeMG(TS ts, TS_DrapeBE *be, const char *why)
 static PetscErrorCode BEWatchIterations(TS ts, TS_DrapeBE *be)
 {
   PetscMPIInt size;
+  PetscBool   mg;
 
   PetscFunctionBeginUser;
-  if (!be->pc_auto || be->pc_amg || be->pc_mg) PetscFunctionReturn(0);
+  PetscCall(PetscObjectTypeCompare((PetscObject) be->pc, PCLATTICEMG, &mg));
+  if (!be->pc_auto || be->pc_amg || mg) PetscFunctionReturn(0);
   PetscCallMPI(MPI_Comm_size(PetscObjectComm((PetscObject) ts), &size));
   if (size > 1) PetscFunctionReturn(0);
   be->its_mean = be->its_solves ? 0.8 * be->its_mean + 0.2 * be->lits : be->lits;
@@ -813,8 +819,10 @@ static PetscErrorCode BEStep(TS ts, TS_DrapeBE *be, PetscBool *ok)
       }
       if (rebuild) {
         PetscMPIInt size;
+        PetscBool   mg;
         PetscCallMPI(MPI_Comm_size(PetscObjectComm((PetscObject) ts), &size));
-        if (size == 1 && !be->pc_mg)
+        PetscCall(PetscObjectTypeCompare((PetscObject) be->pc, PCLATTICEMG, &mg));
+        if (size == 1 && !mg)
           PetscCall(BEUseLatticeMG(ts, be, be->lits >= BE_ICC_MAX_ITS ? "reached " PetscStringize(BE_ICC_MAX_ITS) " iterations" : "failed"));
         else
           PetscCall(BEUseMultigrid(ts, be));
@@ -1001,18 +1009,13 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
     if (be->pc_auto && !be->pc_amg) PetscCall(KSPSetTolerances(ksp, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, PetscMin(be->max_its, BE_ICC_MAX_ITS)));
     PetscCall(ClothCreateMatrix(be->cloth, be->mattype, &be->J));
     be->pc = pc;
-    { /* the lattice, for geometric multigrid */
-      const PetscInt *natural;
-      PetscCall(ClothGetNatural(be->cloth, &natural));
-      PetscCall(PCLatticeMGSetLattice(pc, info.Mx, info.My, be->n / 3, natural, be->pinned));
-    }
-    if (be->pc_auto && !be->pc_amg) { /* -drape_mat_type chose a storage block IC(0) does not factor: PETSc's block Jacobi/ILU(0) */
+    PetscCall(BELatticeMGSetLattice(be, pc)); /* when it is geometric multigrid */
+    if (be->pc_auto && !be->pc_amg) {         /* -drape_mat_type chose a storage block IC(0) does not factor: PETSc's block Jacobi/ILU(0) */
       PetscBool sym;
       PetscCall(PetscObjectTypeCompareAny((PetscObject) be->J, &sym, MATSEQSBAIJ, MATMPISBAIJ, ""));
       if (!sym) {
         PetscCall(PCSetModifySubMatrices(pc, NULL, NULL));
         PetscCall(PCSetType(pc, PCBJACOBI));
-        be->pc_mg = PETSC_FALSE;
       }
     }
     /* the preconditioner lags with the single linearisation and an iterative KSP; a
@@ -1253,6 +1256,8 @@ static PetscErrorCode TSSetFromOptions_DrapeBE(TS ts, PetscOptionItems *PetscOpt
 
   PetscFunctionBeginUser;
   PetscOptionsHeadBegin(PetscOptionsObject, "drape backward Euler");
+  PetscCall(
+    PetscOptionsReal("-drape_mg_its", "On one rank, drape's block IC gives way to geometric multigrid on the lattice once CG takes more than this many iterations a solve (a moving mean; 0: never)", "TSStep_DrapeBE", be->mg_its, &be->mg_its, NULL));
   PetscCall(PetscOptionsInt("-drape_pc_lag", "Rebuild the preconditioner every this many steps (with -snes_type ksponly and an iterative KSP; 1: every step)", "TSStep_DrapeBE", be->pc_lag, &be->pc_lag, NULL));
   PetscCall(PetscOptionsInt("-drape_pc_overlap",
                             "On several ranks, drape's default preconditioner factors each rank's rows grown by this many layers of the matrix's graph (restricted additive Schwarz with block IC(0)); 0: each rank's rows alone (block Jacobi)",
@@ -1271,8 +1276,6 @@ static PetscErrorCode TSSetFromOptions_DrapeBE(TS ts, PetscOptionItems *PetscOpt
   }
   PetscOptionsHeadEnd();
   PetscCall(DrapeCheckInt(PetscObjectComm((PetscObject) ts), "-drape_pc_lag", be->pc_lag, 1, 1000000));
-  PetscCall(
-    PetscOptionsReal("-drape_mg_its", "On one rank, drape's block IC gives way to geometric multigrid on the lattice once CG takes more than this many iterations a solve (a moving mean; 0: never)", "TSStep_DrapeBE", be->mg_its, &be->mg_its, NULL));
   PetscCall(DrapeCheckReal(PetscObjectComm((PetscObject) ts), "-drape_mg_its", 1, &be->mg_its, 0, 1e6, "iterations"));
   PetscCall(DrapeCheckInt(PetscObjectComm((PetscObject) ts), "-drape_contact_its", be->contact_its, 1, 1000));
   PetscCall(DrapeCheckInt(PetscObjectComm((PetscObject) ts), "-drape_pc_overlap", be->pc_overlap, 0, 100));

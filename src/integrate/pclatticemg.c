@@ -53,7 +53,7 @@ typedef struct {
   PetscInt     nx, ny, n; /* nodes along x and y, n = nx ny (node j nx + i)             */
   float       *a;         /* 25 blocks a node: block (I, I + (dx, dy)) at 9 (25 I + (dy + 2) 5 + dx + 2); single precision (half the bytes the sweeps stream) */
   PetscScalar *g;         /* the diagonal blocks' generalised inverses (not on a dense coarsest level) */
-  PetscScalar *b, *x, *r; /* right-hand side, correction, residual: 3 n each              */
+  PetscScalar *b, *x;     /* right-hand side and correction: 3 n each                   */
 } LMGLevel;
 
 typedef enum {
@@ -195,7 +195,7 @@ static PetscErrorCode LMGFreeLevels(PC_LatticeMG *mg)
   for (PetscInt l = 0; l < mg->nlevels; l++) {
     PetscCall(PetscFree(mg->lev[l].a));
     PetscCall(PetscFree(mg->lev[l].g));
-    PetscCall(PetscFree3(mg->lev[l].b, mg->lev[l].x, mg->lev[l].r));
+    PetscCall(PetscFree2(mg->lev[l].b, mg->lev[l].x));
   }
   PetscCall(PetscFree(mg->lev));
   PetscCall(PetscFree(mg->dense));
@@ -222,7 +222,7 @@ static PetscErrorCode LMGCreateLevels(PC_LatticeMG *mg)
     LMGLevel *L = &mg->lev[l];
     L->nx = cx[l], L->ny = cy[l], L->n = cx[l] * cy[l];
     PetscCall(PetscMalloc1(9 * LMG_S * L->n, &L->a));
-    PetscCall(PetscMalloc3(3 * L->n, &L->b, 3 * L->n, &L->x, 3 * L->n, &L->r));
+    PetscCall(PetscMalloc2(3 * L->n, &L->b, 3 * L->n, &L->x));
     if (l < nl - 1 || L->n > mg->coarse_nodes) PetscCall(PetscMalloc1(9 * L->n, &L->g));
   }
   {
@@ -345,71 +345,58 @@ static PetscErrorCode LMGSetUpSmoother(PC_LatticeMG *mg, PetscInt l)
   PetscFunctionReturn(0);
 }
 
+/* s = b_I - sum over the blocks of row I (without its own, if own is false) of
+ * A_IJ x_J, on level L */
+static inline void LMGRowResidual(const LMGLevel *L, PetscInt ic, PetscBool own, PetscScalar s[3])
+{
+  const PetscInt i = ic % L->nx, j = ic / L->nx;
+
+  for (PetscInt r = 0; r < 3; r++) s[r] = L->b[3 * ic + r];
+  for (PetscInt dy = PetscMax(-2, -j); dy <= PetscMin(2, L->ny - 1 - j); dy++)
+    for (PetscInt dx = PetscMax(-2, -i); dx <= PetscMin(2, L->nx - 1 - i); dx++) {
+      const PetscInt     o  = (dy + 2) * LMG_W + dx + 2;
+      const float       *B  = L->a + 9 * (LMG_S * ic + o);
+      const PetscScalar *xj = L->x + 3 * (ic + dy * L->nx + dx);
+      if (o == LMG_C && !own) continue;
+      for (PetscInt r = 0; r < 3; r++) s[r] -= B[r] * xj[0] + B[r + 3] * xj[1] + B[r + 6] * xj[2];
+    }
+}
+
 /* One block Gauss-Seidel sweep on level L, forward or backward:
  * x_I = G_I (b_I - sum over the other blocks of row I of A_IJ x_J) */
 static void LMGSweep(const LMGLevel *L, PetscBool forward)
 {
   for (PetscInt t = 0; t < L->n; t++) {
-    const PetscInt ic = forward ? t : L->n - 1 - t, i = ic % L->nx, j = ic / L->nx;
-    PetscScalar    s[3] = {L->b[3 * ic], L->b[3 * ic + 1], L->b[3 * ic + 2]};
-    for (PetscInt dy = PetscMax(-2, -j); dy <= PetscMin(2, L->ny - 1 - j); dy++)
-      for (PetscInt dx = PetscMax(-2, -i); dx <= PetscMin(2, L->nx - 1 - i); dx++) {
-        const PetscInt     o  = (dy + 2) * LMG_W + dx + 2;
-        const float       *B  = L->a + 9 * (LMG_S * ic + o);
-        const PetscScalar *xj = L->x + 3 * (ic + dy * L->nx + dx);
-        if (o == LMG_C) continue;
-        for (PetscInt r = 0; r < 3; r++) s[r] -= B[r] * xj[0] + B[r + 3] * xj[1] + B[r + 6] * xj[2];
-      }
-    {
-      const PetscScalar *g = L->g + 9 * ic;
-      for (PetscInt r = 0; r < 3; r++) L->x[3 * ic + r] = g[r] * s[0] + g[r + 3] * s[1] + g[r + 6] * s[2];
-    }
+    const PetscInt     ic = forward ? t : L->n - 1 - t;
+    const PetscScalar *g  = L->g + 9 * ic;
+    PetscScalar        s[3];
+    LMGRowResidual(L, ic, PETSC_FALSE, s);
+    for (PetscInt r = 0; r < 3; r++) L->x[3 * ic + r] = g[r] * s[0] + g[r + 3] * s[1] + g[r + 6] * s[2];
   }
 }
 
-/* r = b - A x on level L */
-static void LMGResidual(LMGLevel *L)
+/* C->b_I += w r for each coarse node I of fine node (i, j) of an nx x ny level (the
+ * restriction, the interpolation's transpose, one fine node at a time) */
+static inline void LMGRestrictNode(LMGLevel *C, PetscInt nx, PetscInt ny, PetscInt i, PetscInt j, const PetscScalar r[3])
 {
-  for (PetscInt j = 0; j < L->ny; j++)
-    for (PetscInt i = 0; i < L->nx; i++) {
-      const PetscInt ic = j * L->nx + i;
-      PetscScalar   *s  = L->r + 3 * ic;
-      for (PetscInt r = 0; r < 3; r++) s[r] = L->b[3 * ic + r];
-      for (PetscInt dy = PetscMax(-2, -j); dy <= PetscMin(2, L->ny - 1 - j); dy++)
-        for (PetscInt dx = PetscMax(-2, -i); dx <= PetscMin(2, L->nx - 1 - i); dx++) {
-          const float       *B  = L->a + 9 * (LMG_S * ic + (dy + 2) * LMG_W + dx + 2);
-          const PetscScalar *xj = L->x + 3 * (ic + dy * L->nx + dx);
-          for (PetscInt r = 0; r < 3; r++) s[r] -= B[r] * xj[0] + B[r + 3] * xj[1] + B[r + 6] * xj[2];
-        }
-    }
+  PetscInt  ci[4], cj[4], m;
+  PetscReal w[4];
+
+  m = LMGSupport(nx, ny, i, j, ci, cj, w);
+  for (PetscInt p = 0; p < m; p++)
+    for (PetscInt s = 0; s < 3; s++) C->b[3 * (cj[p] * C->nx + ci[p]) + s] += w[p] * r[s];
 }
 
-/* C->b = R r (the transpose of the interpolation) from level F's vector r of (nx, ny) nodes */
-static void LMGRestrict(PetscInt nx, PetscInt ny, const PetscScalar *r, LMGLevel *C)
+/* e = (P C->x) at fine node (i, j) of an nx x ny level */
+static inline void LMGInterpolateNode(const LMGLevel *C, PetscInt nx, PetscInt ny, PetscInt i, PetscInt j, PetscScalar e[3])
 {
-  for (PetscInt ic = 0; ic < 3 * C->n; ic++) C->b[ic] = 0;
-  for (PetscInt j = 0; j < ny; j++)
-    for (PetscInt i = 0; i < nx; i++) {
-      PetscInt           ci[4], cj[4], m;
-      PetscReal          w[4];
-      const PetscScalar *rk = r + 3 * (j * nx + i);
-      m                     = LMGSupport(nx, ny, i, j, ci, cj, w);
-      for (PetscInt p = 0; p < m; p++)
-        for (PetscInt s = 0; s < 3; s++) C->b[3 * (cj[p] * C->nx + ci[p]) + s] += w[p] * rk[s];
-    }
-}
+  PetscInt  ci[4], cj[4], m;
+  PetscReal w[4];
 
-/* x += P C->x on a level of (nx, ny) nodes */
-static void LMGProlong(PetscInt nx, PetscInt ny, const LMGLevel *C, PetscScalar *x)
-{
-  for (PetscInt j = 0; j < ny; j++)
-    for (PetscInt i = 0; i < nx; i++) {
-      PetscInt  ci[4], cj[4], m;
-      PetscReal w[4];
-      m = LMGSupport(nx, ny, i, j, ci, cj, w);
-      for (PetscInt p = 0; p < m; p++)
-        for (PetscInt s = 0; s < 3; s++) x[3 * (j * nx + i) + s] += w[p] * C->x[3 * (cj[p] * C->nx + ci[p]) + s];
-    }
+  e[0] = e[1] = e[2] = 0;
+  m                  = LMGSupport(nx, ny, i, j, ci, cj, w);
+  for (PetscInt p = 0; p < m; p++)
+    for (PetscInt s = 0; s < 3; s++) e[s] += w[p] * C->x[3 * (cj[p] * C->nx + ci[p]) + s];
 }
 
 /* The cycle from coarse level l down: lev[l].x from lev[l].b */
@@ -424,12 +411,20 @@ static void LMGCycle(PC_LatticeMG *mg, PetscInt l)
     return;
   }
   LMGSweep(L, PETSC_TRUE);
-  if (l < mg->nlevels - 1) {
+  if (l < mg->nlevels - 1) { /* the residual restricted, the next level's correction interpolated */
     LMGLevel *C = &mg->lev[l + 1];
-    LMGResidual(L);
-    LMGRestrict(L->nx, L->ny, L->r, C);
+    for (PetscInt ic = 0; ic < 3 * C->n; ic++) C->b[ic] = 0;
+    for (PetscInt ic = 0; ic < L->n; ic++) {
+      PetscScalar r[3];
+      LMGRowResidual(L, ic, PETSC_TRUE, r);
+      LMGRestrictNode(C, L->nx, L->ny, ic % L->nx, ic / L->nx, r);
+    }
     LMGCycle(mg, l + 1);
-    LMGProlong(L->nx, L->ny, C, L->x);
+    for (PetscInt ic = 0; ic < L->n; ic++) {
+      PetscScalar e[3];
+      LMGInterpolateNode(C, L->nx, L->ny, ic % L->nx, ic / L->nx, e);
+      for (PetscInt s = 0; s < 3; s++) L->x[3 * ic + s] += e[s];
+    }
   }
   LMGSweep(L, PETSC_FALSE);
 }
@@ -536,26 +531,18 @@ static PetscErrorCode LMGCoarseCorrect(PC_LatticeMG *mg, Vec r, PetscReal sign, 
   PetscCall(VecGetArrayRead(r, &w));
   PetscCall(PetscArrayzero(C->b, 3 * C->n));
   for (PetscInt k = 0; k < mg->nrows; k++) {
-    PetscInt    ci[4], cj[4], m;
-    PetscReal   wt[4];
     PetscScalar rk[3] = {w[3 * k], w[3 * k + 1], w[3 * k + 2]};
     if (mg->kind[k] == 2) continue;
     LMGFilter(mg, k, rk);
-    m = LMGSupport(mg->Mx, mg->My, mg->node[k] % Mx, mg->node[k] / Mx, ci, cj, wt);
-    for (PetscInt p = 0; p < m; p++)
-      for (PetscInt s = 0; s < 3; s++) C->b[3 * (cj[p] * C->nx + ci[p]) + s] += wt[p] * rk[s];
+    LMGRestrictNode(C, mg->Mx, mg->My, mg->node[k] % Mx, mg->node[k] / Mx, rk);
   }
   PetscCall(VecRestoreArrayRead(r, &w));
   LMGCycle(mg, 0);
   PetscCall(VecGetArray(x, &xx));
   for (PetscInt k = 0; k < mg->nrows; k++) {
-    PetscInt    ci[4], cj[4], m;
-    PetscReal   wt[4];
-    PetscScalar e[3] = {0, 0, 0};
+    PetscScalar e[3];
     if (mg->kind[k] == 2) continue;
-    m = LMGSupport(mg->Mx, mg->My, mg->node[k] % Mx, mg->node[k] / Mx, ci, cj, wt);
-    for (PetscInt p = 0; p < m; p++)
-      for (PetscInt s = 0; s < 3; s++) e[s] += wt[p] * C->x[3 * (cj[p] * C->nx + ci[p]) + s];
+    LMGInterpolateNode(C, mg->Mx, mg->My, mg->node[k] % Mx, mg->node[k] / Mx, e);
     LMGFilter(mg, k, e);
     for (PetscInt s = 0; s < 3; s++) xx[3 * k + s] += sign * e[s];
   }
