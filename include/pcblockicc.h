@@ -33,3 +33,6 @@ PETSC_EXTERN PetscErrorCode PCBlockICCGetCompensated(PC, PetscBool *);
 PETSC_EXTERN PetscErrorCode PCBlockICCSetLevels(PC, PetscInt);
 /* The fill (-1 on a PC of another type). Not collective. */
 PETSC_EXTERN PetscErrorCode PCBlockICCGetLevels(PC, PetscInt *);
+/* x = M^-1 x in place, M the factor (PCApply without a second vector). Not
+ * collective. */
+PETSC_EXTERN PetscErrorCode PCBlockICCApplyInPlace(PC, Vec x);

@@ -32,9 +32,10 @@ PETSC_EXTERN PetscErrorCode PCLatticeMGRegister(void);
  * node and pinned are copied. On a PC of another type, nothing. Not collective. */
 PETSC_EXTERN PetscErrorCode PCLatticeMGSetLattice(PC, PetscInt Mx, PetscInt My, PetscInt n, const PetscInt node[], const PetscBool pinned[]);
 /* The contact constraints of the rows (ClothSetConstraints: free, sliding along the
- * surface of outward normal n, fixed; type NULL: none), copied; the next set-up
- * filters the interpolation with them. On a PC of another type, nothing. Not
- * collective. */
+ * surface of outward normal n, fixed; type NULL: none): the types copied, the
+ * normals referenced (3 a row, needed where a row slides; the array must stay valid
+ * while the PC is used, as ContactSolve's does); the next set-up filters the
+ * interpolation with them. On a PC of another type, nothing. Not collective. */
 PETSC_EXTERN PetscErrorCode PCLatticeMGSetConstraints(PC, const ClothConstraint type[], const PetscReal normal[]);
 /* The hybrid cycle instead of V(1,1) (or back); on a PC of another type, nothing.
  * Not collective. */

@@ -291,6 +291,18 @@ static PetscErrorCode PCSetUp_BlockICC(PC pc)
 }
 
 /* x = (U^T D U)^-1 b (pcblockicc_kernels.h) */
+/* y = (L D L^T)^-1 y, in place */
+static PetscErrorCode PCBlockICCSolveArray(PC_BlockICC *icc, PetscScalar *y)
+{
+  PetscFunctionBeginUser;
+  if (icc->single)
+    PCBlockICCSolve_Single(icc, y);
+  else
+    PCBlockICCSolve_Double(icc, y);
+  PetscCall(PetscLogFlops(36.0 * (icc->fi[icc->n] - icc->n) + 15.0 * icc->n));
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode PCApply_BlockICC(PC pc, Vec b, Vec x)
 {
   PC_BlockICC       *icc = (PC_BlockICC *) pc->data;
@@ -302,12 +314,25 @@ static PetscErrorCode PCApply_BlockICC(PC pc, Vec b, Vec x)
   PetscCall(VecGetArrayWrite(x, &y));
   PetscCall(PetscArraycpy(y, bb, 3 * icc->n));
   PetscCall(VecRestoreArrayRead(b, &bb));
-  if (icc->single)
-    PCBlockICCSolve_Single(icc, y);
-  else
-    PCBlockICCSolve_Double(icc, y);
+  PetscCall(PCBlockICCSolveArray(icc, y));
   PetscCall(VecRestoreArrayWrite(x, &y));
-  PetscCall(PetscLogFlops(36.0 * (icc->fi[icc->n] - icc->n) + 15.0 * icc->n));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode PCBlockICCApplyInPlace(PC pc, Vec x)
+{
+  PetscBool    is;
+  PetscScalar *y;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectTypeCompare((PetscObject) pc, PCBLOCKICC, &is));
+  PetscCheck(is, PetscObjectComm((PetscObject) pc), PETSC_ERR_ARG_WRONG, "PCBlockICCApplyInPlace takes a PC of type %s, and this one is %s", PCBLOCKICC, ((PetscObject) pc)->type_name);
+  PetscCheck(pc->setupcalled, PetscObjectComm((PetscObject) pc), PETSC_ERR_ORDER, "PCBlockICCApplyInPlace needs the PC set up (PCSetUp)");
+  PetscCall(PetscLogEventBegin(PC_Apply, pc, x, x, 0));
+  PetscCall(VecGetArray(x, &y));
+  PetscCall(PCBlockICCSolveArray((PC_BlockICC *) pc->data, y));
+  PetscCall(VecRestoreArray(x, &y));
+  PetscCall(PetscLogEventEnd(PC_Apply, pc, x, x, 0));
   PetscFunctionReturn(0);
 }
 

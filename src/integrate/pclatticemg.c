@@ -43,16 +43,15 @@
 #include <pclatticemg.h>
 #include <pcblockicc.h>
 
-#define LMG_W          5               /* a node's stencil: offsets -2 .. 2 along each direction */
-#define LMG_S          (LMG_W * LMG_W) /* blocks a node */
-#define LMG_C          (2 * LMG_W + 2) /* the node's own block */
-#define LMG_DROP_OWN   1.0e-10         /* a pivot at most this times its diagonal entry is dropped */
-#define LMG_DROP_LEVEL 1.0e-9          /* ... or this times the level's largest diagonal entry */
+#define LMG_W          5       /* a node's stencil: offsets -2 .. 2 along each direction */
+#define LMG_U          13      /* blocks a node stored: its own and the upper triangle's, (dx, dy) with dy > 0, or dy = 0 and dx >= 0 */
+#define LMG_DROP_OWN   1.0e-10 /* a pivot at most this times its diagonal entry is dropped */
+#define LMG_DROP_LEVEL 1.0e-9  /* ... or this times the level's largest diagonal entry */
 
 typedef struct {
   PetscInt     nx, ny, n; /* nodes along x and y, n = nx ny (node j nx + i)             */
-  float       *a;         /* 25 blocks a node: block (I, I + (dx, dy)) at 9 (25 I + (dy + 2) 5 + dx + 2); single precision (half the bytes the sweeps stream) */
-  PetscScalar *g;         /* the diagonal blocks' generalised inverses (not on a dense coarsest level) */
+  float       *a;         /* 13 blocks a node, the upper triangle: block (I, I + (dx, dy)) at 9 (13 I + LMGUpper(dx, dy)); single precision (half the bytes the sweeps stream) */
+  float       *g;         /* the diagonal blocks' generalised inverses (not on a dense coarsest level) */
   PetscScalar *b, *x;     /* right-hand side and correction: 3 n each                   */
 } LMGLevel;
 
@@ -63,27 +62,31 @@ typedef enum {
 static const char *const LMGSmoothers[] = {"sgs", "blockicc", "LMGSmoother", "LMG_SMOOTH_", NULL};
 
 typedef struct {
-  PetscInt       Mx, My;   /* the lattice                                                */
-  PetscInt       nrows;    /* the matrix's block rows                                    */
-  PetscInt      *node;     /* each row's node, j Mx + i                                  */
-  PetscBool     *pinned;   /* each row's pin                                             */
-  unsigned char *kind;     /* each row: 0 free, 1 sliding, 2 fixed or pinned (the filter) */
-  PetscReal     *normal;   /* a sliding row's normal, 3 a row                            */
-  PetscInt       nlevels;  /* coarse levels                                              */
-  LMGLevel      *lev;      /* lev[0] the first coarse level, lev[nlevels - 1] the coarsest */
-  PetscScalar   *dense;    /* the coarsest level's LDL^T (L below the diagonal, D on it), or NULL */
-  LMGSmoother    smoother; /* the finest level's: block Gauss-Seidel, or block IC (fine)  */
-  PetscScalar   *dinv;     /* block Gauss-Seidel: the matrix's diagonal blocks inverted, 9 a row */
-  PC             fine;     /* block IC                                                   */
-  Vec            w, y;     /* fine work vectors                                          */
-  PetscInt       max_levels, coarse_nodes;
-  PetscInt       coarse_lag; /* the coarse levels are made again at every coarse_lag-th set-up */
-  PetscInt       setups;     /* set-ups since the coarse levels were made                 */
-  PetscBool      fill_auto;  /* block IC smoother: IC(1) once IC(0) had to compensate     */
-  PetscBool      hybrid;     /* M^-1 + (I - M^-1 A) Q (I - A M^-1) instead of the V(1,1) cycle: SPD for any SPD smoother */
+  PetscInt         Mx, My;   /* the lattice                                                */
+  PetscInt         nrows;    /* the matrix's block rows                                    */
+  PetscInt        *node;     /* each row's node, j Mx + i                                  */
+  PetscBool       *pinned;   /* each row's pin                                             */
+  unsigned char   *kind;     /* each row: 0 free, 1 sliding, 2 fixed or pinned (the filter) */
+  const PetscReal *normal;   /* a sliding row's normal, 3 a row: the caller's (PCLatticeMGSetConstraints) */
+  PetscInt         nlevels;  /* coarse levels                                              */
+  LMGLevel        *lev;      /* lev[0] the first coarse level, lev[nlevels - 1] the coarsest */
+  PetscScalar     *dense;    /* the coarsest level's LDL^T (L below the diagonal, D on it), or NULL */
+  LMGSmoother      smoother; /* the finest level's: block Gauss-Seidel, or block IC (fine)  */
+  PetscScalar     *dinv;     /* block Gauss-Seidel: the matrix's diagonal blocks inverted, 9 a row */
+  PC               fine;     /* block IC                                                   */
+  Vec              w, y;     /* fine work vectors (y for the hybrid cycle only)            */
+  PetscInt         max_levels, coarse_nodes;
+  PetscInt         coarse_lag; /* the coarse levels are made again at every coarse_lag-th set-up */
+  PetscInt         setups;     /* set-ups since the coarse levels were made                 */
+  PetscBool        fill_auto;  /* block IC smoother: IC(1) once IC(0) had to compensate     */
+  PetscBool        hybrid;     /* M^-1 + (I - M^-1 A) Q (I - A M^-1) instead of the V(1,1) cycle: SPD for any SPD smoother */
 } PC_LatticeMG;
 
 static inline PetscInt LMGCoarseSize(PetscInt n) { return n <= 3 ? n : n / 2 + 1; }
+
+/* The stored block of node I's row for its neighbour I + (dx, dy) in the upper
+ * triangle (dy > 0, or dy = 0 and dx >= 0; |dx|, dy <= 2): 0 is its own */
+static inline PetscInt LMGUpper(PetscInt dx, PetscInt dy) { return LMG_W * dy + dx; }
 
 /* The coarse nodes of fine index i along a direction of n nodes, and their weights. */
 static inline PetscInt LMGSupport1(PetscInt n, PetscInt i, PetscInt c[2], PetscReal w[2])
@@ -221,7 +224,7 @@ static PetscErrorCode LMGCreateLevels(PC_LatticeMG *mg)
   for (PetscInt l = 0; l < nl; l++) {
     LMGLevel *L = &mg->lev[l];
     L->nx = cx[l], L->ny = cy[l], L->n = cx[l] * cy[l];
-    PetscCall(PetscMalloc1(9 * LMG_S * L->n, &L->a));
+    PetscCall(PetscMalloc1(9 * LMG_U * L->n, &L->a));
     PetscCall(PetscMalloc2(3 * L->n, &L->b, 3 * L->n, &L->x));
     if (l < nl - 1 || L->n > mg->coarse_nodes) PetscCall(PetscMalloc1(9 * L->n, &L->g));
   }
@@ -233,7 +236,9 @@ static PetscErrorCode LMGCreateLevels(PC_LatticeMG *mg)
 }
 
 /* Add wt B (and to the transposed position wt B^T, when transpose) to the coarse
- * blocks of fine nodes (i, j) and (i2, j2) of level (nx, ny), coarse level C. */
+ * blocks of fine nodes (i, j) and (i2, j2) of level (nx, ny), coarse level C: the
+ * upper triangle's only (a coarse block below the diagonal is the transpose of one
+ * above it, which the same sum reaches; on the diagonal both add). */
 static inline void LMGAddProduct(LMGLevel *C, PetscInt nx, PetscInt ny, PetscInt i, PetscInt j, PetscInt i2, PetscInt j2, const PetscScalar *B, PetscBool transpose)
 {
   PetscInt  ai[4], aj[4], bi[4], bj[4];
@@ -245,14 +250,15 @@ static inline void LMGAddProduct(LMGLevel *C, PetscInt nx, PetscInt ny, PetscInt
     for (PetscInt q = 0; q < nb; q++) {
       const PetscInt  dx = bi[q] - ai[p], dy = bj[q] - aj[p];
       const PetscReal wt = aw[p] * bw[q];
+      const PetscInt  u  = LMGUpper(dx, dy);
       if (dx < -2 || dx > 2 || dy < -2 || dy > 2) continue; /* a far pair's cross terms */
-      {
-        float *c = C->a + 9 * (LMG_S * ic + (dy + 2) * LMG_W + dx + 2);
+      if (u >= 0) {
+        float *c = C->a + 9 * (LMG_U * ic + u);
         for (PetscInt s = 0; s < 9; s++) c[s] += wt * B[s];
       }
-      if (transpose) {
+      if (transpose && u <= 0) {
         const PetscInt jc = bj[q] * C->nx + bi[q];
-        float         *c  = C->a + 9 * (LMG_S * jc + (2 - dy) * LMG_W + 2 - dx);
+        float         *c  = C->a + 9 * (LMG_U * jc - u);
         for (PetscInt r = 0; r < 3; r++)
           for (PetscInt s = 0; s < 3; s++) c[r + 3 * s] += wt * B[s + 3 * r];
       }
@@ -273,7 +279,7 @@ static PetscErrorCode LMGGalerkinFine(PC pc, PC_LatticeMG *mg, Mat A)
   PetscCall(MatGetRowIJ(A, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &done));
   PetscCheck(done && n == mg->nrows, PetscObjectComm((PetscObject) pc), PETSC_ERR_ARG_WRONG, "-pc_type latticemg: the matrix has %" PetscInt_FMT " block rows and the lattice given %" PetscInt_FMT " particles", n, mg->nrows);
   PetscCall(MatSeqSBAIJGetArray(A, &aa));
-  PetscCall(PetscArrayzero(C->a, 9 * LMG_S * C->n));
+  PetscCall(PetscArrayzero(C->a, 9 * LMG_U * C->n));
   for (PetscInt k = 0; k < n; k++) {
     if (mg->kind[k] == 2) continue;
     for (PetscInt p = ia[k]; p < ia[k + 1]; p++) {
@@ -291,24 +297,24 @@ static PetscErrorCode LMGGalerkinFine(PC pc, PC_LatticeMG *mg, Mat A)
   PetscFunctionReturn(0);
 }
 
-/* Level l + 1's operator from level l's (every block, both triangles) */
+/* Level l + 1's operator from level l's upper triangle */
 static PetscErrorCode LMGGalerkinCoarse(PC_LatticeMG *mg, PetscInt l)
 {
   const LMGLevel *F = &mg->lev[l];
   LMGLevel       *C = &mg->lev[l + 1];
 
   PetscFunctionBeginUser;
-  PetscCall(PetscArrayzero(C->a, 9 * LMG_S * C->n));
+  PetscCall(PetscArrayzero(C->a, 9 * LMG_U * C->n));
   for (PetscInt j = 0; j < F->ny; j++)
     for (PetscInt i = 0; i < F->nx; i++)
-      for (PetscInt dy = PetscMax(-2, -j); dy <= PetscMin(2, F->ny - 1 - j); dy++)
-        for (PetscInt dx = PetscMax(-2, -i); dx <= PetscMin(2, F->nx - 1 - i); dx++) {
-          const float *b = F->a + 9 * (LMG_S * (j * F->nx + i) + (dy + 2) * LMG_W + dx + 2);
+      for (PetscInt dy = 0; dy <= PetscMin(2, F->ny - 1 - j); dy++)
+        for (PetscInt dx = dy ? PetscMax(-2, -i) : 0; dx <= PetscMin(2, F->nx - 1 - i); dx++) {
+          const float *b = F->a + 9 * (LMG_U * (j * F->nx + i) + LMGUpper(dx, dy));
           PetscScalar  B[9];
           for (PetscInt q = 0; q < 9; q++) B[q] = b[q];
-          LMGAddProduct(C, F->nx, F->ny, i, j, i + dx, j + dy, B, PETSC_FALSE);
+          LMGAddProduct(C, F->nx, F->ny, i, j, i + dx, j + dy, B, (PetscBool) (dx || dy));
         }
-  PetscCall(PetscLogFlops(18.0 * 9 * LMG_S * F->n));
+  PetscCall(PetscLogFlops(18.0 * 9 * LMG_U * F->n));
   PetscFunctionReturn(0);
 }
 
@@ -320,59 +326,66 @@ static PetscErrorCode LMGSetUpSmoother(PC_LatticeMG *mg, PetscInt l)
 
   PetscFunctionBeginUser;
   for (PetscInt ic = 0; ic < L->n; ic++)
-    for (PetscInt r = 0; r < 3; r++) big = PetscMax(big, PetscRealPart(L->a[9 * (LMG_S * ic + LMG_C) + 4 * r]));
+    for (PetscInt r = 0; r < 3; r++) big = PetscMax(big, PetscRealPart(L->a[9 * LMG_U * ic + 4 * r]));
   tol = LMG_DROP_LEVEL * big;
   if (L->g)
     for (PetscInt ic = 0; ic < L->n; ic++) {
-      PetscScalar d[9];
-      for (PetscInt q = 0; q < 9; q++) d[q] = L->a[9 * (LMG_S * ic + LMG_C) + q];
-      LMGBlockInverse(d, tol, L->g + 9 * ic);
+      PetscScalar d[9], g[9];
+      for (PetscInt q = 0; q < 9; q++) d[q] = L->a[9 * LMG_U * ic + q];
+      LMGBlockInverse(d, tol, g);
+      for (PetscInt q = 0; q < 9; q++) L->g[9 * ic + q] = (float) g[q];
     }
   if (l == mg->nlevels - 1 && mg->dense) {
     const PetscInt N = 3 * L->n;
     PetscCall(PetscArrayzero(mg->dense, N * N));
     for (PetscInt j = 0; j < L->ny; j++)
       for (PetscInt i = 0; i < L->nx; i++)
-        for (PetscInt dy = PetscMax(-2, -j); dy <= PetscMin(2, L->ny - 1 - j); dy++)
-          for (PetscInt dx = PetscMax(-2, -i); dx <= PetscMin(2, L->nx - 1 - i); dx++) {
+        for (PetscInt dy = 0; dy <= PetscMin(2, L->ny - 1 - j); dy++)
+          for (PetscInt dx = dy ? PetscMax(-2, -i) : 0; dx <= PetscMin(2, L->nx - 1 - i); dx++) {
             const PetscInt ic = j * L->nx + i, jc = (j + dy) * L->nx + i + dx;
-            const float   *B = L->a + 9 * (LMG_S * ic + (dy + 2) * LMG_W + dx + 2);
+            const float   *B = L->a + 9 * (LMG_U * ic + LMGUpper(dx, dy));
             for (PetscInt c = 0; c < 3; c++)
-              for (PetscInt r = 0; r < 3; r++) mg->dense[3 * ic + r + N * (3 * jc + c)] = B[r + 3 * c];
+              for (PetscInt r = 0; r < 3; r++) mg->dense[3 * ic + r + N * (3 * jc + c)] = mg->dense[3 * jc + c + N * (3 * ic + r)] = B[r + 3 * c];
           }
     LMGFactorDense(N, mg->dense, tol);
   }
   PetscFunctionReturn(0);
 }
 
-/* s = b_I - sum over the blocks of row I (without its own, if own is false) of
- * A_IJ x_J, on level L */
-static inline void LMGRowResidual(const LMGLevel *L, PetscInt ic, PetscBool own, PetscScalar s[3])
+/* s -= sum over the upper triangle's blocks of row I, its own excepted, of A_IJ y_J
+ * (a row of U y), on level L */
+static inline void LMGUpperProduct(const LMGLevel *L, PetscInt ic, const PetscScalar *y, PetscScalar s[3])
 {
   const PetscInt i = ic % L->nx, j = ic / L->nx;
 
-  for (PetscInt r = 0; r < 3; r++) s[r] = L->b[3 * ic + r];
-  for (PetscInt dy = PetscMax(-2, -j); dy <= PetscMin(2, L->ny - 1 - j); dy++)
-    for (PetscInt dx = PetscMax(-2, -i); dx <= PetscMin(2, L->nx - 1 - i); dx++) {
-      const PetscInt     o  = (dy + 2) * LMG_W + dx + 2;
-      const float       *B  = L->a + 9 * (LMG_S * ic + o);
-      const PetscScalar *xj = L->x + 3 * (ic + dy * L->nx + dx);
-      if (o == LMG_C && !own) continue;
-      for (PetscInt r = 0; r < 3; r++) s[r] -= B[r] * xj[0] + B[r + 3] * xj[1] + B[r + 6] * xj[2];
+  for (PetscInt dy = 0; dy <= PetscMin(2, L->ny - 1 - j); dy++)
+    for (PetscInt dx = dy ? PetscMax(-2, -i) : 1; dx <= PetscMin(2, L->nx - 1 - i); dx++) {
+      const float       *B  = L->a + 9 * (LMG_U * ic + LMGUpper(dx, dy));
+      const PetscScalar *yj = y + 3 * (ic + dy * L->nx + dx);
+      for (PetscInt r = 0; r < 3; r++) s[r] -= B[r] * yj[0] + B[r + 3] * yj[1] + B[r + 6] * yj[2];
     }
 }
 
-/* One block Gauss-Seidel sweep on level L, forward or backward:
- * x_I = G_I (b_I - sum over the other blocks of row I of A_IJ x_J) */
-static void LMGSweep(const LMGLevel *L, PetscBool forward)
+/* y_J -= A_IJ^T x_I over the upper triangle's blocks of row I, its own excepted
+ * (column I of L = U^T times x_I), on level L */
+static inline void LMGUpperScatter(const LMGLevel *L, PetscInt ic, const PetscScalar xi[3], PetscScalar *y)
 {
-  for (PetscInt t = 0; t < L->n; t++) {
-    const PetscInt     ic = forward ? t : L->n - 1 - t;
-    const PetscScalar *g  = L->g + 9 * ic;
-    PetscScalar        s[3];
-    LMGRowResidual(L, ic, PETSC_FALSE, s);
-    for (PetscInt r = 0; r < 3; r++) L->x[3 * ic + r] = g[r] * s[0] + g[r + 3] * s[1] + g[r + 6] * s[2];
-  }
+  const PetscInt i = ic % L->nx, j = ic / L->nx;
+
+  for (PetscInt dy = 0; dy <= PetscMin(2, L->ny - 1 - j); dy++)
+    for (PetscInt dx = dy ? PetscMax(-2, -i) : 1; dx <= PetscMin(2, L->nx - 1 - i); dx++) {
+      const float *B  = L->a + 9 * (LMG_U * ic + LMGUpper(dx, dy));
+      PetscScalar *yj = y + 3 * (ic + dy * L->nx + dx);
+      for (PetscInt c = 0; c < 3; c++) yj[c] -= B[3 * c] * xi[0] + B[3 * c + 1] * xi[1] + B[3 * c + 2] * xi[2];
+    }
+}
+
+/* x_I = G_I s */
+static inline void LMGDiagonalSolve(const LMGLevel *L, PetscInt ic, const PetscScalar s[3])
+{
+  const float *g = L->g + 9 * ic;
+
+  for (PetscInt r = 0; r < 3; r++) L->x[3 * ic + r] = g[r] * s[0] + g[r + 3] * s[1] + g[r + 6] * s[2];
 }
 
 /* C->b_I += w r for each coarse node I of fine node (i, j) of an nx x ny level (the
@@ -399,34 +412,53 @@ static inline void LMGInterpolateNode(const LMGLevel *C, PetscInt nx, PetscInt n
     for (PetscInt s = 0; s < 3; s++) e[s] += w[p] * C->x[3 * (cj[p] * C->nx + ci[p]) + s];
 }
 
-/* The cycle from coarse level l down: lev[l].x from lev[l].b */
+/* The cycle from coarse level l down: lev[l].x from lev[l].b, which it overwrites.
+ * The level's matrix is stored as its upper triangle, D + U (L = U^T). The forward
+ * sweep from 0 solves (D + L) x = b by L's columns (x_J -= A_IJ^T x_I once x_I is
+ * known) and leaves the residual b - A x = -U x: row I's is formed, and restricted,
+ * once the last node it reads (I + 2 nx + 2) is known. After the coarse correction
+ * one ascending pass adds it and turns b into b - L x, and the backward sweep solves
+ * (D + U) x_new = b - L x_old. Each pass streams the level's 13 blocks a node once. */
 static void LMGCycle(PC_LatticeMG *mg, PetscInt l)
 {
-  LMGLevel *L = &mg->lev[l];
+  LMGLevel      *L = &mg->lev[l];
+  LMGLevel      *C = l < mg->nlevels - 1 ? &mg->lev[l + 1] : NULL;
+  const PetscInt n = L->n, lag = 2 * L->nx + 2;
 
-  for (PetscInt ic = 0; ic < 3 * L->n; ic++) L->x[ic] = 0;
+  for (PetscInt q = 0; q < 3 * n; q++) L->x[q] = L->b[q];
   if (l == mg->nlevels - 1 && mg->dense) {
-    for (PetscInt ic = 0; ic < 3 * L->n; ic++) L->x[ic] = L->b[ic];
-    LMGSolveDense(3 * L->n, mg->dense, L->x);
+    LMGSolveDense(3 * n, mg->dense, L->x);
     return;
   }
-  LMGSweep(L, PETSC_TRUE);
-  if (l < mg->nlevels - 1) { /* the residual restricted, the next level's correction interpolated */
-    LMGLevel *C = &mg->lev[l + 1];
-    for (PetscInt ic = 0; ic < 3 * C->n; ic++) C->b[ic] = 0;
-    for (PetscInt ic = 0; ic < L->n; ic++) {
-      PetscScalar r[3];
-      LMGRowResidual(L, ic, PETSC_TRUE, r);
-      LMGRestrictNode(C, L->nx, L->ny, ic % L->nx, ic / L->nx, r);
+  if (C)
+    for (PetscInt q = 0; q < 3 * C->n; q++) C->b[q] = 0;
+  for (PetscInt ic = 0; ic < n + (C ? lag : 0); ic++) {
+    if (ic < n) { /* x_I = G_I (b - L x)_I, then its column of L */
+      const PetscScalar s[3] = {L->x[3 * ic], L->x[3 * ic + 1], L->x[3 * ic + 2]};
+      LMGDiagonalSolve(L, ic, s);
+      LMGUpperScatter(L, ic, L->x + 3 * ic, L->x);
     }
-    LMGCycle(mg, l + 1);
-    for (PetscInt ic = 0; ic < L->n; ic++) {
+    if (C && ic >= lag) { /* row ic - lag's residual, -U x, restricted */
+      const PetscInt p    = ic - lag;
+      PetscScalar    r[3] = {0, 0, 0};
+      LMGUpperProduct(L, p, L->x, r);
+      LMGRestrictNode(C, L->nx, L->ny, p % L->nx, p / L->nx, r);
+    }
+  }
+  if (C) LMGCycle(mg, l + 1);
+  for (PetscInt ic = 0; ic < n; ic++) { /* x += P e, and b -= L x */
+    if (C) {
       PetscScalar e[3];
       LMGInterpolateNode(C, L->nx, L->ny, ic % L->nx, ic / L->nx, e);
       for (PetscInt s = 0; s < 3; s++) L->x[3 * ic + s] += e[s];
     }
+    LMGUpperScatter(L, ic, L->x + 3 * ic, L->b);
   }
-  LMGSweep(L, PETSC_FALSE);
+  for (PetscInt ic = n - 1; ic >= 0; ic--) { /* x_I = G_I (b - L x_old - U x_new)_I */
+    PetscScalar s[3] = {L->b[3 * ic], L->b[3 * ic + 1], L->b[3 * ic + 2]};
+    LMGUpperProduct(L, ic, L->x, s);
+    LMGDiagonalSolve(L, ic, s);
+  }
 }
 
 /* The finest level's smoother set up for the matrix A */
@@ -464,7 +496,7 @@ static PetscErrorCode LMGFineSetUp(PC_LatticeMG *mg, Mat A)
   PetscFunctionReturn(0);
 }
 
-/* x = M^-1 b (pre) or M^-T b (post): block IC, symmetric; or block Gauss-Seidel,
+/* x = M^-1 b (pre) or M^-T b (post), x may be b: block IC, symmetric; or block Gauss-Seidel,
  * M = D + L (a forward sweep from 0, in place: each row's update taken from the rows
  * below it through the upper triangle's blocks, transposed) and M^T = D + U (a
  * backward substitution through the upper triangle) */
@@ -479,15 +511,23 @@ static PetscErrorCode LMGFineSmooth(PC pc, PC_LatticeMG *mg, PetscBool pre, Vec 
 
   PetscFunctionBeginUser;
   if (mg->smoother == LMG_SMOOTH_BLOCKICC) {
-    PetscCall(PCApply(mg->fine, b, x));
+    if (b == x)
+      PetscCall(PCBlockICCApplyInPlace(mg->fine, x));
+    else
+      PetscCall(PCApply(mg->fine, b, x));
     PetscFunctionReturn(0);
   }
   PetscCall(MatGetRowIJ(pc->pmat, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &done));
   PetscCall(MatSeqSBAIJGetArray(pc->pmat, &aa));
-  PetscCall(VecGetArrayRead(b, &bb));
-  PetscCall(VecGetArrayWrite(x, &y));
+  if (b == x) { /* in place: row k's right-hand side is read before its result is written */
+    PetscCall(VecGetArray(x, &y));
+    bb = y;
+  } else {
+    PetscCall(VecGetArrayRead(b, &bb));
+    PetscCall(VecGetArrayWrite(x, &y));
+  }
   if (pre) {
-    PetscCall(PetscArraycpy(y, bb, 3 * n));
+    if (y != bb) PetscCall(PetscArraycpy(y, bb, 3 * n));
     for (PetscInt k = 0; k < n; k++) {
       const PetscScalar *d = mg->dinv + 9 * k, t[3] = {y[3 * k], y[3 * k + 1], y[3 * k + 2]};
       PetscScalar        yk[3];
@@ -510,8 +550,12 @@ static PetscErrorCode LMGFineSmooth(PC pc, PC_LatticeMG *mg, PetscBool pre, Vec 
       for (PetscInt r = 0; r < 3; r++) y[3 * k + r] = d[r] * t[0] + d[r + 3] * t[1] + d[r + 6] * t[2];
     }
   }
-  PetscCall(VecRestoreArrayWrite(x, &y));
-  PetscCall(VecRestoreArrayRead(b, &bb));
+  if (b == x)
+    PetscCall(VecRestoreArray(x, &y));
+  else {
+    PetscCall(VecRestoreArrayWrite(x, &y));
+    PetscCall(VecRestoreArrayRead(b, &bb));
+  }
   PetscCall(PetscLogFlops(18.0 * (ia[n] + n)));
   PetscCall(MatSeqSBAIJRestoreArray(pc->pmat, &aa));
   PetscCall(MatRestoreRowIJ(pc->pmat, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &done));
@@ -559,6 +603,7 @@ static PetscErrorCode PCApply_LatticeMG(PC pc, Vec b, Vec x)
     PetscCall(LMGFineSmooth(pc, mg, PETSC_TRUE, b, x));
     PetscCall(MatMult(pc->pmat, x, mg->w));
     PetscCall(VecAYPX(mg->w, -1.0, b));
+    if (!mg->y) PetscCall(VecDuplicate(mg->w, &mg->y));
     PetscCall(VecZeroEntries(mg->y));
     PetscCall(LMGCoarseCorrect(mg, mg->w, 1.0, mg->y)); /* e = Q w */
     PetscCall(VecAXPY(x, 1.0, mg->y));
@@ -573,8 +618,8 @@ static PetscErrorCode PCApply_LatticeMG(PC pc, Vec b, Vec x)
   PetscCall(LMGCoarseCorrect(mg, mg->w, 1.0, x));
   PetscCall(MatMult(pc->pmat, x, mg->w)); /* post-smoothing */
   PetscCall(VecAYPX(mg->w, -1.0, b));
-  PetscCall(LMGFineSmooth(pc, mg, PETSC_FALSE, mg->w, mg->y));
-  PetscCall(VecAXPY(x, 1.0, mg->y));
+  PetscCall(LMGFineSmooth(pc, mg, PETSC_FALSE, mg->w, mg->w));
+  PetscCall(VecAXPY(x, 1.0, mg->w));
   PetscFunctionReturn(0);
 }
 
@@ -593,7 +638,7 @@ static PetscErrorCode PCSetUp_LatticeMG(PC pc)
   PetscCall(MatGetBlockSize(pc->pmat, &bs));
   PetscCheck(sbaij && bs == 3, PetscObjectComm((PetscObject) pc), PETSC_ERR_SUP, "-pc_type latticemg takes an SBAIJ matrix of block size 3, and this one is %s with block size %" PetscInt_FMT, ((PetscObject) pc->pmat)->type_name, bs);
   if (!mg->lev) PetscCall(LMGCreateLevels(mg));
-  if (!mg->w) PetscCall(MatCreateVecs(pc->pmat, &mg->w, &mg->y));
+  if (!mg->w) PetscCall(MatCreateVecs(pc->pmat, &mg->w, NULL));
   PetscCall(PCSetOperators(mg->fine, pc->mat, pc->pmat)); /* drapebe makes a new matrix when self-contact's pairs leave its pattern */
   PetscCall(LMGFineSetUp(mg, pc->pmat));
   if (mg->setups++ % mg->coarse_lag == 0) {
@@ -611,8 +656,9 @@ static PetscErrorCode PCLatticeMGSetLattice_LatticeMG(PC pc, PetscInt Mx, PetscI
   PetscFunctionBeginUser;
   PetscCheck(Mx > 0 && My > 0 && n >= 0, PETSC_COMM_SELF, PETSC_ERR_ARG_OUTOFRANGE, "a lattice of %" PetscInt_FMT " x %" PetscInt_FMT " nodes and %" PetscInt_FMT " rows", Mx, My, n);
   PetscCall(LMGFreeLevels(mg));
-  PetscCall(PetscFree4(mg->node, mg->pinned, mg->kind, mg->normal));
-  PetscCall(PetscMalloc4(n, &mg->node, n, &mg->pinned, n, &mg->kind, 3 * n, &mg->normal));
+  PetscCall(PetscFree3(mg->node, mg->pinned, mg->kind));
+  PetscCall(PetscMalloc3(n, &mg->node, n, &mg->pinned, n, &mg->kind));
+  mg->normal = NULL;
   for (PetscInt k = 0; k < n; k++) {
     PetscCheck(node[k] >= 0 && node[k] < Mx * My, PETSC_COMM_SELF, PETSC_ERR_ARG_OUTOFRANGE, "row %" PetscInt_FMT "'s node %" PetscInt_FMT " is outside the %" PetscInt_FMT " x %" PetscInt_FMT " lattice", k, node[k], Mx, My);
     mg->node[k]   = node[k];
@@ -631,9 +677,9 @@ static PetscErrorCode PCLatticeMGSetConstraints_LatticeMG(PC pc, const ClothCons
   for (PetscInt k = 0; k < mg->nrows; k++) {
     const ClothConstraint t = type ? type[k] : CLOTH_FREE;
     mg->kind[k]             = mg->pinned[k] || t == CLOTH_FIXED ? 2 : t == CLOTH_SLIDE ? 1 : 0;
-    if (mg->kind[k] == 1)
-      for (PetscInt s = 0; s < 3; s++) mg->normal[3 * k + s] = normal[3 * k + s];
+    PetscCheck(mg->kind[k] != 1 || normal, PETSC_COMM_SELF, PETSC_ERR_ARG_NULL, "row %" PetscInt_FMT " slides and PCLatticeMGSetConstraints was given no normals", k);
   }
+  mg->normal = normal;
   PetscFunctionReturn(0);
 }
 
@@ -699,7 +745,7 @@ static PetscErrorCode PCDestroy_LatticeMG(PC pc)
   PetscFunctionBeginUser;
   PetscCall(PCReset_LatticeMG(pc));
   PetscCall(PCDestroy(&mg->fine));
-  PetscCall(PetscFree4(mg->node, mg->pinned, mg->kind, mg->normal));
+  PetscCall(PetscFree3(mg->node, mg->pinned, mg->kind));
   PetscCall(PetscFree(mg->dinv));
   PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCLatticeMGSetLattice_C", NULL));
   PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCLatticeMGSetConstraints_C", NULL));
