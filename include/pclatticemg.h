@@ -5,7 +5,8 @@
  * constraints: a constrained direction takes no coarse correction); its operator is
  * the Galerkin product P^T A P, formed block by block on the lattice's stencil (5 x 5
  * blocks a node: the stretch, shear and bending couplings reach two nodes, and so do
- * their coarse products). Smoothing: block IC(0) on the finest level (PCBLOCKICC,
+ * their coarse products; its upper triangle stored, 13 blocks a node, in single
+ * precision). Smoothing: block IC(0) on the finest level (PCBLOCKICC,
  * options prefix -mg_fine_), symmetric block Gauss-Seidel on the coarser ones, a
  * dense LDL^T factorisation on the coarsest (at most 64 nodes). A V(1,1) cycle,
  * symmetric, so CG takes it; positive definite where 2 M - A is, M the finest

@@ -17,7 +17,9 @@
  * no coarse correction. The coarse operator is P^T A P, each of A's blocks (upper
  * triangle, and its transpose) added to the coarse blocks its nodes' weights reach.
  * A fine coupling of at most two nodes gives a coarse one of at most two, so every
- * coarse level is stored as 5 x 5 blocks a node; a coupling beyond (a self-contact
+ * coarse level's operator has 5 x 5 blocks a node, of which it stores the upper
+ * triangle's 13 (LMGUpper; the sweeps take the lower triangle's as their transposes,
+ * LMGUpperScatter, so the operator is symmetric to the bit); a coupling beyond (a self-contact
  * pair across a fold) keeps its diagonal parts and drops its coarse cross terms,
  * which leaves the coarse operator positive semi-definite.
  *
@@ -31,8 +33,10 @@
  * products and solves (BENCHMARKS.md: the Cusick scene at 81^2 and 4 ms steps, where
  * block IC(0) misses A by more than 2). The coarse levels' operators are made again
  * at every -pc_latticemg_coarse_lag-th set-up, stored in single precision (the
- * sweeps stream half the bytes; the same CG iterations). Coarser levels: block Gauss-Seidel forward before, backward
- * after, each diagonal block inverted by an LDL^T that drops a pivot below 1e-10 of
+ * sweeps stream half the bytes; the same CG iterations; the diagonal blocks'
+ * inverses stay double, since a block's condition number, the in-plane stretch over
+ * the out-of-plane mass, reaches 1e6 at 321^2). Coarser levels: block Gauss-Seidel
+ * forward before, backward after (LMGCycle), each diagonal block inverted by an LDL^T that drops a pivot below 1e-10 of
  * its diagonal entry or 1e-9 of the level's largest (a direction every fine row's
  * filter removed: a generalised inverse, exact on the residuals, which have no
  * component there). Coarsest: a dense LDL^T with the same drop, if it has at most
@@ -51,7 +55,7 @@
 typedef struct {
   PetscInt     nx, ny, n; /* nodes along x and y, n = nx ny (node j nx + i)             */
   float       *a;         /* 13 blocks a node, the upper triangle: block (I, I + (dx, dy)) at 9 (13 I + LMGUpper(dx, dy)); single precision (half the bytes the sweeps stream) */
-  float       *g;         /* the diagonal blocks' generalised inverses (not on a dense coarsest level) */
+  PetscScalar *g;         /* the diagonal blocks' generalised inverses (not on a dense coarsest level), symmetric; in double: a block's condition number reaches the cloth's stiff over soft, 1e6 */
   PetscScalar *b, *x;     /* right-hand side and correction: 3 n each                   */
 } LMGLevel;
 
@@ -333,7 +337,8 @@ static PetscErrorCode LMGSetUpSmoother(PC_LatticeMG *mg, PetscInt l)
       PetscScalar d[9], g[9];
       for (PetscInt q = 0; q < 9; q++) d[q] = L->a[9 * LMG_U * ic + q];
       LMGBlockInverse(d, tol, g);
-      for (PetscInt q = 0; q < 9; q++) L->g[9 * ic + q] = (float) g[q];
+      for (PetscInt r = 0; r < 3; r++) /* symmetric to the bit: the sweeps backward are the transposes of those forward */
+        for (PetscInt c = 0; c < 3; c++) L->g[9 * ic + r + 3 * c] = 0.5 * (g[r + 3 * c] + g[c + 3 * r]);
     }
   if (l == mg->nlevels - 1 && mg->dense) {
     const PetscInt N = 3 * L->n;
@@ -383,7 +388,7 @@ static inline void LMGUpperScatter(const LMGLevel *L, PetscInt ic, const PetscSc
 /* x_I = G_I s */
 static inline void LMGDiagonalSolve(const LMGLevel *L, PetscInt ic, const PetscScalar s[3])
 {
-  const float *g = L->g + 9 * ic;
+  const PetscScalar *g = L->g + 9 * ic;
 
   for (PetscInt r = 0; r < 3; r++) L->x[3 * ic + r] = g[r] * s[0] + g[r + 3] * s[1] + g[r + 6] * s[2];
 }
@@ -413,12 +418,15 @@ static inline void LMGInterpolateNode(const LMGLevel *C, PetscInt nx, PetscInt n
 }
 
 /* The cycle from coarse level l down: lev[l].x from lev[l].b, which it overwrites.
- * The level's matrix is stored as its upper triangle, D + U (L = U^T). The forward
- * sweep from 0 solves (D + L) x = b by L's columns (x_J -= A_IJ^T x_I once x_I is
- * known) and leaves the residual b - A x = -U x: row I's is formed, and restricted,
+ * The level's matrix is stored as its upper triangle, D + U (L = U^T); G is D's
+ * generalised inverse, symmetric. The forward sweep from 0, x_I = G t_I with t = b -
+ * L x, runs by L's columns (t_J -= A_IJ^T x_I once x_I is known, in x itself) and
+ * keeps t in b; row I's residual, t_I - D x_I - (U x)_I, is formed and restricted
  * once the last node it reads (I + 2 nx + 2) is known. After the coarse correction
- * one ascending pass adds it and turns b into b - L x, and the backward sweep solves
- * (D + U) x_new = b - L x_old. Each pass streams the level's 13 blocks a node once. */
+ * one ascending pass adds it, e, and turns b into t - L e = b - L x; the backward
+ * sweep, x_I = G (b - L x_old - U x_new)_I, is the forward one's transpose. Each pass
+ * streams the level's 13 blocks a node once (the residual's rows again, from the
+ * cache). */
 static void LMGCycle(PC_LatticeMG *mg, PetscInt l)
 {
   LMGLevel      *L = &mg->lev[l];
@@ -433,26 +441,28 @@ static void LMGCycle(PC_LatticeMG *mg, PetscInt l)
   if (C)
     for (PetscInt q = 0; q < 3 * C->n; q++) C->b[q] = 0;
   for (PetscInt ic = 0; ic < n + (C ? lag : 0); ic++) {
-    if (ic < n) { /* x_I = G_I (b - L x)_I, then its column of L */
-      const PetscScalar s[3] = {L->x[3 * ic], L->x[3 * ic + 1], L->x[3 * ic + 2]};
-      LMGDiagonalSolve(L, ic, s);
+    if (ic < n) { /* x_I = G_I t_I, then its column of L */
+      for (PetscInt s = 0; s < 3; s++) L->b[3 * ic + s] = L->x[3 * ic + s];
+      LMGDiagonalSolve(L, ic, L->b + 3 * ic);
       LMGUpperScatter(L, ic, L->x + 3 * ic, L->x);
     }
-    if (C && ic >= lag) { /* row ic - lag's residual, -U x, restricted */
-      const PetscInt p    = ic - lag;
-      PetscScalar    r[3] = {0, 0, 0};
+    if (C && ic >= lag) { /* row ic - lag's residual, restricted */
+      const PetscInt p = ic - lag;
+      const float   *D = L->a + 9 * LMG_U * p;
+      PetscScalar    r[3];
+      for (PetscInt s = 0; s < 3; s++) r[s] = L->b[3 * p + s] - (D[s] * L->x[3 * p] + D[s + 3] * L->x[3 * p + 1] + D[s + 6] * L->x[3 * p + 2]);
       LMGUpperProduct(L, p, L->x, r);
       LMGRestrictNode(C, L->nx, L->ny, p % L->nx, p / L->nx, r);
     }
   }
-  if (C) LMGCycle(mg, l + 1);
-  for (PetscInt ic = 0; ic < n; ic++) { /* x += P e, and b -= L x */
-    if (C) {
+  if (C) {
+    LMGCycle(mg, l + 1);
+    for (PetscInt ic = 0; ic < n; ic++) { /* x += e, b -= L e */
       PetscScalar e[3];
       LMGInterpolateNode(C, L->nx, L->ny, ic % L->nx, ic / L->nx, e);
       for (PetscInt s = 0; s < 3; s++) L->x[3 * ic + s] += e[s];
+      LMGUpperScatter(L, ic, e, L->b);
     }
-    LMGUpperScatter(L, ic, L->x + 3 * ic, L->b);
   }
   for (PetscInt ic = n - 1; ic >= 0; ic--) { /* x_I = G_I (b - L x_old - U x_new)_I */
     PetscScalar s[3] = {L->b[3 * ic], L->b[3 * ic + 1], L->b[3 * ic + 2]};
@@ -599,6 +609,8 @@ static PetscErrorCode PCApply_LatticeMG(PC pc, Vec b, Vec x)
   PC_LatticeMG *mg = (PC_LatticeMG *) pc->data;
 
   PetscFunctionBeginUser;
+  PetscCheck(!mg->hybrid || mg->smoother == LMG_SMOOTH_BLOCKICC, PetscObjectComm((PetscObject) pc), PETSC_ERR_ARG_INCOMP,
+             "-pc_latticemg_hybrid needs the block IC smoother, a symmetric one: with -pc_latticemg_smoother sgs the V(1,1) cycle is positive definite already (Gauss-Seidel's M + M^T - A is the diagonal)");
   if (mg->hybrid) { /* x = M^-1 b + (I - M^-1 A) Q (I - A M^-1) b, Q = P B_c P^T: SPD for any SPD M */
     PetscCall(LMGFineSmooth(pc, mg, PETSC_TRUE, b, x));
     PetscCall(MatMult(pc->pmat, x, mg->w));
