@@ -3,8 +3,9 @@
  * Why: block IC(0) and IC(1) take CG iterations that grow with the lattice (the
  * Cusick scene: 14.5, 22.7 and 47.7 a step at 81^2, 161^2 and 241^2; BENCHMARKS.md),
  * and drape's AMG (ML) holds 12.8 kB a particle. With this: 4.1, 4.4 and 9.2 at
- * 81^2, 161^2 and 321^2, 3.2 kB a particle. The lattice is a grid: its coarse
- * levels need no aggregation, and their interpolation no storage.
+ * 81^2, 161^2 and 321^2, 3.0 kB a particle (the whole of drapebe, the stiff hang).
+ * The lattice is a grid: its coarse levels need no aggregation, and their
+ * interpolation no storage.
  *
  * Levels. Level 0 is the matrix (one block row per particle, its lattice node
  * node[k]); level l + 1 keeps the nodes of level l with even indices along each
@@ -482,6 +483,10 @@ static PetscErrorCode LMGFineSetUp(PC_LatticeMG *mg, Mat A)
   PetscFunctionBeginUser;
   if (mg->smoother == LMG_SMOOTH_BLOCKICC) {
     PetscInt levels;
+    /* Where drapebe holds this PC across steps (-drape_pc_lag), the block IC is made
+     * again all the same, by its own PCApply, for each new matrix: the coarse levels
+     * lag, the smoother does not. Held too (PCSetReusePreconditioner), the Cusick
+     * scene at 41^2 took 8.6 CG iterations a step instead of 2.5 in its first 0.3 s. */
     PetscCall(PCSetUp(mg->fine));
     PetscCall(PCBlockICCGetLevels(mg->fine, &levels));
     if (mg->fill_auto && levels == 0) { /* a compensated IC(0) smooths poorly: IC(1), from now on */
