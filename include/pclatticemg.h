@@ -8,8 +8,9 @@
  * their coarse products; its upper triangle stored, 13 blocks a node, in single
  * precision). Smoothing: block IC(0) on the finest level (PCBLOCKICC,
  * options prefix -mg_fine_), symmetric block Gauss-Seidel on the coarser ones, a
- * dense LDL^T factorisation on the coarsest (at most 64 nodes). A V(1,1) cycle,
- * symmetric, so CG takes it; positive definite where 2 M - A is, M the finest
+ * dense LDL^T factorisation on the coarsest (at most 64 nodes). A (1,1) cycle,
+ * a W-cycle below the first coarse level (-pc_latticemg_gamma), symmetric, so CG
+ * takes it; positive definite where 2 M - A is, M the finest
  * level's smoother. Where it is not (block IC(0) of a stiff step can miss A by more
  * than a factor 2 in some direction: CG stops with an indefinite preconditioner),
  * the hybrid cycle M^-1 + (I - M^-1 A) Q (I - A M^-1), Q the coarse correction, is
@@ -18,7 +19,8 @@
  *
  * Options: -pc_latticemg_levels (the most levels; 0, the default: down to the
  * coarsest), -pc_latticemg_coarse_nodes (64), -pc_latticemg_coarse_lag (4),
- * -pc_latticemg_smoother (blockicc or sgs), -pc_latticemg_hybrid. */
+ * -pc_latticemg_smoother (blockicc or sgs), -pc_latticemg_hybrid, -pc_latticemg_gamma
+ * (2). */
 #pragma once
 
 #include <petscpc.h>

@@ -121,7 +121,7 @@ def test_block_icc_preconditioner():
 
 
 def test_lattice_multigrid_preconditioner():
-    """The lattice multigrid (PCLATTICEMG): its V(1,1) and hybrid cycles symmetric to
+    """The lattice multigrid (PCLATTICEMG): its V(1,1), W and hybrid cycles symmetric to
     round-off (the coarse levels hold one triangle; the sweeps backward are the
     transposes of those forward) and positive definite, with sliding, fixed and pinned
     rows and either smoother, on odd and even lattices; CG iterations that do not grow

@@ -1,5 +1,5 @@
-static const char help[] = "Unit tests of the lattice multigrid (src/integrate/pclatticemg.c): its V(1,1)\n"
-                           "and hybrid cycles symmetric to round-off and positive definite, with the\n"
+static const char help[] = "Unit tests of the lattice multigrid (src/integrate/pclatticemg.c): its V(1,1),\n"
+                           "W and hybrid cycles symmetric to round-off and positive definite, with the\n"
                            "contact constraints' filter (sliding, fixed and pinned rows) and either\n"
                            "smoother, on lattices of odd and even sizes; CG iterations that do not grow\n"
                            "with the lattice where block IC's do; block IC applied in place as out of place.\n"
@@ -120,13 +120,15 @@ static PetscErrorCode TestSymmetricPositive(PetscRandom rnd)
     PetscReal     *normal;
     PetscCall(BuildMatrix(nx, ny, 1e-4, 1.0, 0.05, rnd, &A));
     PetscCall(PetscMalloc1(3 * nx * ny, &normal));
-    for (PetscInt v = 0; v < 8; v++) {
+    for (PetscInt v = 0; v < 16; v++) {
       const PetscBool constraints = (PetscBool) (v & 1), hybrid = (PetscBool) ((v >> 1) & 1);
-      const char     *smoother = smoothers[(v >> 2) & 1];
+      const char     *smoother = smoothers[(v >> 2) & 1], *gamma = (v >> 3) ? "2" : "1";
       PC              pc;
       Vec             x, y, bx, by;
-      if (hybrid && v >> 2) continue; /* refused: TestHybridNeedsBlockIC */
+      if (hybrid && (v >> 2) & 1) continue; /* refused: TestHybridNeedsBlockIC */
+      PetscCall(PetscOptionsSetValue(NULL, "-pc_latticemg_gamma", gamma));
       PetscCall(MakeMG(A, nx, ny, constraints, smoother, hybrid, rnd, normal, &pc));
+      PetscCall(PetscOptionsClearValue(NULL, "-pc_latticemg_gamma"));
       PetscCall(MatCreateVecs(A, &x, &y));
       PetscCall(VecDuplicate(x, &bx));
       PetscCall(VecDuplicate(x, &by));
@@ -141,8 +143,8 @@ static PetscErrorCode TestSymmetricPositive(PetscRandom rnd)
         PetscCall(VecDot(x, bx, &xbx));
         PetscCall(VecDot(y, by, &yby));
         PetscCheck(PetscAbsScalar(ybx - xby) <= 1e-8 * PetscSqrtReal(PetscRealPart(xbx) * PetscRealPart(yby)), PETSC_COMM_SELF, PETSC_ERR_PLIB,
-                   "the lattice multigrid (%" PetscInt_FMT " x %" PetscInt_FMT ", %s, constraints %d, hybrid %d) is not symmetric: y.Bx %.17g, x.By %.17g", nx, ny, smoother, (int) constraints, (int) hybrid, (double) PetscRealPart(ybx),
-                   (double) PetscRealPart(xby));
+                   "the lattice multigrid (%" PetscInt_FMT " x %" PetscInt_FMT ", %s, constraints %d, hybrid %d, gamma %s) is not symmetric: y.Bx %.17g, x.By %.17g", nx, ny, smoother, (int) constraints, (int) hybrid, gamma,
+                   (double) PetscRealPart(ybx), (double) PetscRealPart(xby));
         PetscCheck(PetscRealPart(xbx) > 0 && PetscRealPart(yby) > 0, PETSC_COMM_SELF, PETSC_ERR_PLIB, "the lattice multigrid (%s, constraints %d, hybrid %d) is not positive: x.Bx %g, y.By %g", smoother, (int) constraints, (int) hybrid,
                    (double) PetscRealPart(xbx), (double) PetscRealPart(yby));
       }
