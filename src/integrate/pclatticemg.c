@@ -392,6 +392,15 @@ static inline void LMGUpperScatter(const LMGLevel *L, PetscInt ic, const PetscSc
     }
 }
 
+/* s -= D_I x_I, D_I row I's own block */
+static inline void LMGDiagonalSubtract(const LMGLevel *L, PetscInt ic, const PetscScalar *x, PetscScalar s[3])
+{
+  const float       *D  = L->a + 9 * LMG_U * ic;
+  const PetscScalar *xi = x + 3 * ic;
+
+  for (PetscInt r = 0; r < 3; r++) s[r] -= D[r] * xi[0] + D[r + 3] * xi[1] + D[r + 6] * xi[2];
+}
+
 /* x_I = G_I s */
 static inline void LMGDiagonalSolve(const LMGLevel *L, PetscInt ic, const PetscScalar s[3])
 {
@@ -426,17 +435,15 @@ static inline void LMGInterpolateNode(const LMGLevel *C, PetscInt nx, PetscInt n
 
 static void LMGCycle(PC_LatticeMG *, PetscInt);
 
-/* y = A x on level L (its upper triangle, the lower by the transposes) */
-static void LMGProduct(const LMGLevel *L, const PetscScalar *x, PetscScalar *y)
+/* b = r - A x on level L: row I's own block and upper triangle as stored, its
+ * lower triangle from the rows above it, transposed */
+static void LMGResidual(const LMGLevel *L, const PetscScalar *r, const PetscScalar *x, PetscScalar *b)
 {
-  for (PetscInt q = 0; q < 3 * L->n; q++) y[q] = 0;
+  for (PetscInt q = 0; q < 3 * L->n; q++) b[q] = r[q];
   for (PetscInt ic = 0; ic < L->n; ic++) {
-    const float      *D    = L->a + 9 * LMG_U * ic;
-    const PetscScalar m[3] = {-x[3 * ic], -x[3 * ic + 1], -x[3 * ic + 2]};
-    PetscScalar       t[3] = {0, 0, 0};
-    LMGUpperProduct(L, ic, x, t); /* t = -(U x)_I */
-    for (PetscInt r = 0; r < 3; r++) y[3 * ic + r] += D[r] * x[3 * ic] + D[r + 3] * x[3 * ic + 1] + D[r + 6] * x[3 * ic + 2] - t[r];
-    LMGUpperScatter(L, ic, m, y); /* y_J += A_IJ^T x_I */
+    LMGDiagonalSubtract(L, ic, x, b + 3 * ic);
+    LMGUpperProduct(L, ic, x, b + 3 * ic);
+    LMGUpperScatter(L, ic, x + 3 * ic, b);
   }
 }
 
@@ -453,8 +460,7 @@ static void LMGCoarseSolve(PC_LatticeMG *mg, PetscInt l)
   for (PetscInt q = 0; q < 3 * L->n; q++) L->r[q] = L->b[q];
   LMGCycle(mg, l);
   for (PetscInt q = 0; q < 3 * L->n; q++) L->x1[q] = L->x[q];
-  LMGProduct(L, L->x1, L->b);
-  for (PetscInt q = 0; q < 3 * L->n; q++) L->b[q] = L->r[q] - L->b[q];
+  LMGResidual(L, L->r, L->x1, L->b);
   LMGCycle(mg, l);
   for (PetscInt q = 0; q < 3 * L->n; q++) L->x[q] += L->x1[q];
 }
@@ -489,10 +495,9 @@ static void LMGCycle(PC_LatticeMG *mg, PetscInt l)
       LMGUpperScatter(L, ic, L->x + 3 * ic, L->x);
     }
     if (C && ic >= lag) { /* row ic - lag's residual, restricted */
-      const PetscInt p = ic - lag;
-      const float   *D = L->a + 9 * LMG_U * p;
-      PetscScalar    r[3];
-      for (PetscInt s = 0; s < 3; s++) r[s] = L->b[3 * p + s] - (D[s] * L->x[3 * p] + D[s + 3] * L->x[3 * p + 1] + D[s + 6] * L->x[3 * p + 2]);
+      const PetscInt p    = ic - lag;
+      PetscScalar    r[3] = {L->b[3 * p], L->b[3 * p + 1], L->b[3 * p + 2]};
+      LMGDiagonalSubtract(L, p, L->x, r);
       LMGUpperProduct(L, p, L->x, r);
       LMGRestrictNode(C, L->nx, L->ny, p % L->nx, p / L->nx, r);
     }
@@ -650,14 +655,22 @@ static PetscErrorCode LMGCoarseCorrect(PC_LatticeMG *mg, Vec r, PetscReal sign, 
   PetscFunctionReturn(0);
 }
 
+/* The hybrid cycle needs a symmetric smoother: refused, with the error code given, with sgs */
+static PetscErrorCode LMGCheckHybrid(PC pc, const PC_LatticeMG *mg, PetscErrorCode code)
+{
+  PetscFunctionBeginUser;
+  PetscCheck(!mg->hybrid || mg->smoother == LMG_SMOOTH_BLOCKICC, PetscObjectComm((PetscObject) pc), code,
+             "-pc_latticemg_hybrid needs the block IC smoother, a symmetric one: with -pc_latticemg_smoother sgs the V(1,1) cycle is positive definite already (Gauss-Seidel's M + M^T - A is the diagonal)");
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode PCApply_LatticeMG(PC pc, Vec b, Vec x)
 {
   PC_LatticeMG *mg = (PC_LatticeMG *) pc->data;
 
   PetscFunctionBeginUser;
-  PetscCheck(!mg->hybrid || mg->smoother == LMG_SMOOTH_BLOCKICC, PetscObjectComm((PetscObject) pc), PETSC_ERR_ARG_INCOMP,
-             "-pc_latticemg_hybrid needs the block IC smoother, a symmetric one: with -pc_latticemg_smoother sgs the V(1,1) cycle is positive definite already (Gauss-Seidel's M + M^T - A is the diagonal)");
-  if (mg->hybrid) { /* x = M^-1 b + (I - M^-1 A) Q (I - A M^-1) b, Q = P B_c P^T: SPD for any SPD M */
+  PetscCall(LMGCheckHybrid(pc, mg, PETSC_ERR_ARG_INCOMP)); /* PCLatticeMGSetHybrid may come after the options */
+  if (mg->hybrid) {                                        /* x = M^-1 b + (I - M^-1 A) Q (I - A M^-1) b, Q = P B_c P^T: SPD for any SPD M */
     PetscCall(LMGFineSmooth(pc, mg, PETSC_TRUE, b, x));
     PetscCall(MatMult(pc->pmat, x, mg->w));
     PetscCall(VecAYPX(mg->w, -1.0, b));
@@ -833,8 +846,7 @@ static PetscErrorCode PCSetFromOptions_LatticeMG(PC pc, PetscOptionItems *PetscO
   PetscCall(PetscOptionsEnum("-pc_latticemg_smoother", "The finest level's smoother: sgs (block Gauss-Seidel, forward before the coarse correction and backward after) or blockicc (block IC, options -mg_fine_pc_blockicc_*)", "PCLATTICEMG",
                              LMGSmoothers, (PetscEnum) mg->smoother, (PetscEnum *) &mg->smoother, NULL));
   PetscOptionsHeadEnd();
-  PetscCheck(!mg->hybrid || mg->smoother == LMG_SMOOTH_BLOCKICC, PetscObjectComm((PetscObject) pc), PETSC_ERR_USER_INPUT,
-             "-pc_latticemg_hybrid needs the block IC smoother, a symmetric one: with -pc_latticemg_smoother sgs the V(1,1) cycle is positive definite already (Gauss-Seidel's M + M^T - A is the diagonal)");
+  PetscCall(LMGCheckHybrid(pc, mg, PETSC_ERR_USER_INPUT));
   PetscCall(PCSetFromOptions(mg->fine));
   {
     const char *prefix;
