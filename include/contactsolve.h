@@ -20,7 +20,10 @@
  *     whether it lets go: a particle that, released alone, would lift off the
  *     surface is released (contact is unilateral). The TS solves the step again
  *     until no constraint comes or goes (-drape_contact_its bounds the solves; a
- *     particle is released at most once a step, so they cannot cycle);
+ *     particle is released at most once a step, so they cannot cycle). With
+ *     -contact_release_next such a particle is held to the end of the step and
+ *     free from the next one on (Baraff & Witkin 1998): a release then asks for no
+ *     further solve, only a landing does;
  *   - friction (Coulomb, mu) acts on sliding particles inside the solve as a force of
  *     magnitude mu f_n against the sliding velocity, f_n the normal force of the
  *     previous step: linearised about that step's sliding direction, and below the
@@ -42,7 +45,7 @@
 
 typedef struct _p_ContactSolve *ContactSolve;
 
-/* -contact_stick_velocity. Create and Destroy are not collective; SetFromOptions,
+/* -contact_stick_velocity, -contact_release_next. Create and Destroy are not collective; SetFromOptions,
  * SetUp (after ClothSetUp; again after a TS reset: the state starts anew) and View
  * (the options, and the active set's changes so far) are. */
 PETSC_EXTERN PetscErrorCode ContactSolveCreate(MPI_Comm, Contact, Cloth, ContactSolve *);
@@ -68,7 +71,8 @@ PETSC_EXTERN PetscErrorCode ContactSolveTrialVelocity(ContactSolve, const PetscS
 PETSC_EXTERN PetscErrorCode ContactSolveResidual(ContactSolve, const PetscScalar *dv, const PetscScalar *v, PetscScalar *r);
 /* After a solve that ends at x with velocity v and accelerations a = F(x, v)/m:
  * constrain the free particles the step carries deep into the contact layer and
- * release the constraints that would let their particle lift off. *changes: how
+ * release the constraints that would let their particle lift off (from the next
+ * step on with -contact_release_next: not a change). *changes: how
  * many (all ranks); *pc_changes as for Begin when there are changes, 0 otherwise.
  * Collective. */
 PETSC_EXTERN PetscErrorCode ContactSolveUpdate(ContactSolve, const PetscScalar *x, const PetscScalar *v, const PetscScalar *a, PetscInt *changes, PetscInt *pc_changes);

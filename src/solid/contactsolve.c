@@ -18,6 +18,7 @@ struct _p_ContactSolve {
   Contact   contact;
   Cloth     cloth;
   PetscReal stick_velocity; /* -contact_stick_velocity, m/s */
+  PetscBool release_next;   /* -contact_release_next: a constraint found pulling is released from the next step on */
   /* from the contact and the cloth at ContactSolveSetUp */
   ContactMode      mode;
   PetscReal        mu, thickness, damping;
@@ -61,6 +62,7 @@ PetscErrorCode ContactSolveCreate(MPI_Comm comm, Contact contact, Cloth cloth, C
   s->contact        = contact;
   s->cloth          = cloth;
   s->stick_velocity = 1e-5;
+  s->release_next   = PETSC_FALSE;
   *solve            = s;
   PetscFunctionReturn(0);
 }
@@ -71,6 +73,8 @@ PetscErrorCode ContactSolveSetFromOptions(ContactSolve s)
   PetscOptionsBegin(s->comm, NULL, "Contact with the solid in the implicit step (-ts_type drapebe)", "Contact");
   PetscCall(PetscOptionsReal("-contact_stick_velocity", "Backward Euler: sliding speed below which friction is static friction smoothed into a viscous force (it creeps at most this fast, m/s)", "ContactSolveSetFromOptions", s->stick_velocity,
                              &s->stick_velocity, NULL));
+  PetscCall(PetscOptionsBool("-contact_release_next", "Backward Euler: a constraint whose impulse pulls its particle into the solid is released from the next step on (Baraff & Witkin 1998), not by solving the step again",
+                             "ContactSolveSetFromOptions", s->release_next, &s->release_next, NULL));
   PetscOptionsEnd();
   PetscCall(DrapeCheckReal(s->comm, "-contact_stick_velocity", 1, &s->stick_velocity, 1e-12, 1, "m/s"));
   PetscFunctionReturn(0);
@@ -405,8 +409,10 @@ static PetscBool WouldLift(ContactSolve s, PetscInt k, const PetscReal p[3])
 }
 
 /* The active set's changes after a solve (xt, vt, at its end): kinds[0] new
- * constraints, kinds[1] released ones, on this rank. */
-static PetscErrorCode UpdateActiveSet(ContactSolve s, const PetscScalar *xt, const PetscScalar *vt_all, const PetscScalar *at, PetscInt kinds[2])
+ * constraints, kinds[1] released ones, kinds[2] those released from the next step
+ * on (-contact_release_next: held to the end of this one, so the solve stands), on
+ * this rank. */
+static PetscErrorCode UpdateActiveSet(ContactSolve s, const PetscScalar *xt, const PetscScalar *vt_all, const PetscScalar *at, PetscInt kinds[3])
 {
   const PetscReal h = s->h;
 
@@ -429,9 +435,13 @@ static PetscErrorCode UpdateActiveSet(ContactSolve s, const PetscScalar *xt, con
     /* the impulse the solid gave the particle (friction included) */
     for (PetscInt d = 0; d < 3; d++) p[d] = m * (vt[d] - s->v0[3 * k + d] - h * at[3 * k + d]);
     if (!s->released[k] && WouldLift(s, k, p)) {
-      Unconstrain(s, k);
       s->released[k]++;
-      s->lifted[k] = PETSC_TRUE;
+      s->lifted[k] = PETSC_TRUE; /* free at the start of a step while it stays in the layer */
+      if (s->release_next) {     /* held to the end of this step */
+        kinds[2]++;
+        continue;
+      }
+      Unconstrain(s, k);
       kinds[1]++;
     }
   }
@@ -440,17 +450,17 @@ static PetscErrorCode UpdateActiveSet(ContactSolve s, const PetscScalar *xt, con
 
 PetscErrorCode ContactSolveUpdate(ContactSolve s, const PetscScalar *xt, const PetscScalar *vt, const PetscScalar *at, PetscInt *changes, PetscInt *pc_changes)
 {
-  PetscInt kinds[2] = {0, 0}, sums[2]; /* new, released */
+  PetscInt kinds[3] = {0, 0, 0}, sums[3]; /* new, released, released from the next step */
 
   PetscFunctionBeginUser;
   PetscCall(PetscLogEventBegin(drape_log.contact, 0, 0, 0, 0));
   PetscCall(ClothGetHessianDiagonal(s->cloth, &s->hdiag));
   PetscCall(UpdateActiveSet(s, xt, vt, at, kinds));
-  PetscCall(MPIU_Allreduce(kinds, sums, 2, MPIU_INT, MPI_SUM, s->comm));
+  PetscCall(MPIU_Allreduce(kinds, sums, 3, MPIU_INT, MPI_SUM, s->comm));
   *changes = sums[0] + sums[1];
   s->joined += sums[0];
-  s->nreleased += sums[1];
-  PetscCall(PetscInfo(NULL, "contact active set: %" PetscInt_FMT " new, %" PetscInt_FMT " released\n", sums[0], sums[1]));
+  s->nreleased += sums[1] + sums[2];
+  PetscCall(PetscInfo(NULL, "contact active set: %" PetscInt_FMT " new, %" PetscInt_FMT " released, %" PetscInt_FMT " from the next step\n", sums[0], sums[1], sums[2]));
   *pc_changes = 0;
   if (*changes) PetscCall(ApplyConstraints(s, pc_changes));
   PetscCall(PetscLogEventEnd(drape_log.contact, 0, 0, 0, 0));
