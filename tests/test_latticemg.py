@@ -31,6 +31,23 @@ def test_iterations_do_not_grow_with_the_lattice():
     assert held["pc_type"] == "blockicc" and held["pc_switched_step"] == -1, held
 
 
+def test_a_large_lattice_takes_the_multigrid_sooner():
+    """The switch's threshold: 40 iterations a solve, 20 on a lattice of 40 000
+    particles or more (the coarse levels pay sooner there). The hang of denim at a
+    step where block IC takes 20-40 iterations a solve: on 121^2 (2.5 ms; measured 31
+    a step) it keeps block IC; on 201^2 (1.5 ms; 29 a solve) it takes the multigrid
+    after its 10 solves, unless -drape_mg_its 40 is given."""
+    small = run(f"{HANG} -da_grid_x 121 -da_grid_y 121 -ts_dt 2.5e-3 -ts_max_steps 12", checks=False).report
+    assert small["pc_switched_step"] == -1 and 20 < small["cg_per_step"] < 40, small
+    large = f"{HANG} -da_grid_x 201 -da_grid_y 201 -ts_dt 1.5e-3 -ts_max_steps 12"
+    res = run(large, checks=False)
+    assert res.report["pc_switched_step"] == 9 and res.report["pc_type"] == "latticemg", res.report
+    mean = float(res.stdout.split("CG with block IC took ")[1].split()[0])
+    assert 20 < mean < 40, res.stdout
+    held = run(f"{large} -drape_mg_its 40", checks=False).report
+    assert held["pc_switched_step"] == -1 and held["pc_type"] == "blockicc", held
+
+
 def test_solves_the_step_a_direct_solve_does(tmp):
     """CG with the multigrid to a tight tolerance gives backward Euler's step as the
     sparse Cholesky factorisation does: the hang, and a drop onto a sphere with

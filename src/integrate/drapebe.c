@@ -70,7 +70,7 @@ typedef struct {
   PetscBool sub_factor;  /* -sub_pc_type lu, ilu or asm: block Jacobi's blocks need AIJ */
   PetscInt  pc_switched; /* the step at which it gave way (-1: never) */
   PetscReal its_mean;    /* CG iterations a solve, a moving mean (BEWatchIterations) */
-  PetscReal mg_its;      /* -drape_mg_its: past this mean block IC gives way to multigrid on the lattice (0: never) */
+  PetscReal mg_its;      /* -drape_mg_its: past this mean block IC gives way to multigrid on the lattice (0: never; -1, not given: drape's choice) */
   PetscInt  its_solves;  /* solves in it */
   PetscInt  fill_step;   /* the step at which block IC(0) took its level-1 fill (-1: never; BEUseFill) */
   PetscBool fill_auto;   /* the options did not give the fill (-pc_blockicc_levels, -sub_pc_blockicc_levels) */
@@ -385,12 +385,19 @@ static PetscErrorCode BEUseLatticeMG(TS ts, TS_DrapeBE *be, const char *why)
  * -drape_mg_its (BE_MG_ITS; over at least 10 solves) block IC gives way to geometric multigrid
  * (BEUseLatticeMG): where IC takes 16.5 a step (the Cusick scene at 81^2) multigrid
  * was 10 % slower, at 20 (161^2) 8 % faster, at 26 (the Cusick scene at 61^2, from
- * step 54) 9 % slower, at 66 (the hang at 48^2 and 1e-2 s) twice as fast: 40. Not
- * collective (one rank). */
+ * step 54) 9 % slower (5.5 % with the W-cycle), at 66 (the hang at 48^2 and 1e-2 s)
+ * twice as fast: 40. On a lattice of BE_MG_LARGE particles or more the coarse
+ * levels pay sooner: the Cusick scene (denim) at 321^2, whose block IC(1) takes
+ * about 30 a solve in its 1 ms phase and reached 40 only in its settled phase,
+ * took 1163 CPU s so against 765 s with the multigrid from the start; so there
+ * BE_MG_ITS_LARGE, unless -drape_mg_its is given. Not collective (one rank). */
+#define BE_MG_LARGE     40000
+#define BE_MG_ITS_LARGE 20
 static PetscErrorCode BEWatchIterations(TS ts, TS_DrapeBE *be)
 {
   PetscMPIInt size;
   PetscBool   mg;
+  PetscReal   limit;
 
   PetscFunctionBeginUser;
   PetscCall(PetscObjectTypeCompare((PetscObject) be->pc, PCLATTICEMG, &mg));
@@ -398,7 +405,8 @@ static PetscErrorCode BEWatchIterations(TS ts, TS_DrapeBE *be)
   PetscCallMPI(MPI_Comm_size(PetscObjectComm((PetscObject) ts), &size));
   if (size > 1) PetscFunctionReturn(0);
   be->its_mean = be->its_solves ? 0.8 * be->its_mean + 0.2 * be->lits : be->lits;
-  if (++be->its_solves >= 10 && be->mg_its > 0 && be->its_mean > be->mg_its) {
+  limit        = be->mg_its >= 0 ? be->mg_its : (be->nparticles >= BE_MG_LARGE ? BE_MG_ITS_LARGE : BE_MG_ITS);
+  if (++be->its_solves >= 10 && limit > 0 && be->its_mean > limit) {
     char why[128];
     PetscCall(PetscSNPrintf(why, sizeof why, "took %.1f iterations a solve", (double) be->its_mean));
     PetscCall(BEUseLatticeMG(ts, be, why));
@@ -1253,11 +1261,14 @@ static PetscErrorCode TSDestroy_DrapeBE(TS ts)
 static PetscErrorCode TSSetFromOptions_DrapeBE(TS ts, PetscOptionItems *PetscOptionsObject)
 {
   TS_DrapeBE *be = (TS_DrapeBE *) ts->data;
+  PetscBool   mg_its_set;
 
   PetscFunctionBeginUser;
   PetscOptionsHeadBegin(PetscOptionsObject, "drape backward Euler");
-  PetscCall(
-    PetscOptionsReal("-drape_mg_its", "On one rank, drape's block IC gives way to geometric multigrid on the lattice once CG takes more than this many iterations a solve (a moving mean; 0: never)", "TSStep_DrapeBE", be->mg_its, &be->mg_its, NULL));
+  PetscCall(PetscOptionsReal("-drape_mg_its",
+                             "On one rank, drape's block IC gives way to geometric multigrid on the lattice once CG takes more than this many iterations a solve (a moving mean; 0: never; not given: " PetscStringize(BE_MG_ITS) ", and " PetscStringize(
+                               BE_MG_ITS_LARGE) " on a lattice of " PetscStringize(BE_MG_LARGE) " particles or more)",
+                             "TSStep_DrapeBE", be->mg_its, &be->mg_its, &mg_its_set));
   PetscCall(PetscOptionsInt("-drape_pc_lag", "Rebuild the preconditioner every this many steps (with -snes_type ksponly and an iterative KSP; 1: every step)", "TSStep_DrapeBE", be->pc_lag, &be->pc_lag, NULL));
   PetscCall(PetscOptionsInt("-drape_pc_overlap",
                             "On several ranks, drape's default preconditioner factors each rank's rows grown by this many layers of the matrix's graph (restricted additive Schwarz with block IC(0)); 0: each rank's rows alone (block Jacobi)",
@@ -1276,7 +1287,7 @@ static PetscErrorCode TSSetFromOptions_DrapeBE(TS ts, PetscOptionItems *PetscOpt
   }
   PetscOptionsHeadEnd();
   PetscCall(DrapeCheckInt(PetscObjectComm((PetscObject) ts), "-drape_pc_lag", be->pc_lag, 1, 1000000));
-  PetscCall(DrapeCheckReal(PetscObjectComm((PetscObject) ts), "-drape_mg_its", 1, &be->mg_its, 0, 1e6, "iterations"));
+  if (mg_its_set) PetscCall(DrapeCheckReal(PetscObjectComm((PetscObject) ts), "-drape_mg_its", 1, &be->mg_its, 0, 1e6, "iterations"));
   PetscCall(DrapeCheckInt(PetscObjectComm((PetscObject) ts), "-drape_contact_its", be->contact_its, 1, 1000));
   PetscCall(DrapeCheckInt(PetscObjectComm((PetscObject) ts), "-drape_pc_overlap", be->pc_overlap, 0, 100));
   {
@@ -1333,7 +1344,7 @@ static PetscErrorCode TSCreate_DrapeBE(TS ts)
   ts->ops->setfromoptions = TSSetFromOptions_DrapeBE;
   ts->ops->evaluatewlte   = TSEvaluateWLTE_DrapeBE;
   be->pc_lag              = 5;
-  be->mg_its              = BE_MG_ITS;
+  be->mg_its              = -1; /* drape's choice: BE_MG_ITS, or BE_MG_ITS_LARGE on a large lattice */
   be->pc_overlap          = 2;
   be->pc_switched         = -1;
   be->fill_step           = -1;
