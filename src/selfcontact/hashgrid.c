@@ -10,18 +10,26 @@
  * twice. The cell size is the mean extent of the entered boxes, doubled while the
  * boxes would take more than 8 cells each on average (a few long sweeps). */
 #include "selfcontactimpl.h"
+#include <stdint.h> /* INT64_MAX */
 
 typedef struct {
   PetscReal lo[3], hi[3];
 } SelfBox;
 
 typedef struct {
-  PetscReal   inv;   /* 1 / cell size                                        */
-  PetscInt64  mask;  /* buckets - 1 (a power of two)                         */
-  PetscInt   *start; /* entries of bucket b: start[b] .. start[b + 1] - 1     */
-  PetscInt   *item;  /* the box of each entry                                 */
-  PetscInt64 *cell;  /* its cell, 3 coordinates                              */
+  PetscReal           inv;     /* 1 / cell size                                        */
+  PetscInt64          mask;    /* buckets - 1 (a power of two)                         */
+  PetscInt64          base[3]; /* the lowest cell of the entered boxes                 */
+  PetscInt           *start;   /* entries of bucket b: start[b] .. start[b + 1] - 1     */
+  PetscInt           *item;    /* the box of each entry                                 */
+  unsigned long long *key;     /* its cell (CellKey)                                    */
 } SelfGrid;
+
+/* A cell's key: its coordinates from the grid's base, KEY_BITS bits each (GridCreate
+ * makes the cells large enough), and KEY_NONE for a cell outside that range, where
+ * no box was entered. */
+#define KEY_BITS 21
+#define KEY_NONE (~0ULL)
 
 static void MakeBoxes(PetscInt n, PetscInt nv, const PetscInt *prim, const PetscReal *x0, const PetscReal *x1, PetscReal r, SelfBox *b)
 {
@@ -40,10 +48,40 @@ static void MakeBoxes(PetscInt n, PetscInt nv, const PetscInt *prim, const Petsc
 
 static inline PetscInt64 CellOf(const SelfGrid *g, PetscReal x) { return (PetscInt64) PetscFloorReal(x * g->inv); }
 
+/* The low LOCAL_BITS bits of x spread to every third bit (Morton order). */
+#define LOCAL_BITS 7
+static inline unsigned long long Spread3(unsigned long long x)
+{
+  x &= (1ULL << LOCAL_BITS) - 1; /* at most 10 bits: */
+  x = (x | x << 16) & 0x030000FFULL;
+  x = (x | x << 8) & 0x0300F00FULL;
+  x = (x | x << 4) & 0x030C30C3ULL;
+  return (x | x << 2) & 0x09249249ULL;
+}
+
+/* A cell's bucket: the cells of each block of 2^LOCAL_BITS cells a side in Morton
+ * order, the block's offset hashed (Teschner et al.'s primes) and xor-ed onto it, so
+ * that neighbouring cells share aligned runs of buckets (the queries, in lattice
+ * order, then walk the table nearly in order) while cells of different blocks
+ * spread over the whole table. Any map of cells to buckets gives the same pairs
+ * (a bucket's entries are checked against the cell). */
 static inline PetscInt64 Bucket(const SelfGrid *g, PetscInt64 i, PetscInt64 j, PetscInt64 k)
 {
-  const unsigned long long h = ((unsigned long long) i * 73856093ULL) ^ ((unsigned long long) j * 19349663ULL) ^ ((unsigned long long) k * 83492791ULL);
-  return (PetscInt64) (h & (unsigned long long) g->mask);
+  const unsigned long long u = (unsigned long long) i, v = (unsigned long long) j, w = (unsigned long long) k;
+  const unsigned long long morton = Spread3(u) | Spread3(v) << 1 | Spread3(w) << 2;
+  const unsigned long long block  = ((u >> LOCAL_BITS) * 73856093ULL) ^ ((v >> LOCAL_BITS) * 19349663ULL) ^ ((w >> LOCAL_BITS) * 83492791ULL);
+  return (PetscInt64) ((morton ^ ((block * 0x9E3779B97F4A7C15ULL) >> 24)) & (unsigned long long) g->mask);
+}
+
+static inline unsigned long long CellKey(const SelfGrid *g, const PetscInt64 c[3])
+{
+  unsigned long long key = 0;
+  for (PetscInt d = 0; d < 3; d++) {
+    const PetscInt64 o = c[d] - g->base[d];
+    if (o < 0 || o >= (1LL << KEY_BITS)) return KEY_NONE;
+    key = key << KEY_BITS | (unsigned long long) o;
+  }
+  return key;
 }
 
 static inline PetscBool Overlap(const SelfBox *a, const SelfBox *b)
@@ -87,20 +125,29 @@ static PetscErrorCode GridCreate(PetscInt n, const SelfBox *b, SelfGrid *g)
       far = PetscMax(far, PetscMax(PetscAbsReal(b[k].lo[d]), PetscAbsReal(b[k].hi[d])));
     }
   g->inv = ext > 0 ? 1 / ext : 1;
-  for (;;) {
-    cells = 0;
-    for (PetscInt k = 0; k < n; k++) cells += CellsOf(g, &b[k]);
-    if (cells <= 8 * (PetscReal) PetscMax(n, 1)) break;
-    g->inv /= 2;
-  }
   /* cell coordinates are 64-bit integers (exact in a double below 2^52) */
   PetscCheck(far * g->inv < 4503599627370496.0, PETSC_COMM_SELF, PETSC_ERR_FP, "Self-contact: a particle is %g m from the origin, %g times the size of the particles' boxes (the step diverged); reduce -ts_dt or use -ts_type drapebe", (double) far,
              (double) (far * g->inv));
+  for (;;) { /* doubled while the boxes take more than 8 cells each, or span more than 2^KEY_BITS cells a side */
+    PetscInt64 top[3];
+    PetscBool  fits = PETSC_TRUE;
+    cells           = 0;
+    for (PetscInt d = 0; d < 3; d++) g->base[d] = INT64_MAX, top[d] = INT64_MIN;
+    for (PetscInt k = 0; k < n; k++) {
+      cells += CellsOf(g, &b[k]);
+      for (PetscInt d = 0; d < 3; d++) g->base[d] = PetscMin(g->base[d], CellOf(g, b[k].lo[d])), top[d] = PetscMax(top[d], CellOf(g, b[k].hi[d]));
+    }
+    for (PetscInt d = 0; d < 3; d++) fits = (PetscBool) (fits && (!n || top[d] - g->base[d] < (1LL << KEY_BITS)));
+    if (fits && cells <= 8 * (PetscReal) PetscMax(n, 1)) break;
+    g->inv /= 2;
+  }
+  if (!n)
+    for (PetscInt d = 0; d < 3; d++) g->base[d] = 0; /* (no entry: every key is KEY_NONE or matches none) */
   nent = (PetscInt64) cells;
   while (nb < 2 * nent) nb *= 2;
   g->mask = nb - 1;
   PetscCall(PetscCalloc1(nb + 1, &g->start));
-  PetscCall(PetscMalloc2(nent + 1, &g->item, 3 * nent + 3, &g->cell));
+  PetscCall(PetscMalloc2(nent + 1, &g->item, nent + 1, &g->key));
   PetscCall(PetscMalloc1(nb, &fill));
   for (PetscInt k = 0; k < n; k++) {
     PetscInt64 c[3];
@@ -114,7 +161,7 @@ static PetscErrorCode GridCreate(PetscInt n, const SelfBox *b, SelfGrid *g)
     {
       const PetscInt e = fill[Bucket(g, c[0], c[1], c[2])]++;
       g->item[e]       = k;
-      for (PetscInt d = 0; d < 3; d++) g->cell[3 * e + d] = c[d];
+      g->key[e]        = CellKey(g, c);
     }
   }
   PetscCall(PetscFree(fill));
@@ -125,7 +172,7 @@ static PetscErrorCode GridDestroy(SelfGrid *g)
 {
   PetscFunctionBeginUser;
   PetscCall(PetscFree(g->start));
-  PetscCall(PetscFree2(g->item, g->cell));
+  PetscCall(PetscFree2(g->item, g->key));
   PetscFunctionReturn(0);
 }
 
@@ -183,11 +230,12 @@ PetscErrorCode SelfBroadPhaseHash(const SelfMesh *m, const PetscReal *x0, const 
     PetscInt64     c[3];
     FOR_CELLS(&g, &vb[v], c)
     {
-      const PetscInt64 bk = Bucket(&g, c[0], c[1], c[2]);
+      const PetscInt64         bk  = Bucket(&g, c[0], c[1], c[2]);
+      const unsigned long long key = CellKey(&g, c);
       for (PetscInt e = g.start[bk]; e < g.start[bk + 1]; e++) {
         const PetscInt  t = g.item[e];
         const PetscInt *T = m->tri + 3 * t;
-        if (g.cell[3 * e] != c[0] || g.cell[3 * e + 1] != c[1] || g.cell[3 * e + 2] != c[2]) continue;
+        if (g.key[e] != key) continue;
         if (p == T[0] || p == T[1] || p == T[2] || !Overlap(&vb[v], &tb[t]) || !FirstCell(&g, &vb[v], &tb[t], c)) continue;
         PetscCall(KeysPush(&keys, (PetscInt64) v * m->nt + t));
       }
@@ -203,11 +251,12 @@ PetscErrorCode SelfBroadPhaseHash(const SelfMesh *m, const PetscReal *x0, const 
     PetscInt64      c[3];
     FOR_CELLS(&g, &eb[a], c)
     {
-      const PetscInt64 bk = Bucket(&g, c[0], c[1], c[2]);
+      const PetscInt64         bk  = Bucket(&g, c[0], c[1], c[2]);
+      const unsigned long long key = CellKey(&g, c);
       for (PetscInt e = g.start[bk]; e < g.start[bk + 1]; e++) {
         const PetscInt  b = g.item[e];
         const PetscInt *B = m->edge + 2 * b;
-        if (b <= a || g.cell[3 * e] != c[0] || g.cell[3 * e + 1] != c[1] || g.cell[3 * e + 2] != c[2]) continue;
+        if (b <= a || g.key[e] != key) continue;
         if (A[0] == B[0] || A[0] == B[1] || A[1] == B[0] || A[1] == B[1] || !Overlap(&eb[a], &eb[b]) || !FirstCell(&g, &eb[a], &eb[b], c)) continue;
         PetscCall(KeysPush(&keys, (PetscInt64) a * m->ne + b));
       }
