@@ -39,3 +39,8 @@ PETSC_EXTERN PetscErrorCode ReportPrintJSON(Report);
  * (getrusage RUSAGE_SELF), so a loaded machine, which stretches wall time, does not
  * change it much. Not collective. */
 PETSC_EXTERN PetscErrorCode ReportCPUTime(PetscLogDouble *seconds);
+/* This process's peak resident memory so far, bytes: VmHWM of /proc/self/status
+ * (the high-water mark of its own address space since exec) where Linux gives it,
+ * else getrusage's ru_maxrss (which on Linux also counts the RSS of the process it
+ * was forked from, up to its exec). Not collective. */
+PETSC_EXTERN PetscErrorCode ReportPeakMemory(PetscLogDouble *bytes);

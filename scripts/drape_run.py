@@ -46,12 +46,18 @@ def parse_report(stdout):
 
 
 class Result:
-    """One drape run: command, exit code, output, peak RSS (bytes, of the launched
-    process) and report (a dict, None when the run did not complete)."""
+    """One drape run: command, exit code, output, peak RSS (bytes, of the largest
+    rank) and report (a dict, None when the run did not complete).
+
+    The peak RSS is the report's memory_peak_rank_max (each rank's own VmHWM) when the
+    run completed; else os.wait4's ru_maxrss, which on Linux is at least the RSS of
+    the process the launch was forked from (a test runner's worker, say)."""
 
     def __init__(self, cmd, returncode, stdout, stderr, maxrss):
-        self.cmd, self.returncode, self.stdout, self.stderr, self.maxrss = " ".join(cmd), returncode, stdout, stderr, maxrss
+        self.cmd, self.returncode, self.stdout, self.stderr = " ".join(cmd), returncode, stdout, stderr
         self.report = parse_report(stdout)
+        peak = (self.report or {}).get("memory_peak_rank_max")
+        self.maxrss = peak if peak is not None and peak > 0 else maxrss
 
     def summary(self):
         """(steps, simulated time, wall s of the time loop, CG iterations per step: 0 for
@@ -93,7 +99,7 @@ class Result:
 
 def run(exe, args, np_=1, timeout=None):
     """Run drape `exe` with `args` on np_ ranks (from the repository's root); a run
-    longer than `timeout` s is killed. Returns a Result, with the peak RSS from os.wait4."""
+    longer than `timeout` s is killed. Returns a Result (its peak RSS: drape's own, or os.wait4's)."""
     cmd = (mpiexec(np_) if np_ > 1 else []) + [str(exe)] + [str(a) for a in args] + ["-drape_progress", "0", "-drape_json"]
     with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
         p = subprocess.Popen(cmd, stdout=out, stderr=err, text=True, cwd=ROOT)

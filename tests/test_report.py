@@ -164,3 +164,18 @@ def test_setup_memory_per_particle():
     now, 229 at 2048^2; issue 26's floor: 250 at 2048^2)."""
     res = run("-da_grid_x 1024 -da_grid_y 1024 -cloth_pin edge_corners -ts_type basicsymplectic -ts_dt 1e-6 -ts_max_steps 1 -drape_stability_its 0 -drape_json")
     assert 132 < res.report["setup_bytes_per_particle"] < 250
+
+
+@pytest.mark.parametrize("np_", (1, 2))
+def test_peak_memory_is_drapes_own(tmp, np_):
+    """The peak memory the report gives (and the scripts and tests read) is drape's
+    own: a small run launched by a process that holds 400 MB reports under 100 MB a
+    rank. Linux's ru_maxrss of the launched process counts the RSS of the process it
+    was forked from (at least the 400 MB here), so this would be false if drape
+    reported it, or if the scripts read os.wait4's figure when the report has one."""
+    ballast = b"\x01" * (400 << 20)  # written, so resident
+    res = run(f"{HANG} -output_file {tmp / 'peak.h5'}", np_=np_)
+    rep = res.report
+    assert 5e6 < rep["memory_peak_rank_max"] < 100e6 and res.maxrss == rep["memory_peak_rank_max"]
+    assert rep["memory_peak_rank_max"] <= rep["memory_peak"] <= np_ * rep["memory_peak_rank_max"]
+    assert len(ballast) == 400 << 20

@@ -1143,6 +1143,17 @@ static PetscErrorCode SimulationViewSummary(Simulation s, PetscViewer viewer, Pe
   PetscCall(ReportViewReal(r, viewer, "particle_steps_per_s", ", %.4e particle-steps/s", wall > 0 ? psteps / wall : 0));
   PetscCall(ReportViewReal(r, viewer, "cpu", "; %.3f s CPU (all ranks)", cpu));
   PetscCall(ReportSetReal(r, "cpu_rank_max", cpu_max));
+  {
+    /* peak resident memory (VmHWM), summed over ranks and the largest rank's: the
+     * scripts' and tests' memory figures, free of how the process was launched */
+    PetscLogDouble peak, mem[2];
+    PetscCall(ReportPeakMemory(&peak));
+    mem[0] = peak, mem[1] = peak;
+    PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &mem[0], 1, MPIU_PETSCLOGDOUBLE, MPI_SUM, s->comm));
+    PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &mem[1], 1, MPIU_PETSCLOGDOUBLE, MPI_MAX, s->comm));
+    PetscCall(ReportSetReal(r, "memory_peak", (PetscReal) mem[0]));
+    PetscCall(ReportSetReal(r, "memory_peak_rank_max", (PetscReal) mem[1]));
+  }
   PetscCall(ReportViewReal(r, viewer, "particle_steps_per_cpu_s", ", %.4e particle-steps per CPU second", cpu > 0 ? psteps / cpu : 0));
   PetscCall(ReportViewReal(r, its > 0 ? viewer : NULL, "cg_per_step", ", %.2f CG iterations per step", (PetscReal) its / PetscMax(run, 1)));
   PetscCall(ReportViewReal(r, solves > run ? viewer : NULL, "solves_per_step", ", %.2f solves per step", (PetscReal) solves / PetscMax(run, 1)));

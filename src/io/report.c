@@ -214,3 +214,26 @@ PetscErrorCode ReportCPUTime(PetscLogDouble *seconds)
   *seconds = (PetscLogDouble) u.ru_utime.tv_sec + 1e-6 * (PetscLogDouble) u.ru_utime.tv_usec + (PetscLogDouble) u.ru_stime.tv_sec + 1e-6 * (PetscLogDouble) u.ru_stime.tv_usec;
   PetscFunctionReturn(0);
 }
+
+PetscErrorCode ReportPeakMemory(PetscLogDouble *bytes)
+{
+  struct rusage u;
+  FILE         *f = fopen("/proc/self/status", "r");
+
+  PetscFunctionBeginUser;
+  *bytes = -1;
+  if (f) {
+    char   line[256];
+    double kb;
+    while (fgets(line, sizeof line, f))
+      if (sscanf(line, "VmHWM: %lf kB", &kb) == 1) {
+        *bytes = 1024 * kb;
+        break;
+      }
+    fclose(f);
+  }
+  if (*bytes >= 0) PetscFunctionReturn(0);
+  PetscCheck(getrusage(RUSAGE_SELF, &u) == 0, PETSC_COMM_SELF, PETSC_ERR_SYS, "getrusage(RUSAGE_SELF) failed: the process's peak memory is unknown");
+  *bytes = 1024 * (PetscLogDouble) u.ru_maxrss; /* kB on Linux */
+  PetscFunctionReturn(0);
+}
