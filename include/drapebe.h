@@ -72,8 +72,9 @@ PETSC_EXTERN PetscErrorCode TSDrapeBEGetStatistics(TS, PetscInt *solves, PetscIn
  * not, or the options chose the preconditioner), the steps TSAdapt rejected for
  * their local error (-ts_adapt_type basic), and the steps cut because the changes
  * after the step before (the self-contact filter, TSDrapeBEStateChanged) added
- * mechanical energy. Not collective (the same on every rank). */
-PETSC_EXTERN PetscErrorCode TSDrapeBEGetStepHistory(TS, PetscInt *pc_switched, PetscInt *error_rejected, PetscInt *filter_cut);
+ * mechanical energy, and those cut because the step before added more than
+ * -drape_energy_rise. Not collective (the same on every rank). */
+PETSC_EXTERN PetscErrorCode TSDrapeBEGetStepHistory(TS, PetscInt *pc_switched, PetscInt *error_rejected, PetscInt *filter_cut, PetscInt *rise_cut);
 /* The step at which drape's block IC(0) took its level-1 fill for the rest of the
  * run (-1: never, or drape did not choose the preconditioner). Not collective. */
 PETSC_EXTERN PetscErrorCode TSDrapeBEGetFillStep(TS, PetscInt *fill_step);

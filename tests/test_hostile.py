@@ -86,6 +86,8 @@ CASES = [
     ("pin-beyond-petscint", "-cloth_pin list -cloth_pin_list 4294967297,0", "beyond the integers", {}),
     ("lattice-100000-squared", "-da_grid_x 100000 -da_grid_y 100000", "lattice", {}),
     ("rest-tol-nan", "-drape_rest_tol nan", "-drape_rest_tol must be", {}),
+    ("energy-rise-big", "-ts_type drapebe -drape_energy_rise 0.5", "-drape_energy_rise must be zero or positive and finite, at most 0.01; got 0.5", {}),
+    ("energy-rise-nan", "-ts_type drapebe -drape_energy_rise nan", "-drape_energy_rise must be zero or positive and finite, at most 0.01; got nan", {}),
     ("mat-assembly-csc", "-ts_type drapebe -drape_mat_assembly csc", "Unknown option csc for -drape_mat_assembly", {}),
     ("mat-assembly-csr-sbaij", "-ts_type drapebe -drape_mat_type sbaij -drape_mat_assembly csr", "the matrix is seqsbaij; use -drape_mat_assembly coo or rows", {}),
     # PETSc tracebacks instead of a sentence

@@ -1166,10 +1166,10 @@ static PetscErrorCode SimulationViewSummary(Simulation s, PetscViewer viewer, Pe
     if (largest > 0) PetscCall(ReportViewReal(r, largest > dt * (1 + 1e-12) ? viewer : NULL, "dt_largest", ", steps up to %g s as the cloth settled", largest));
   }
   {
-    PetscInt  switched, error_rejected, filter_cut;
+    PetscInt  switched, error_rejected, filter_cut, rise_cut;
     PetscBool implicit;
     PetscCall(PetscObjectTypeCompare((PetscObject) s->ts, TSDRAPEBE, &implicit));
-    PetscCall(TSDrapeBEGetStepHistory(s->ts, &switched, &error_rejected, &filter_cut));
+    PetscCall(TSDrapeBEGetStepHistory(s->ts, &switched, &error_rejected, &filter_cut, &rise_cut));
     if (implicit) PetscCall(ReportSetInt(r, "pc_switched_step", switched)); /* -1: block Jacobi/ICC(0) throughout, or the options' choice */
     if (implicit) {
       PetscInt fill;
@@ -1187,6 +1187,7 @@ static PetscErrorCode SimulationViewSummary(Simulation s, PetscViewer viewer, Pe
     }
     PetscCall(ReportViewInt(r, error_rejected ? viewer : NULL, "steps_rejected_error", ", %" PetscInt_FMT " steps rejected for their local error", error_rejected));
     PetscCall(ReportViewInt(r, filter_cut ? viewer : NULL, "steps_cut_filter", ", %" PetscInt_FMT " steps cut after the self-contact filter added energy", filter_cut));
+    PetscCall(ReportViewInt(r, rise_cut ? viewer : NULL, "steps_cut_energy", ", %" PetscInt_FMT " steps cut after a step that added energy", rise_cut));
   }
   if (PetscIsNanReal(s->strain_last)) {
     PetscCall(ReportSetReal(r, "strain_max", s->strain_last));
