@@ -302,3 +302,26 @@ def test_cusick_lattices_quick(tmp_path):
     assert md.count("\n| 2") == 2 and "| 25² | 12.50 |" in md
     assert re.search(r"\| 25² \|[^\n]*\| 0\.0000 \| yes \|", md), md
     assert (tmp_path / "lattices.png").stat().st_size > 1000
+
+
+def test_rest_race_quick(tmp_path):
+    """scripts/rest_race.py --quick on the vertical hang (16^2), whose rest is unique:
+    the reference and its check (half the step) rest within 0.05 mm of each other;
+    each scheme's runs come closer to the reference as the rest tolerance tightens
+    (the softest modes creep), both schemes reach it within 1 mm, and the ratio of
+    their fastest such runs is printed."""
+    import csv
+    res = script("rest_race.py", "--quick", "--scenes", "hangv64", "--out", tmp_path)
+    assert res.returncode == 0, res.stdout + res.stderr
+    with open(tmp_path / "rest_race.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [r["scheme"] for r in rows[:2]] == ["symplectic", "symplectic"] and float(rows[1]["error_mm"]) < 0.05, rows[:2]
+    runs = {}
+    for r in rows[2:]:
+        assert r["status"] == "ok", r
+        runs.setdefault(r["run"], []).append(float(r["error_mm"]))
+    assert len(runs) == 4 and all(len(e) == 3 for e in runs.values()), runs
+    for errors in runs.values():
+        assert errors[-1] <= errors[0] + 1e-3, runs  # 1e-8 J/kg against 1e-6
+    assert re.search(r"hangv64 \(16\^2; the reference and its check 0\.0\d mm apart\): fastest within 1 mm of the reference: symplectic Euler.*; drapebe.*; ratio \d", res.stdout), res.stdout
+    assert "| hangv64 |" in (tmp_path / "rest_race.md").read_text()
