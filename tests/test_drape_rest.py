@@ -143,13 +143,16 @@ def test_stiff_light_cloth_at_a_10ms_step(scene):
     no switch to multigrid, 1.23 and 1.39 CPU s on the loaded machine (with PETSc's
     ICC(0) and a switch to ML at its first failure: 1.28 and 3.37 s); since 8438f79
     block IC gives way to the lattice multigrid after 10 solves (more than 25
-    iterations a solve)."""
-    res = run(f"{STIFF} {scene}", checks=False)
+    iterations a solve). The cut after a step that added energy (-drape_energy_rise)
+    is off: it changes the drop's path (8 cuts, then a step retried for the energy
+    it added at t = 0.425 s; strain 0.82 % against 0.99 %), and the preconditioners
+    are what is compared here."""
+    res = run(f"{STIFF} {scene} -drape_energy_rise 0", checks=False)
     rep = res.report
     assert rep["pc_type"] in ("blockicc", "latticemg", "ml", "gamg"), rep
     assert rep["steps_retried"] == 0 and rep["cg_per_step"] <= 300 and rep["strain_max"] < 0.03, rep
     # what the compensation is for: PETSc's ICC(0), asked for, fails here and retries steps
-    petsc = run(f"{STIFF} {scene} -pc_type bjacobi", checks=False).report
+    petsc = run(f"{STIFF} {scene} -drape_energy_rise 0 -pc_type bjacobi", checks=False).report
     assert petsc["steps_retried"] > 0, petsc
 
 
