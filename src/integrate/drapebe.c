@@ -83,7 +83,6 @@ typedef struct {
   PetscReal energy, energy_free, energy_trial, energy_free_trial; /* BECheckEnergy */
   PetscReal energy_scale;                                         /* M g L */
   PetscReal rise_trial, rise_cut;                                 /* BECheckRise */
-  PetscBool rising;
   PetscInt  nrising;
   PetscBool have_energy;
   PetscReal filter_added; /* mechanical energy the changes after the last step added (TSDrapeBEStateChanged), J */
@@ -661,6 +660,15 @@ static PetscErrorCode BESolve(TS ts, TS_DrapeBE *be, PetscBool *ok)
   PetscFunctionReturn(0);
 }
 
+/* Cut the step about to be taken like a failed one: to -ts_adapt_scale_solve_failed
+ * of itself, counted as a failed solve so that TSAdapt drape grows it back as after
+ * one. */
+static void BECutNextStep(TS ts)
+{
+  ts->time_step *= ts->adapt->scale_solve_failed;
+  ts->num_snes_failures++; /* TSAdapt drape: a failure at the step before the cut */
+}
+
 /* What changes the state after a step, the projection onto the solid and the
  * self-contact filter, is no part of the step's energy check, which starts from the
  * state it leaves. At a step so large that the penalties in the solve are soft
@@ -689,8 +697,7 @@ static PetscErrorCode BECheckFilter(TS ts, TS_DrapeBE *be)
                           (double) ts->ptime, (double) be->filter_added, (double) (ts->time_step * ts->adapt->scale_solve_failed)));
   be->nfilter++;
   be->filter_added = 0;
-  ts->time_step *= ts->adapt->scale_solve_failed;
-  ts->num_snes_failures++; /* TSAdapt drape: a failure at the step before the cut */
+  BECutNextStep(ts);
   PetscFunctionReturn(0);
 }
 
@@ -735,9 +742,9 @@ static PetscErrorCode BECheckEnergy(TS ts, TS_DrapeBE *be, PetscBool *ok)
 }
 
 /* A step that added mechanical energy below the failure's 1 % but above
- * -drape_energy_rise (a tenth of it) is kept, and the step after it is cut like a
- * failed one (to -ts_adapt_scale_solve_failed of itself, counted as a failure for
- * TSAdapt drape, which grows it back as after one). What it is for: an instability
+ * -drape_energy_rise (a tenth of it) is kept (rise_trial: the accepted step's, as a
+ * fraction of the energy scale), and the step after it is cut like a failed one
+ * (BECutNextStep). What it is for: an instability
  * that grows a step at a time under the failure's threshold. The Cusick skirt at
  * 401^2 and 1 ms slapping the pedestal's side (t = 0.166 s) gained 4e-6, 1e-5,
  * 2.5e-5, 5e-5, 1e-4, 2e-4, 3.5e-4 J in successive steps (0.005 % to 0.5 % of the
@@ -747,16 +754,14 @@ static PetscErrorCode BECheckEnergy(TS ts, TS_DrapeBE *be, PetscBool *ok)
 static PetscErrorCode BECheckRise(TS ts, TS_DrapeBE *be)
 {
   PetscFunctionBeginUser;
-  if (!be->rising) PetscFunctionReturn(0);
-  be->rising = PETSC_FALSE;
+  if (!(be->rise_cut > 0 && be->rise_trial > be->rise_cut)) PetscFunctionReturn(0);
   if (!be->nrising)
     PetscCall(PetscPrintf(PetscObjectComm((PetscObject) ts),
                           "note: the backward-Euler step to t = %g s added %.3g %% of the energy scale in mechanical energy (more than -drape_energy_rise %g %%, less than the 1 %% that fails a step); the next step is cut to h = %g s (further cuts "
                           "are counted in the summary)\n",
                           (double) ts->ptime, (double) (100 * be->rise_trial), (double) (100 * be->rise_cut), (double) (ts->time_step * ts->adapt->scale_solve_failed)));
   be->nrising++;
-  ts->time_step *= ts->adapt->scale_solve_failed;
-  ts->num_snes_failures++; /* TSAdapt drape: a failure at the step before the cut */
+  BECutNextStep(ts);
   PetscFunctionReturn(0);
 }
 
@@ -961,7 +966,6 @@ static PetscErrorCode TSStep_DrapeBE(TS ts)
   PetscCall(BEAccept(ts, be));
   be->energy      = be->energy_trial;
   be->energy_free = be->energy_free_trial;
-  be->rising      = (PetscBool) (be->rise_cut > 0 && be->rise_trial > be->rise_cut);
   PetscCall(VecRestoreArrayRead(be->U0, &u0));
   ts->ptime += ts->time_step;
   PetscCall(TSPostStage(ts, ts->ptime, 0, &ts->vec_sol));

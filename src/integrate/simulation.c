@@ -997,6 +997,19 @@ static PetscErrorCode SimulationSolverTypes(Simulation s, SNESType *st, KSPType 
 }
 
 /* The cloth's numbers by name (what ClothView prints for people). */
+/* A per-rank figure into the report: its sum over ranks and its largest. Collective. */
+static PetscErrorCode ReportSumAndMax(Report r, MPI_Comm comm, PetscLogDouble mine, const char sum_name[], const char max_name[])
+{
+  PetscLogDouble sum, max;
+
+  PetscFunctionBeginUser;
+  PetscCall(MPIU_Allreduce(&mine, &sum, 1, MPIU_PETSCLOGDOUBLE, MPI_SUM, comm));
+  PetscCall(MPIU_Allreduce(&mine, &max, 1, MPIU_PETSCLOGDOUBLE, MPI_MAX, comm));
+  PetscCall(ReportSetReal(r, sum_name, (PetscReal) sum));
+  PetscCall(ReportSetReal(r, max_name, (PetscReal) max));
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode SimulationReportCloth(Simulation s)
 {
   Report    r = s->report;
@@ -1019,13 +1032,9 @@ static PetscErrorCode SimulationReportCloth(Simulation s)
   {
     /* the set-up's CPU time, summed over ranks and the busiest rank's: with ranks
      * sharing cores (oversubscribed) its wall time says nothing of a rank's work */
-    PetscLogDouble cpu, mine[2];
+    PetscLogDouble cpu;
     PetscCall(ReportCPUTime(&cpu));
-    mine[0] = cpu - s->cpu0, mine[1] = mine[0];
-    PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &mine[0], 1, MPIU_PETSCLOGDOUBLE, MPI_SUM, s->comm));
-    PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &mine[1], 1, MPIU_PETSCLOGDOUBLE, MPI_MAX, s->comm));
-    PetscCall(ReportSetReal(r, "setup_cpu", (PetscReal) mine[0]));
-    PetscCall(ReportSetReal(r, "setup_cpu_rank_max", (PetscReal) mine[1]));
+    PetscCall(ReportSumAndMax(r, s->comm, cpu - s->cpu0, "setup_cpu", "setup_cpu_rank_max"));
   }
   PetscCall(ReportSetInt(r, "active_particles", info.nactive));
   PetscCall(ReportSetInt(r, "pinned", info.npinned));
@@ -1146,13 +1155,9 @@ static PetscErrorCode SimulationViewSummary(Simulation s, PetscViewer viewer, Pe
   {
     /* peak resident memory (VmHWM), summed over ranks and the largest rank's: the
      * scripts' and tests' memory figures, free of how the process was launched */
-    PetscLogDouble peak, mem[2];
+    PetscLogDouble peak;
     PetscCall(ReportPeakMemory(&peak));
-    mem[0] = peak, mem[1] = peak;
-    PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &mem[0], 1, MPIU_PETSCLOGDOUBLE, MPI_SUM, s->comm));
-    PetscCall(MPIU_Allreduce(MPI_IN_PLACE, &mem[1], 1, MPIU_PETSCLOGDOUBLE, MPI_MAX, s->comm));
-    PetscCall(ReportSetReal(r, "memory_peak", (PetscReal) mem[0]));
-    PetscCall(ReportSetReal(r, "memory_peak_rank_max", (PetscReal) mem[1]));
+    PetscCall(ReportSumAndMax(r, s->comm, peak, "memory_peak", "memory_peak_rank_max"));
   }
   PetscCall(ReportViewReal(r, viewer, "particle_steps_per_cpu_s", ", %.4e particle-steps per CPU second", cpu > 0 ? psteps / cpu : 0));
   PetscCall(ReportViewReal(r, its > 0 ? viewer : NULL, "cg_per_step", ", %.2f CG iterations per step", (PetscReal) its / PetscMax(run, 1)));
