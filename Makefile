@@ -120,6 +120,9 @@ $(BUILD)/tests/unit/%.o: DRAPE_CPPFLAGS += -Isrc
 # the lattice force kernel: no floating-point traps to preserve, so GCC may compute
 # both sides of a select and vectorise the loops (src/cloth/lattice.c)
 $(BUILD)/src/cloth/lattice.o: DRAPE_CFLAGS += -fno-trapping-math
+# the same for the angle elements' Hessians, formed in lanes (src/cloth/kernels.h),
+# whose instruction-set versions must give the same bits: no fused multiply-adds
+$(BUILD)/src/cloth/forces.o: DRAPE_CFLAGS += -fno-trapping-math -ffp-contract=off
 
 $(BUILD)/%.o: %.c | check-deps
 	@mkdir -p $(dir $@)

@@ -976,6 +976,10 @@ static inline void AddFilteredBlock(Cloth c, PetscBool blk, const PetscInt *p, P
   const PetscReal      *na = c->cnormal + 3 * p[pa], *nb = c->cnormal + 3 * p[pb];
   PetscReal             B[9], Bo[9];
 
+  if (ta == CLOTH_FREE && tb == CLOTH_FREE) { /* nothing to project: the same values */
+    AddBlock(blk, v, si, b, Bl);
+    return;
+  }
   for (PetscInt i = 0; i < 3; i++)
     for (PetscInt j = 0; j < 3; j++) B[3 * i + j] = Bl[Layout(blk, i, j)];
   if (pa <= pb) {
@@ -1010,6 +1014,7 @@ static inline void AddStretchBlocks(Cloth c, PetscBool blk, PetscReal b, const P
         B[0][Layout(blk, i, j)] = h[3 * i + j];
         B[1][Layout(blk, i, j)] = -h[3 * i + j];
       }
+    const PetscBool filter = (PetscBool) (c->constrained && (c->ctype[p[0]] != CLOTH_FREE || c->ctype[p[1]] != CLOTH_FREE));
     for (PetscInt a = 0; a < 2; a++)
       if (p[a] < c->nowned) AddHdiag(c, blk, p[a], B[0]);
     for (PetscInt a = 0; a < 2; a++) {
@@ -1019,13 +1024,33 @@ static inline void AddStretchBlocks(Cloth c, PetscBool blk, PetscReal b, const P
       for (PetscInt q = 0; q < 2; q++) {
         const PetscInt pos = map[2 * a + q];
         if (pos < 0) continue;
-        if (c->constrained)
+        if (filter)
           AddFilteredBlock(c, blk, p, a, q, RowBufferAt(c, val, pos), si, b, B[a != q]);
         else
           AddBlock(blk, RowBufferAt(c, val, pos), si, b, B[a != q]);
       }
     }
   }
+}
+
+/* H6 of the angle elements in L's lanes [0, n) (KernelAngleHessian6Lanes), with the
+ * instruction set chosen when the program starts (x86-64: AVX-512, AVX2, or the
+ * baseline SSE2), as LatticeSweepRows: the lanes take 8, 4 or 2 elements an
+ * instruction. The build contracts no multiply-add (ISO C: -ffp-contract=off), so
+ * every version gives the same bits. */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__INTEL_COMPILER) && !defined(DRAPE_NO_TARGET_CLONES)
+__attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default"), flatten))
+#endif
+static void
+AngleHessianLanes(KernelAngleKind kind, PetscInt n, const PetscReal kappa[KERNEL_LANES], const KernelBendLaw *const *law, KernelAngleLanes *L, PetscBool project, PetscReal H6[36][KERNEL_LANES])
+{
+  if (kind == KERNEL_SHEAR)
+    KernelAngleLanesPartials(KERNEL_SHEAR, n, kappa, NULL, L);
+  else if (!law)
+    KernelAngleLanesPartials(KERNEL_BEND, n, kappa, NULL, L); /* the linear law: loops without a branch */
+  else
+    KernelAngleLanesPartials(KERNEL_BEND, n, kappa, law, L);
+  KernelAngleHessian6Lanes(n, L, project, H6);
 }
 
 /* The shear corners (kind 1) or bending triples (kind 2) [e0, e1); map: 9 each. The
@@ -1038,38 +1063,52 @@ static inline void AddAngleBlocks(Cloth c, PetscInt kind, PetscBool blk, PetscRe
   PetscReal *restrict val       = c->rb_val;
 
   map += 9 * e0;
-  for (PetscInt e = e0; e < e1; e++, map += 9) {
-    const PetscInt *p = el->p + 3 * e;
-    PetscReal       H6[36], B[9][9]; /* block (a, q) at B[3 a + q], in the layout */
-    KernelAngleHessianE(ak, xl + 3 * p[0], xl + 3 * p[1], xl + 3 * p[2], ElemCoef(el, e), ElemLaw(el, e), project, H6);
-    for (PetscInt i = 0; i < 3; i++) {
-      for (PetscInt j = 0; j < 3; j++) {
-        const PetscReal h11 = H6[6 * i + j], h12 = H6[6 * i + 3 + j], h21 = H6[6 * (3 + i) + j], h22 = H6[6 * (3 + i) + 3 + j];
-        const PetscInt  l = Layout(blk, i, j);
-        B[0][l]           = h11;
-        B[1][l]           = h12;
-        B[2][l]           = -(h11 + h12);
-        B[3][l]           = h21;
-        B[4][l]           = h22;
-        B[5][l]           = -(h21 + h22);
-        B[6][l]           = -(h11 + h21);
-        B[7][l]           = -(h12 + h22);
-        B[8][l]           = h11 + h12 + h21 + h22;
-      }
+  for (PetscInt e = e0; e < e1; e += KERNEL_LANES) {
+    const PetscInt       n = PetscMin(KERNEL_LANES, e1 - e);
+    KernelAngleLanes     L;
+    PetscReal            H6[36][KERNEL_LANES], kappa[KERNEL_LANES];
+    const KernelBendLaw *law[KERNEL_LANES];
+    for (PetscInt k = 0; k < n; k++) {
+      const PetscInt  *p  = el->p + 3 * (e + k);
+      const PetscReal *xa = xl + 3 * p[0], *xb = xl + 3 * p[1], *xc = xl + 3 * p[2];
+      for (PetscInt i = 0; i < 3; i++) L.e1[i][k] = xa[i] - xc[i], L.e2[i][k] = xb[i] - xc[i];
+      kappa[k] = ElemCoef(el, e + k);
+      law[k]   = ElemLaw(el, e + k);
     }
-    for (PetscInt a = 0; a < 3; a++)
-      if (p[a] < c->nowned) AddHdiag(c, blk, p[a], B[4 * a]);
-    for (PetscInt a = 0; a < 3; a++) {
-      PetscInt si;
-      if (map[3 * a] < 0 && map[3 * a + 1] < 0 && map[3 * a + 2] < 0) continue;
-      si = RowStride(c, blk, p[a]);
-      for (PetscInt q = 0; q < 3; q++) {
-        const PetscInt pos = map[3 * a + q];
-        if (pos < 0) continue;
-        if (c->constrained)
-          AddFilteredBlock(c, blk, p, a, q, RowBufferAt(c, val, pos), si, b, B[3 * a + q]);
-        else
-          AddBlock(blk, RowBufferAt(c, val, pos), si, b, B[3 * a + q]);
+    AngleHessianLanes(ak, n, kappa, el->has_law ? law : NULL, &L, project, H6);
+    for (PetscInt k = 0; k < n; k++, map += 9) {
+      const PetscInt *p = el->p + 3 * (e + k);
+      PetscReal       B[9][9]; /* block (a, q) at B[3 a + q], in the layout */
+      for (PetscInt i = 0; i < 3; i++) {
+        for (PetscInt j = 0; j < 3; j++) {
+          const PetscReal h11 = H6[6 * i + j][k], h12 = H6[6 * i + 3 + j][k], h21 = H6[6 * (3 + i) + j][k], h22 = H6[6 * (3 + i) + 3 + j][k];
+          const PetscInt  l = Layout(blk, i, j);
+          B[0][l]           = h11;
+          B[1][l]           = h12;
+          B[2][l]           = -(h11 + h12);
+          B[3][l]           = h21;
+          B[4][l]           = h22;
+          B[5][l]           = -(h21 + h22);
+          B[6][l]           = -(h11 + h21);
+          B[7][l]           = -(h12 + h22);
+          B[8][l]           = h11 + h12 + h21 + h22;
+        }
+      }
+      const PetscBool filter = (PetscBool) (c->constrained && (c->ctype[p[0]] != CLOTH_FREE || c->ctype[p[1]] != CLOTH_FREE || c->ctype[p[2]] != CLOTH_FREE));
+      for (PetscInt a = 0; a < 3; a++)
+        if (p[a] < c->nowned) AddHdiag(c, blk, p[a], B[4 * a]);
+      for (PetscInt a = 0; a < 3; a++) {
+        PetscInt si;
+        if (map[3 * a] < 0 && map[3 * a + 1] < 0 && map[3 * a + 2] < 0) continue;
+        si = RowStride(c, blk, p[a]);
+        for (PetscInt q = 0; q < 3; q++) {
+          const PetscInt pos = map[3 * a + q];
+          if (pos < 0) continue;
+          if (filter)
+            AddFilteredBlock(c, blk, p, a, q, RowBufferAt(c, val, pos), si, b, B[3 * a + q]);
+          else
+            AddBlock(blk, RowBufferAt(c, val, pos), si, b, B[3 * a + q]);
+        }
       }
     }
   }

@@ -75,101 +75,128 @@ static inline void KernelProjectPSD3(PetscReal A[9])
  * -1e-7 max|A_ij|, far below what could make the implicit matrix indefinite). A
  * cheap test that spares the Jacobi projection for the (most) elements that need
  * none. */
-static inline PetscBool KernelIsPSD3(const PetscReal A[9])
+static inline PetscBool KernelIsPSD3Sym(PetscReal a0, PetscReal a1, PetscReal a2, PetscReal a4, PetscReal a5, PetscReal a8)
 {
-  PetscReal s = 0, t1, t2, t3;
+  const PetscReal s  = PetscMax(PetscMax(PetscMax(PetscAbsReal(a0), PetscAbsReal(a1)), PetscMax(PetscAbsReal(a2), PetscAbsReal(a4))), PetscMax(PetscAbsReal(a5), PetscAbsReal(a8)));
+  const PetscReal t1 = -1e-14 * s, t2 = t1 * s, t3 = t2 * s;
 
-  for (PetscInt i = 0; i < 9; i++) s = PetscMax(s, PetscAbsReal(A[i]));
-  t1 = -1e-14 * s;
-  t2 = t1 * s;
-  t3 = t2 * s;
-  if (A[0] < t1 || A[4] < t1 || A[8] < t1) return PETSC_FALSE;
-  if (A[0] * A[4] - A[1] * A[3] < t2 || A[0] * A[8] - A[2] * A[6] < t2 || A[4] * A[8] - A[5] * A[7] < t2) return PETSC_FALSE;
-  return (PetscBool) (A[0] * (A[4] * A[8] - A[5] * A[7]) - A[1] * (A[3] * A[8] - A[5] * A[6]) + A[2] * (A[3] * A[7] - A[4] * A[6]) >= t3);
+  return (PetscBool) (a0 >= t1 && a4 >= t1 && a8 >= t1 && a0 * a4 - a1 * a1 >= t2 && a0 * a8 - a2 * a2 >= t2 && a4 * a8 - a5 * a5 >= t2 && a0 * (a4 * a8 - a5 * a5) - a1 * (a1 * a8 - a5 * a2) + a2 * (a1 * a5 - a4 * a2) >= t3);
 }
 
-/* PSD projection of the symmetric 3x3 A in closed form: eigenvalues by the
- * trigonometric method (Smith 1961), the eigenvector of the single negative (or
- * single positive) one from the cross product of two rows of A - lambda I. Returns
- * PETSC_FALSE, A untouched, when that eigenvector is ill-determined (eigenvalues
- * too close); KernelProjectPSD3 (Jacobi) then does the work. Otherwise the result
- * agrees with Jacobi's to 1e-8 max|A_ij| (tests/unit/test_kernels.c; the worst case
- * is a double eigenvalue at zero, resolved to about sqrt(eps)). */
+static inline PetscBool KernelIsPSD3(const PetscReal A[9]) { return KernelIsPSD3Sym(A[0], A[1], A[2], A[4], A[5], A[8]); }
+
+/* ---- Lanes: up to KERNEL_LANES small problems at once ----
+ *
+ * The angle elements' Hessians are formed KERNEL_LANES at a time, each number held
+ * in structure-of-arrays order (x[i][k]: number i of lane k), by loops over the
+ * lanes without branches (selects), which the compiler vectorises. Each lane is
+ * computed by the same operations, in the same order, whatever the other lanes hold
+ * and whatever their number: an element alone (n = 1) gets the bits it gets in a
+ * batch. (Iterations stop per lane: a lane that has converged is frozen, not
+ * iterated on.) */
+#define KERNEL_LANES 8
+
+/* PSD projection of the symmetric 3x3 matrices of lanes [0, n), given by their six
+ * entries A[0..5] = (a00, a01, a02, a11, a12, a22). With test, a lane that
+ * KernelIsPSD3 accepts is left as it is. Otherwise, in closed form: the eigenvalues
+ * of B = (A - q I) / p, q = tr(A)/3, are the roots of beta^3 - 3 beta - 2 r,
+ * r = det(B)/2 in [-1, 1] (Smith 1961), whose largest, in [1, 2], Newton's method
+ * finds from 2 (the cubic is increasing and convex above it: monotone convergence),
+ * and the other two from the quadratic left; the eigenvector of the single negative
+ * (or single positive) eigenvalue is the cross product of two rows of A - lambda I.
+ * Where that eigenvector is ill-determined (eigenvalues within 1e-3 p) the lane is
+ * left as it was and decline[k] set: KernelProjectPSD3 (Jacobi) does the work. */
+static inline void KernelProjectPSD3Lanes(PetscInt n, PetscBool test, PetscReal A[6][KERNEL_LANES], PetscBool decline[KERNEL_LANES])
+{
+  /* flags are reals, 1 or 0, and every condition a select, so that the loops take
+   * no branch and vectorise */
+  const PetscReal tested = test ? 1.0 : 0.0;
+  PetscReal       q[KERNEL_LANES], p[KERNEL_LANES], r[KERNEL_LANES], beta[KERNEL_LANES], keep[KERNEL_LANES], done[KERNEL_LANES], no[KERNEL_LANES];
+
+  for (PetscInt k = 0; k < n; k++) {
+    const PetscReal a0 = A[0][k], a1 = A[1][k], a2 = A[2][k], a4 = A[3][k], a5 = A[4][k], a8 = A[5][k];
+    /* KernelIsPSD3Sym's seven minors against their bounds (x >= t as x - t >= 0) */
+    const PetscReal s  = PetscMax(PetscMax(PetscMax(PetscAbsReal(a0), PetscAbsReal(a1)), PetscMax(PetscAbsReal(a2), PetscAbsReal(a4))), PetscMax(PetscAbsReal(a5), PetscAbsReal(a8)));
+    const PetscReal t1 = -1e-14 * s, t2 = t1 * s, t3 = t2 * s;
+    const PetscReal m1 = PetscMin(PetscMin(a0 - t1, a4 - t1), a8 - t1), m2 = PetscMin(PetscMin(a0 * a4 - a1 * a1 - t2, a0 * a8 - a2 * a2 - t2), a4 * a8 - a5 * a5 - t2);
+    const PetscReal m3 = a0 * (a4 * a8 - a5 * a5) - a1 * (a1 * a8 - a5 * a2) + a2 * (a1 * a5 - a4 * a2) - t3;
+    const PetscReal mm = PetscMin(PetscMin(m1, m2), m3), minor = mm >= 0 ? 1.0 : 0.0, psd = tested * minor;
+    PetscReal       b0, b1, b2, pp;
+    q[k] = (a0 + a4 + a8) / 3;
+    b0   = a0 - q[k];
+    b1   = a4 - q[k];
+    b2   = a8 - q[k];
+    p[k] = PetscSqrtReal((b0 * b0 + b1 * b1 + b2 * b2 + 2 * (a1 * a1 + a2 * a2 + a5 * a5)) / 6);
+    pp   = p[k] > 0 ? p[k] : 1;
+    r[k] = (b0 * (b1 * b2 - a5 * a5) - a1 * (a1 * b2 - a5 * a2) + a2 * (a1 * a5 - b1 * a2)) / (2 * pp * pp * pp);
+    r[k] = PetscMin(PetscMax(r[k], -1.0), 1.0);
+    {
+      const PetscReal qpos = q[k] >= 0 ? 1.0 : 0.0, scalar = p[k] == 0 ? 1.0 : 0.0, sq = scalar * qpos;
+      keep[k] = psd > 0 ? 1.0 : sq; /* PSD; or A = q I, q >= 0 */
+      done[k] = keep[k] > 0 ? 1.0 : scalar;
+    }
+    beta[k] = 2;
+  }
+  for (PetscInt it = 0; it < 60; it++) { /* about 5 iterations; near a double root the halving first, to a gap of 1e-3: 15 */
+    PetscBool more = PETSC_FALSE;
+    for (PetscInt k = 0; k < n; k++) {
+      const PetscReal b = beta[k], d = done[k], f = b * (b * b - 3) - 2 * r[k], fp = 3 * (b * b - 1);
+      const PetscReal rising = fp > 0 ? 1.0 : 0.0, den = fp > 0 ? fp : 1.0, step = rising * (f / den), size = PetscAbsReal(step), tol = 1e-13 * b;
+      const PetscReal converged = size > tol ? 0.0 : 1.0, moved = b - step, nb = d > 0 ? b : moved, nd = d > 0 ? 1.0 : converged;
+      beta[k] = nb;
+      done[k] = nd;
+    }
+    for (PetscInt k = 0; k < n; k++) more = (PetscBool) (more || done[k] == 0);
+    if (!more) break;
+  }
+  for (PetscInt k = 0; k < n; k++) {
+    const PetscReal a0 = A[0][k], a1 = A[1][k], a2 = A[2][k], a4 = A[3][k], a5 = A[4][k], a8 = A[5][k];
+    const PetscReal disc = PetscSqrtReal(PetscMax(12 - 3 * beta[k] * beta[k], 0.0));
+    const PetscReal lmax = q[k] + p[k] * beta[k], lmin = q[k] + p[k] * (-beta[k] - disc) / 2, lmid = 3 * q[k] - lmax - lmin;
+    const PetscReal scalar = p[k] == 0 ? 1.0 : 0.0, neg = lmax <= 0 ? 1.0 : 0.0, nonneg = lmin >= 0 ? 1.0 : 0.0;
+    const PetscReal zero0 = scalar > 0 ? 1.0 : neg, zero = keep[k] > 0 ? 0.0 : zero0, same0 = zero > 0 ? 0.0 : nonneg, same = keep[k] > 0 ? 1.0 : same0;
+    const PetscReal pos = lmid < 0 ? 1.0 : 0.0; /* one negative eigenvalue: remove it; two: keep the positive one */
+    const PetscReal lam = pos > 0 ? lmax : lmin, d0 = a0 - lam, d4 = a4 - lam, d8 = a8 - lam;
+    /* rows (d0, a1, a2), (a1, d4, a5), (a2, a5, d8): their cross products 0 x 1, 1 x 2, 2 x 0 */
+    const PetscReal c00 = a1 * a5 - a2 * d4, c01 = a2 * a1 - d0 * a5, c02 = d0 * d4 - a1 * a1, c10 = d4 * d8 - a5 * a5, c11 = a5 * a2 - a1 * d8, c12 = a1 * a5 - d4 * a2;
+    const PetscReal c20 = a5 * a2 - d8 * a1, c21 = d8 * d0 - a2 * a2, c22 = a2 * a1 - a5 * d0;
+    const PetscReal n0 = c00 * c00 + c01 * c01 + c02 * c02, n1 = c10 * c10 + c11 * c11 + c12 * c12, n2 = c20 * c20 + c21 * c21 + c22 * c22;
+    const PetscReal n01 = n1 > n0 ? n1 : n0, best = n2 > n01 ? n2 : n01, bestp = best > 0 ? best : 1, nv = 1 / PetscSqrtReal(bestp);
+    const PetscReal w0 = n1 > n0 ? c10 : c00, w1 = n1 > n0 ? c11 : c01, w2 = n1 > n0 ? c12 : c02;
+    const PetscReal v0 = (n2 > n01 ? c20 : w0) * nv, v1 = (n2 > n01 ? c21 : w1) * nv, v2 = (n2 > n01 ? c22 : w2) * nv;
+    /* the smallest gap between eigenvalues sets how well they and v are determined
+     * (v: to about eps p^3/gap^3): below 1e-3 p, Jacobi */
+    const PetscReal gap = PetscMin(lmax - lmid, lmid - lmin), narrow = gap < 1e-3 * p[k] ? 1.0 : 0.0, ill = best == 0 ? 1.0 : narrow;
+    const PetscReal w = pos > 0 ? lmax : -lmin, base = pos > 0 ? 0.0 : 1.0, other = 1 - same - zero; /* 1: the eigenvector's update */
+    const PetscReal x0 = base * a0 + w * v0 * v0, x1 = base * a1 + w * v0 * v1, x2 = base * a2 + w * v0 * v2, x4 = base * a4 + w * v1 * v1, x5 = base * a5 + w * v1 * v2, x8 = base * a8 + w * v2 * v2;
+    const PetscReal upd = other * (1 - ill), y0 = upd > 0 ? x0 : a0, y1 = upd > 0 ? x1 : a1, y2 = upd > 0 ? x2 : a2, y4 = upd > 0 ? x4 : a4, y5 = upd > 0 ? x5 : a5, y8 = upd > 0 ? x8 : a8;
+    no[k]   = other * ill;
+    A[0][k] = zero > 0 ? 0.0 : y0;
+    A[1][k] = zero > 0 ? 0.0 : y1;
+    A[2][k] = zero > 0 ? 0.0 : y2;
+    A[3][k] = zero > 0 ? 0.0 : y4;
+    A[4][k] = zero > 0 ? 0.0 : y5;
+    A[5][k] = zero > 0 ? 0.0 : y8;
+  }
+  for (PetscInt k = 0; k < n; k++) decline[k] = (PetscBool) (no[k] > 0);
+}
+
+/* PSD projection of the symmetric 3x3 A (full, row-major) in closed form
+ * (KernelProjectPSD3Lanes on one lane, without KernelIsPSD3's test). Returns
+ * PETSC_FALSE, A untouched, when the eigenvector is ill-determined (eigenvalues too
+ * close); KernelProjectPSD3 (Jacobi) then does the work. Otherwise the result agrees
+ * with Jacobi's to 1e-8 max|A_ij| (tests/unit/test_kernels.c; the worst case is a
+ * double eigenvalue at zero, resolved to about sqrt(eps)). */
 static inline PetscBool KernelProjectPSD3Closed(PetscReal A[9])
 {
-  const PetscReal pi = 3.14159265358979323846;
-  const PetscReal q = (A[0] + A[4] + A[8]) / 3, b0 = A[0] - q, b1 = A[4] - q, b2 = A[8] - q;
-  const PetscReal off = A[1] * A[1] + A[2] * A[2] + A[5] * A[5];
-  PetscReal       p, r, phi, lmax, lmin, lmid, lam, v[3] = {0, 0, 0}, best = 0, nv;
-  PetscBool       keep_positive;
+  PetscReal L[6][KERNEL_LANES];
+  PetscBool decline[KERNEL_LANES];
 
-  p = PetscSqrtReal((b0 * b0 + b1 * b1 + b2 * b2 + 2 * off) / 6);
-  if (p == 0) { /* A = q I */
-    if (q < 0)
-      for (PetscInt i = 0; i < 9; i++) A[i] = 0;
-    return PETSC_TRUE;
-  }
-  r    = (b0 * (b1 * b2 - A[5] * A[5]) - A[1] * (A[1] * b2 - A[5] * A[2]) + A[2] * (A[1] * A[5] - b1 * A[2])) / (2 * p * p * p);
-  r    = PetscMin(PetscMax(r, -1.0), 1.0);
-  phi  = PetscAcosReal(r) / 3;
-  lmax = q + 2 * p * PetscCosReal(phi);
-  lmin = q + 2 * p * PetscCosReal(phi + 2 * pi / 3);
-  lmid = 3 * q - lmax - lmin;
-  if (lmin >= 0) return PETSC_TRUE;
-  if (lmax <= 0) {
-    for (PetscInt i = 0; i < 9; i++) A[i] = 0;
-    return PETSC_TRUE;
-  }
-  /* one negative eigenvalue: remove it; two: keep the positive one */
-  keep_positive = (PetscBool) (lmid < 0);
-  lam           = keep_positive ? lmax : lmin;
-  {
-    const PetscReal rows[3][3] = {{A[0] - lam, A[1], A[2]}, {A[3], A[4] - lam, A[5]}, {A[6], A[7], A[8] - lam}};
-    for (PetscInt i = 0; i < 3; i++) {
-      const PetscReal *x = rows[i], *y = rows[(i + 1) % 3];
-      PetscReal        c[3] = {x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]}, n = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
-      if (n > best) {
-        best = n;
-        v[0] = c[0], v[1] = c[1], v[2] = c[2];
-      }
-    }
-  }
-  /* the smallest gap between eigenvalues sets how well they (acos near +-1: error
-   * about eps p^2/gap) and v (eps p^3/gap^3) are determined: below 1e-3 p, Jacobi */
-  if (best == 0 || PetscMin(lmax - lmid, lmid - lmin) < 1e-3 * p) return PETSC_FALSE;
-  nv = 1 / PetscSqrtReal(best);
-  for (PetscInt i = 0; i < 3; i++) v[i] *= nv;
-  for (PetscInt i = 0; i < 3; i++)
-    for (PetscInt j = 0; j < 3; j++) A[3 * i + j] = keep_positive ? lmax * v[i] * v[j] : A[3 * i + j] - lmin * v[i] * v[j];
+  L[0][0] = A[0], L[1][0] = A[1], L[2][0] = A[2], L[3][0] = A[4], L[4][0] = A[5], L[5][0] = A[8];
+  KernelProjectPSD3Lanes(1, PETSC_FALSE, L, decline);
+  if (decline[0]) return PETSC_FALSE;
+  A[0] = L[0][0], A[1] = A[3] = L[1][0], A[2] = A[6] = L[2][0], A[4] = L[3][0], A[5] = A[7] = L[4][0], A[8] = L[5][0];
   return PETSC_TRUE;
-}
-
-/* PSD projection of the symmetric 2x2 [[a, b], [b, d]] in closed form. */
-static inline void KernelProjectPSD2(PetscReal *a, PetscReal *b, PetscReal *d)
-{
-  PetscReal m = 0.5 * (*a + *d), r = PetscSqrtReal(0.25 * (*a - *d) * (*a - *d) + (*b) * (*b)), l1 = m + r, l2 = m - r;
-  PetscReal c, s, n;
-
-  if (l2 >= 0) return;
-  if (l1 <= 0) {
-    *a = *b = *d = 0;
-    return;
-  }
-  /* eigenvector of l1: (b, l1 - a) or (l1 - d, b) */
-  if (PetscAbsReal(*b) > 0) {
-    c = *b;
-    s = l1 - *a;
-  } else if (*a >= *d) {
-    c = 1;
-    s = 0;
-  } else {
-    c = 0;
-    s = 1;
-  }
-  n  = c * c + s * s;
-  *a = l1 * c * c / n;
-  *b = l1 * c * s / n;
-  *d = l1 * s * s / n;
 }
 
 /* The stretch edge's Hessian block h (3 x 3): the element's is [[h, -h], [-h, h]]
@@ -313,7 +340,7 @@ static inline void KernelBendLawEval(const KernelBendLaw *law, PetscReal q, Pets
     Phi += b * (k * k - PetscSqr((law->n - 1) * law->dk)) / 2; /* beyond the table */
   *G  = law->L * law->L * Phi;
   *G1 = b;
-  *G2 = k > 0 ? db / (law->L * law->L * k) : 0;
+  *G2 = k > 0 ? db / (law->L * law->L * k) : 0.0;
 }
 
 /* The angle gradient in two halves, so that a loop can first compute the
@@ -439,16 +466,22 @@ static inline void KernelCosine(PetscReal u, PetscReal w, PetscReal s, PetscInt 
   k->cws = -1 / (2 * w * P);
 }
 
-/* Shear corner: E = kappa sqrt(u w) asin(c)^2. */
-static inline void KernelShearPartials(PetscReal kappa, PetscReal u, PetscReal w, PetscReal s, PetscInt order, KernelAnglePartials *d)
+/* A shear corner's cosine, clamped inside (-1, 1): what its asin is taken of. */
+static inline PetscReal KernelShearCosine(PetscReal u, PetscReal w, PetscReal s)
+{
+  const PetscReal c = s / PetscSqrtReal(u * w);
+  return PetscMin(PetscMax(c, -1 + 1e-14), 1 - 1e-14);
+}
+
+/* Shear corner: E = kappa sqrt(u w) asin(c)^2, given a = asin(KernelShearCosine(u, w, s)). */
+static inline void KernelShearPartialsAt(PetscReal kappa, PetscReal u, PetscReal w, PetscReal s, PetscReal a, PetscInt order, KernelAnglePartials *d)
 {
   KernelCos C = {0};
-  PetscReal P, a, r, g, g1 = 0, g2 = 0, Pu, Pw, Puu, Pww, Puw;
+  PetscReal P, r, g, g1 = 0, g2 = 0, Pu, Pw, Puu, Pww, Puw;
 
   KernelCosine(u, w, s, order, &C);
   C.c  = PetscMin(PetscMax(C.c, -1 + 1e-14), 1 - 1e-14);
   P    = PetscSqrtReal(u * w);
-  a    = PetscAsinReal(C.c);
   g    = a * a;
   d->E = kappa * P * g;
   if (order < 1) return;
@@ -471,6 +504,9 @@ static inline void KernelShearPartials(PetscReal kappa, PetscReal u, PetscReal w
   d->Eus = kappa * (Pu * g1 * C.cs + P * (g2 * C.cu * C.cs + g1 * C.cus));
   d->Ews = kappa * (Pw * g1 * C.cs + P * (g2 * C.cw * C.cs + g1 * C.cws));
 }
+
+/* Shear corner: E = kappa sqrt(u w) asin(c)^2. */
+static inline void KernelShearPartials(PetscReal kappa, PetscReal u, PetscReal w, PetscReal s, PetscInt order, KernelAnglePartials *d) { KernelShearPartialsAt(kappa, u, w, s, PetscAsinReal(KernelShearCosine(u, w, s)), order, d); }
 
 /* Bending triple: E = kappa G(1 + c), G(q) = q without a law (law = NULL). */
 static inline void KernelBendPartials(PetscReal kappa, const KernelBendLaw *law, PetscReal u, PetscReal w, PetscReal s, PetscInt order, KernelAnglePartials *d)
@@ -497,41 +533,96 @@ static inline void KernelBendPartials(PetscReal kappa, const KernelBendLaw *law,
   d->Ews = kappa * (G1 * C.cws + G2 * C.cw * C.cs);
 }
 
-/* The angle Hessian with respect to (e1, e2), 6 x 6 row-major, from the partials d:
- * H6 = J^T E2 J + [[2Eu, Es], [Es, 2Ew]] (x) I3, J = [grad u; grad w; grad s] =
- * [[2 e1, 0], [0, 2 e2], [e2, e1]]; with project, each part's negative eigenvalues
- * clamped at 0. J's zero entries are left out of the products (the same values as
- * the full products: only a zero's sign may differ). The element's 9 x 9 Hessian is
- * H9 = B^T H6 B, B = [[I, 0, -I], [0, I, -I]]: its blocks are h11, h12, -(h11 + h12);
- * h21, h22, -(h21 + h22); -(h11 + h21), -(h12 + h22), h11 + h12 + h21 + h22 with
- * h11, h12, h21, h22 the 3 x 3 blocks of H6 (KernelAngle, ClothAssembleMatrix). */
-static inline void KernelAngleHessian6(const KernelAnglePartials *d, const PetscReal e1[3], const PetscReal e2[3], PetscBool project, PetscReal H6[36])
-{
-  PetscReal E2[9] = {d->Euu, d->Euw, d->Eus, d->Euw, d->Eww, d->Ews, d->Eus, d->Ews, d->Ess};
-  PetscReal a = 2 * d->Eu, b = d->Es, c = 2 * d->Ew, t[6][3];
+/* The inputs of KernelAngleHessian6Lanes: each lane's partials and edges. */
+typedef struct {
+  PetscReal Eu[KERNEL_LANES], Ew[KERNEL_LANES], Es[KERNEL_LANES];
+  PetscReal E2[6][KERNEL_LANES]; /* (Euu, Euw, Eus, Eww, Ews, Ess) */
+  PetscReal e1[3][KERNEL_LANES], e2[3][KERNEL_LANES];
+} KernelAngleLanes;
 
+static inline void KernelAngleLanesSet(KernelAngleLanes *L, PetscInt k, const KernelAnglePartials *d, const PetscReal e1[3], const PetscReal e2[3])
+{
+  L->Eu[k]    = d->Eu;
+  L->Ew[k]    = d->Ew;
+  L->Es[k]    = d->Es;
+  L->E2[0][k] = d->Euu;
+  L->E2[1][k] = d->Euw;
+  L->E2[2][k] = d->Eus;
+  L->E2[3][k] = d->Eww;
+  L->E2[4][k] = d->Ews;
+  L->E2[5][k] = d->Ess;
+  for (PetscInt i = 0; i < 3; i++) L->e1[i][k] = e1[i], L->e2[i][k] = e2[i];
+}
+
+/* The angle Hessian with respect to (e1, e2), 6 x 6 (H6[6 i + j][k] for lane k), of
+ * lanes [0, n) from their partials: H6 = J^T E2 J + [[2Eu, Es], [Es, 2Ew]] (x) I3,
+ * J = [grad u; grad w; grad s] = [[2 e1, 0], [0, 2 e2], [e2, e1]]; with project, each
+ * part's negative eigenvalues clamped at 0 (E2 by KernelProjectPSD3Lanes, or Jacobi
+ * where it declines; the 2 x 2 in closed form). J's zero entries are left out of the
+ * products. The element's 9 x 9 Hessian is H9 = B^T H6 B, B = [[I, 0, -I], [0, I, -I]]:
+ * its blocks are h11, h12, -(h11 + h12); h21, h22, -(h21 + h22); -(h11 + h21),
+ * -(h12 + h22), h11 + h12 + h21 + h22 with h11, h12, h21, h22 the 3 x 3 blocks of H6
+ * (KernelAngle, ClothAssembleMatrix). L's E2 is overwritten by its projection. */
+static inline void KernelAngleHessian6Lanes(PetscInt n, KernelAngleLanes *L, PetscBool project, PetscReal H6[36][KERNEL_LANES])
+{
+  static const PetscInt S[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
+  PetscReal             a[KERNEL_LANES], b[KERNEL_LANES], c[KERNEL_LANES];
+
+  for (PetscInt k = 0; k < n; k++) a[k] = 2 * L->Eu[k], b[k] = L->Es[k], c[k] = 2 * L->Ew[k];
   if (project) {
-    if (!KernelIsPSD3(E2) && !KernelProjectPSD3Closed(E2)) KernelProjectPSD3(E2);
-    KernelProjectPSD2(&a, &b, &c);
-  }
-  for (PetscInt i = 0; i < 3; i++) { /* t = (E2 J)^T, column by column of J */
-    for (PetscInt p = 0; p < 3; p++) {
-      t[i][p]     = E2[3 * p] * (2 * e1[i]) + E2[3 * p + 2] * e2[i];
-      t[3 + i][p] = E2[3 * p + 1] * (2 * e2[i]) + E2[3 * p + 2] * e1[i];
-    }
-  }
-  for (PetscInt i = 0; i < 6; i++) {
-    for (PetscInt j = 0; j < 3; j++) {
-      H6[6 * i + j]     = t[i][0] * (2 * e1[j]) + t[i][2] * e2[j];
-      H6[6 * i + 3 + j] = t[i][1] * (2 * e2[j]) + t[i][2] * e1[j];
+    PetscBool decline[KERNEL_LANES];
+    KernelProjectPSD3Lanes(n, PETSC_TRUE, L->E2, decline);
+    for (PetscInt k = 0; k < n; k++)
+      if (decline[k]) { /* rare: eigenvalues within 1e-3 of their spread */
+        PetscReal A[9];
+        for (PetscInt i = 0; i < 3; i++)
+          for (PetscInt j = 0; j < 3; j++) A[3 * i + j] = L->E2[S[i][j]][k];
+        KernelProjectPSD3(A);
+        for (PetscInt i = 0; i < 3; i++)
+          for (PetscInt j = i; j < 3; j++) L->E2[S[i][j]][k] = A[3 * i + j];
+      }
+    for (PetscInt k = 0; k < n; k++) { /* [[a, b], [b, c]]: PSD, or its positive eigenvalue's part, or 0 */
+      const PetscReal ak = a[k], bk = b[k], ck = c[k], m = 0.5 * (ak + ck), r = PetscSqrtReal(0.25 * (ak - ck) * (ak - ck) + bk * bk), l1 = m + r, l2 = m - r;
+      const PetscReal babs = PetscAbsReal(bk), first = ak >= ck ? 1.0 : 0.0, last = 1 - first, l1a = l1 - ak, x = babs > 0 ? bk : first, y = babs > 0 ? l1a : last, nn = x * x + y * y;
+      const PetscReal pa = l1 * x * x / nn, pb = l1 * x * y / nn, pc = l1 * y * y / nn, za = l1 <= 0 ? 0.0 : pa, zb = l1 <= 0 ? 0.0 : pb, zc = l1 <= 0 ? 0.0 : pc;
+      const PetscReal na = l2 >= 0 ? ak : za, nb = l2 >= 0 ? bk : zb, nc = l2 >= 0 ? ck : zc;
+      a[k] = na;
+      b[k] = nb;
+      c[k] = nc;
     }
   }
   for (PetscInt i = 0; i < 3; i++) {
-    H6[6 * i + i] += a;
-    H6[6 * i + 3 + i] += b;
-    H6[6 * (3 + i) + i] += b;
-    H6[6 * (3 + i) + 3 + i] += c;
+    PetscReal t[2][3][KERNEL_LANES]; /* rows i and 3 + i of (E2 J)^T */
+    for (PetscInt q = 0; q < 3; q++)
+      for (PetscInt k = 0; k < n; k++) {
+        t[0][q][k] = L->E2[S[q][0]][k] * (2 * L->e1[i][k]) + L->E2[S[q][2]][k] * L->e2[i][k];
+        t[1][q][k] = L->E2[S[q][1]][k] * (2 * L->e2[i][k]) + L->E2[S[q][2]][k] * L->e1[i][k];
+      }
+    for (PetscInt h = 0; h < 2; h++)
+      for (PetscInt j = 0; j < 3; j++)
+        for (PetscInt k = 0; k < n; k++) {
+          H6[6 * (3 * h + i) + j][k]     = t[h][0][k] * (2 * L->e1[j][k]) + t[h][2][k] * L->e2[j][k];
+          H6[6 * (3 * h + i) + 3 + j][k] = t[h][1][k] * (2 * L->e2[j][k]) + t[h][2][k] * L->e1[j][k];
+        }
   }
+  for (PetscInt i = 0; i < 3; i++)
+    for (PetscInt k = 0; k < n; k++) {
+      H6[6 * i + i][k] += a[k];
+      H6[6 * i + 3 + i][k] += b[k];
+      H6[6 * (3 + i) + i][k] += b[k];
+      H6[6 * (3 + i) + 3 + i][k] += c[k];
+    }
+}
+
+/* One element's H6 (row-major 6 x 6): KernelAngleHessian6Lanes on one lane. */
+static inline void KernelAngleHessian6(const KernelAnglePartials *d, const PetscReal e1[3], const PetscReal e2[3], PetscBool project, PetscReal H6[36])
+{
+  KernelAngleLanes L;
+  PetscReal        H[36][KERNEL_LANES];
+
+  KernelAngleLanesSet(&L, 0, d, e1, e2);
+  KernelAngleHessian6Lanes(1, &L, project, H);
+  for (PetscInt i = 0; i < 36; i++) H6[i] = H[i][0];
 }
 
 typedef enum {
@@ -582,21 +673,35 @@ static inline PetscReal KernelAngle(KernelAngleKind kind, const PetscReal *xa, c
   return d.E;
 }
 
-/* The angle element's Hessian with respect to (e1, e2) alone (KernelAngleHessian6):
- * what KernelAngle's H is made of, for the matrix assembly, which adds its 3 x 3
- * blocks straight from H6 into the rows that hold them. */
-static inline void KernelAngleHessianE(KernelAngleKind kind, const PetscReal *xa, const PetscReal *xb, const PetscReal *xc, PetscReal kappa, const KernelBendLaw *law, PetscBool project, PetscReal H6[36])
+/* The partials of the angle elements in L's lanes [0, n), whose edges L->e1, L->e2
+ * hold (the element on (a, b; c): e1 = x_a - x_c, e2 = x_b - x_c), coefficients
+ * kappa and (bending) laws law (NULL: linear; all NULL: law may be NULL): what
+ * KernelAngleHessian6Lanes makes their H6 (KernelAngle's H) from. The bending
+ * triples without a law take a loop without a branch (it vectorises); a shear
+ * corner's asin is a call. */
+static inline void KernelAngleLanesPartials(KernelAngleKind kind, PetscInt n, const PetscReal kappa[KERNEL_LANES], const KernelBendLaw *const *law, KernelAngleLanes *L)
 {
-  const PetscReal     e1[3] = {xa[0] - xc[0], xa[1] - xc[1], xa[2] - xc[2]}, e2[3] = {xb[0] - xc[0], xb[1] - xc[1], xb[2] - xc[2]};
-  const PetscReal     u = e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2], w = e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2];
-  const PetscReal     s = e1[0] * e2[0] + e1[1] * e2[1] + e1[2] * e2[2];
-  KernelAnglePartials d = {0};
+  PetscReal u[KERNEL_LANES], w[KERNEL_LANES], s[KERNEL_LANES], a[KERNEL_LANES];
 
-  if (kind == KERNEL_SHEAR)
-    KernelShearPartials(kappa, u, w, s, 2, &d);
-  else
-    KernelBendPartials(kappa, law, u, w, s, 2, &d);
-  KernelAngleHessian6(&d, e1, e2, project, H6);
+  for (PetscInt k = 0; k < n; k++) {
+    u[k] = L->e1[0][k] * L->e1[0][k] + L->e1[1][k] * L->e1[1][k] + L->e1[2][k] * L->e1[2][k];
+    w[k] = L->e2[0][k] * L->e2[0][k] + L->e2[1][k] * L->e2[1][k] + L->e2[2][k] * L->e2[2][k];
+    s[k] = L->e1[0][k] * L->e2[0][k] + L->e1[1][k] * L->e2[1][k] + L->e1[2][k] * L->e2[2][k];
+  }
+  if (kind == KERNEL_SHEAR) {
+    for (PetscInt k = 0; k < n; k++) a[k] = KernelShearCosine(u[k], w[k], s[k]);
+    for (PetscInt k = 0; k < n; k++) a[k] = PetscAsinReal(a[k]); /* a call: the loops around it vectorise */
+  }
+  for (PetscInt k = 0; k < n; k++) {
+    const PetscReal     e1[3] = {L->e1[0][k], L->e1[1][k], L->e1[2][k]}, e2[3] = {L->e2[0][k], L->e2[1][k], L->e2[2][k]};
+    KernelAnglePartials d = {0};
+
+    if (kind == KERNEL_SHEAR)
+      KernelShearPartialsAt(kappa[k], u[k], w[k], s[k], a[k], 2, &d);
+    else
+      KernelBendPartials(kappa[k], law ? law[k] : NULL, u[k], w[k], s[k], 2, &d);
+    KernelAngleLanesSet(L, k, &d, e1, e2);
+  }
 }
 
 /* Bending friction (-cloth_bend_hysteresis). The yarns of a bent fabric slide on

@@ -826,6 +826,85 @@ static PetscErrorCode GroupClosedProjection(PetscRandom rnd)
   PetscFunctionReturn(0);
 }
 
+/* The lanes give each lane the bits it gets alone: KernelProjectPSD3Lanes on batches
+ * of 1 to 8 random matrices (PSD ones, near-double eigenvalues that decline, A = q I,
+ * the zero matrix) against each matrix on one lane, to the bit, decline flags too;
+ * and the angle Hessian's lanes (partials, projections, products) on batches of
+ * random shear corners and bending triples against KernelAngle's H, one element at
+ * a time, to the bit. Were a lane's result to depend on its neighbours (a shared
+ * iteration count, a vector reduction), the assembled matrix would depend on how
+ * elements fall into batches. */
+static PetscErrorCode GroupLanes(PetscRandom rnd)
+{
+  PetscInt checked = 0, declined = 0, angles = 0;
+
+  PetscFunctionBeginUser;
+  for (PetscInt t = 0; t < 2000; t++) {
+    PetscReal A[6][KERNEL_LANES] = {{0}}, B[6][KERNEL_LANES], u = 1;
+    PetscBool dec[KERNEL_LANES], dec1[KERNEL_LANES];
+    PetscInt  n;
+    PetscCall(Uniform(rnd, 1, KERNEL_LANES + 1, &u));
+    n = PetscMin((PetscInt) u, KERNEL_LANES);
+    for (PetscInt k = 0; k < n; k++) {
+      PetscReal R[9], l[3], M[9], kind = 1;
+      PetscCall(RandomRotation(rnd, R));
+      for (PetscInt i = 0; i < 3; i++) PetscCall(Uniform(rnd, -1, 1, &l[i]));
+      PetscCall(Uniform(rnd, 0, 1, &kind));
+      if (kind < 0.2)
+        l[1] = l[0] + (kind - 0.1) * 1e-6; /* near-double: may decline */
+      else if (kind < 0.3)
+        l[0] = PetscAbsReal(l[0]), l[1] = PetscAbsReal(l[1]), l[2] = PetscAbsReal(l[2]); /* PSD */
+      else if (kind < 0.35)
+        l[1] = l[2] = l[0]; /* A = q I (up to round-off) */
+      else if (kind < 0.37)
+        l[0] = l[1] = l[2] = 0; /* zero */
+      for (PetscInt i = 0; i < 3; i++)
+        for (PetscInt j = 0; j < 3; j++) M[3 * i + j] = R[3 * i] * l[0] * R[3 * j] + R[3 * i + 1] * l[1] * R[3 * j + 1] + R[3 * i + 2] * l[2] * R[3 * j + 2];
+      A[0][k] = M[0], A[1][k] = M[1], A[2][k] = M[2], A[3][k] = M[4], A[4][k] = M[5], A[5][k] = M[8];
+    }
+    PetscCall(PetscArraycpy(&B[0][0], &A[0][0], 6 * KERNEL_LANES));
+    KernelProjectPSD3Lanes(n, PETSC_TRUE, A, dec);
+    for (PetscInt k = 0; k < n; k++) {
+      PetscReal one[6][KERNEL_LANES];
+      for (PetscInt i = 0; i < 6; i++) one[i][0] = B[i][k];
+      KernelProjectPSD3Lanes(1, PETSC_TRUE, one, dec1);
+      PetscCheck(dec1[0] == dec[k], PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED: lane %" PetscInt_FMT " of %" PetscInt_FMT " declines %d in the batch, %d alone", k, n, (int) dec[k], (int) dec1[0]);
+      for (PetscInt i = 0; i < 6; i++)
+        PetscCheck(one[i][0] == A[i][k], PETSC_COMM_SELF, PETSC_ERR_PLIB, "FAILED: lane %" PetscInt_FMT " of %" PetscInt_FMT ", entry %" PetscInt_FMT ": %.17g in the batch, %.17g alone", k, n, i, (double) A[i][k], (double) one[i][0]);
+      declined += dec[k];
+      checked++;
+    }
+  }
+  for (PetscInt t = 0; t < 200; t++) {
+    const KernelAngleKind kind = t % 2 ? KERNEL_BEND : KERNEL_SHEAR;
+    KernelAngleLanes      L;
+    PetscReal             kappa[KERNEL_LANES], x[KERNEL_LANES][9], H6[36][KERNEL_LANES];
+    for (PetscInt k = 0; k < KERNEL_LANES; k++) {
+      for (PetscInt i = 0; i < 9; i++) PetscCall(Uniform(rnd, -1, 1, &x[k][i]));
+      PetscCall(Uniform(rnd, 0.1, 2, &kappa[k]));
+      for (PetscInt i = 0; i < 3; i++) L.e1[i][k] = x[k][i] - x[k][6 + i], L.e2[i][k] = x[k][3 + i] - x[k][6 + i];
+    }
+    KernelAngleLanesPartials(kind, KERNEL_LANES, kappa, NULL, &L);
+    KernelAngleHessian6Lanes(KERNEL_LANES, &L, PETSC_TRUE, H6);
+    for (PetscInt k = 0; k < KERNEL_LANES; k++) {
+      PetscReal H[81];
+      KernelAngle(kind, x[k], x[k] + 3, x[k] + 6, kappa[k], NULL, NULL, H, PETSC_TRUE);
+      for (PetscInt i = 0; i < 3; i++)
+        for (PetscInt j = 0; j < 3; j++) {
+          PetscCheck(H[9 * i + j] == H6[6 * i + j][k] && H[9 * i + 3 + j] == H6[6 * i + 3 + j][k] && H[9 * (3 + i) + j] == H6[6 * (3 + i) + j][k] && H[9 * (3 + i) + 3 + j] == H6[6 * (3 + i) + 3 + j][k], PETSC_COMM_SELF, PETSC_ERR_PLIB,
+                     "FAILED: %s lane %" PetscInt_FMT ": the lanes' H6 differs from KernelAngle's H at block entry (%" PetscInt_FMT ", %" PetscInt_FMT ")", kind == KERNEL_SHEAR ? "shear" : "bending", k, i, j);
+        }
+      angles++;
+    }
+  }
+  PetscCheck(declined > 0 && declined < checked / 2, PETSC_COMM_SELF, PETSC_ERR_PLIB, "test setup: %" PetscInt_FMT " of %" PetscInt_FMT " lanes declined", declined, checked);
+  PetscCall(PetscPrintf(PETSC_COMM_WORLD,
+                        "PASS lanes: %" PetscInt_FMT " 3x3 projections in batches of 1-8 equal to the bit to each alone (%" PetscInt_FMT " declined alike); %" PetscInt_FMT " angle elements' H6 from the lanes equal to KernelAngle's H\n", checked,
+                        declined, angles));
+  npassed++;
+  PetscFunctionReturn(0);
+}
+
 /* E = 0.25 and g = (-u, +u) for l = 1.5, L = 1, k = 2 */
 static PetscErrorCode GroupKnownStretch(PetscRandom rnd)
 {
@@ -1161,6 +1240,7 @@ static PetscErrorCode Run(void)
   PetscCall(GroupAsin(rnd));
   PetscCall(GroupPSDTest(rnd));
   PetscCall(GroupClosedProjection(rnd));
+  PetscCall(GroupLanes(rnd));
   PetscCall(GroupKnownStretch(rnd));
   PetscCall(GroupKnownShear(rnd));
   PetscCall(GroupKnownBend(rnd));
