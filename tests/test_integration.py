@@ -221,15 +221,20 @@ def test_a_step_that_adds_energy_cuts_the_next(tmp):
     """Backward Euler with damping and inelastic contact loses mechanical energy; its
     single linearisation can add some. A step that adds more than -drape_energy_rise
     (0.1 % of the energy scale) but less than the 1 % that fails it is kept and the
-    next step is cut. The sphere drop at 2e-2 s (180 x the symplectic limit) gains
-    energy a step at a time where it lands: with the cut (7 cuts measured) its
-    largest strain is 3.1 %, without it (-drape_energy_rise 0) 4.0 %, with a step
-    more retried (3 against 2)."""
+    next step is cut to a quarter. The sphere drop at 2e-2 s (180 x the symplectic
+    limit) gains energy a step at a time where it lands: 7 cuts (109 steps without
+    them, 148 with). What the cuts do to the drop's largest strain (one hem edge) is
+    not asserted: 3.1 % with them against 4.0 % without at 67805f6, 4.2 % against
+    4.0 % after the angle Hessians' round-off changed, the same 7 cuts."""
     base = f"-options_file runs/sphere.opts -ts_dt 2e-2 -ts_max_time 1 -output_interval 0.5 -output_file {tmp / 'd.h5'}"
-    cut = run(base).report
-    kept = run(f"{base} -drape_energy_rise 0").report
-    assert cut["steps_cut_energy"] >= 1 and kept["steps_cut_energy"] == 0, (cut, kept)
-    assert cut["strain_max"] < 0.9 * kept["strain_max"] and cut["steps_retried"] <= kept["steps_retried"], (cut, kept)
+    cut = run(base)
+    kept = run(f"{base} -drape_energy_rise 0")
+    assert cut.report["steps_cut_energy"] >= 1 and kept.report["steps_cut_energy"] == 0, (cut.report, kept.report)
+    # each cut step is followed by steps a quarter as long, grown back by TSAdapt
+    assert cut.report["steps"] > kept.report["steps"] + cut.report["steps_cut_energy"], (cut.report, kept.report)
+    note = re.search(r"added ([0-9.e+-]+) % of the energy scale in mechanical energy \(more than -drape_energy_rise 0.1 %", cut.stderr + cut.stdout)
+    assert note and 0.1 < float(note.group(1)) < 1, cut.stderr
+    assert "of the energy scale in mechanical energy (more than" not in kept.stderr + kept.stdout
 
 
 def test_backward_euler_direct_solve_matches_cg(tmp):
