@@ -217,6 +217,24 @@ def test_aij_holds_its_values_once(tmp):
     assert rss["rows"] - rss["csr"] > 0.7 * 8 * nnz, (rss, nnz)
 
 
+@pytest.mark.parametrize("pc", ["", "-pc_type latticemg"], ids=["defaults", "latticemg"])
+def test_implicit_step_holds_under_3_kB_a_particle(tmp, pc):
+    """Issue 27's floor: drapebe at its defaults (the matrix, block IC or the lattice
+    multigrid, the work vectors, the output's buffers) takes at most 3 kB a particle.
+    Measured as the peak memory (the report's VmHWM) a particle more from 96^2 to
+    192^2, which leaves out the process's libraries: 2.34 kB with block IC, 2.55 kB
+    with the multigrid (ML, drape's earlier AMG, took 12.8 kB; AIJ with its COO map
+    about 5)."""
+    base = f"-options_file runs/hang.opts -ts_type drapebe -ts_max_steps 3 {pc}"
+    peak = {}
+    for n in (96, 192):
+        rep = run(f"{base} -da_grid_x {n} -da_grid_y {n} -output_file {tmp / 'm.h5'}", checks=False).report
+        assert rep["mat_type"] == "seqsbaij" and rep["pc_type"] == (pc.split()[-1] if pc else "blockicc"), rep
+        peak[n] = rep["memory_peak"]
+    per = (peak[192] - peak[96]) / (192**2 - 96**2)
+    assert 1000 < per < 3000, (peak, per)
+
+
 def test_a_step_that_adds_energy_cuts_the_next(tmp):
     """Backward Euler with damping and inelastic contact loses mechanical energy; its
     single linearisation can add some. A step that adds more than -drape_energy_rise
