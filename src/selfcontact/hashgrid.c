@@ -46,7 +46,14 @@ static void MakeBoxes(PetscInt n, PetscInt nv, const PetscInt *prim, const Petsc
   }
 }
 
-static inline PetscInt64 CellOf(const SelfGrid *g, PetscReal x) { return (PetscInt64) PetscFloorReal(x * g->inv); }
+/* floor(x / cell size) without a call to floor (x86-64's baseline has no rounding
+ * instruction): exact for |x / cell| < 2^52, which GridCreate checks first */
+static inline PetscInt64 CellOf(const SelfGrid *g, PetscReal x)
+{
+  const PetscReal  v = x * g->inv;
+  const PetscInt64 i = (PetscInt64) v;
+  return i - (PetscInt64) (v < (PetscReal) i);
+}
 
 /* The low LOCAL_BITS bits of x spread to every third bit (Morton order). */
 #define LOCAL_BITS 7
@@ -176,39 +183,56 @@ static PetscErrorCode GridDestroy(SelfGrid *g)
   PetscFunctionReturn(0);
 }
 
-/* a growing array of pair keys first * n2 + second */
+/* Pairs (first, second), 2 entries each, made in increasing order of first: each
+ * query's seconds sorted on their own (a few) and appended, so the whole array is
+ * sorted as SelfBroadPhase returns it, with no sort of all the pairs. */
 typedef struct {
-  PetscInt64 *key;
-  PetscInt    n, cap;
-} Keys;
+  PetscInt *pair, n, cap;  /* pairs so far                    */
+  PetscInt *sec, ns, scap; /* the current query's seconds      */
+} Pairs;
 
-static PetscErrorCode KeysPush(Keys *k, PetscInt64 key)
+static PetscErrorCode PairsPush(Pairs *P, PetscInt second)
 {
   PetscFunctionBeginUser;
-  if (k->n == k->cap) {
-    PetscInt64 *nk;
-    k->cap = PetscMax(2 * k->cap, 1024);
-    PetscCall(PetscMalloc1(k->cap, &nk));
-    PetscCall(PetscArraycpy(nk, k->key, k->n));
-    PetscCall(PetscFree(k->key));
-    k->key = nk;
+  if (P->ns == P->scap) {
+    PetscInt *ns;
+    P->scap = PetscMax(2 * P->scap, 64);
+    PetscCall(PetscMalloc1(P->scap, &ns));
+    PetscCall(PetscArraycpy(ns, P->sec, P->ns));
+    PetscCall(PetscFree(P->sec));
+    P->sec = ns;
   }
-  k->key[k->n++] = key;
+  P->sec[P->ns++] = second;
   PetscFunctionReturn(0);
 }
 
-/* sorted pairs (first, second), 2 entries each, as SelfBroadPhase returns them */
-static PetscErrorCode KeysStore(Keys *k, PetscInt n2, PetscInt *n, PetscInt **out)
+/* the current query's pairs (first, its seconds sorted) to the array */
+static PetscErrorCode PairsFlush(Pairs *P, PetscInt first)
 {
   PetscFunctionBeginUser;
-  PetscCall(PetscSortInt64(k->n, k->key));
-  PetscCall(PetscMalloc1(2 * k->n + 1, out));
-  for (PetscInt i = 0; i < k->n; i++) {
-    (*out)[2 * i]     = (PetscInt) (k->key[i] / n2);
-    (*out)[2 * i + 1] = (PetscInt) (k->key[i] % n2);
+  if (!P->ns) PetscFunctionReturn(0);
+  PetscCall(PetscSortInt(P->ns, P->sec));
+  if (2 * (P->n + P->ns) > P->cap) {
+    PetscInt *np, cap = PetscMax(PetscMax(2 * P->cap, 2 * (P->n + P->ns)), 2048);
+    PetscCall(PetscMalloc1(cap, &np));
+    PetscCall(PetscArraycpy(np, P->pair, 2 * P->n));
+    PetscCall(PetscFree(P->pair));
+    P->pair = np, P->cap = cap;
   }
-  *n = k->n;
-  PetscCall(PetscFree(k->key));
+  for (PetscInt k = 0; k < P->ns; k++) P->pair[2 * (P->n + k)] = first, P->pair[2 * (P->n + k) + 1] = P->sec[k];
+  P->n += P->ns;
+  P->ns = 0;
+  PetscFunctionReturn(0);
+}
+
+/* the pairs as SelfBroadPhase returns them (PetscMalloc'ed, at least one entry) */
+static PetscErrorCode PairsStore(Pairs *P, PetscInt *n, PetscInt **out)
+{
+  PetscFunctionBeginUser;
+  if (!P->pair) PetscCall(PetscMalloc1(1, &P->pair));
+  *n      = P->n;
+  *out    = P->pair;
+  P->pair = NULL, P->n = P->cap = 0;
   PetscFunctionReturn(0);
 }
 
@@ -216,7 +240,7 @@ PetscErrorCode SelfBroadPhaseHash(const SelfMesh *m, const PetscReal *x0, const 
 {
   SelfBox *vb, *tb, *eb;
   SelfGrid g;
-  Keys     keys = {NULL, 0, 0};
+  Pairs    P = {NULL, 0, 0, NULL, 0, 0};
 
   PetscFunctionBeginUser;
   PetscCall(PetscMalloc3(m->nv + 1, &vb, m->nt + 1, &tb, m->ne + 1, &eb));
@@ -237,14 +261,14 @@ PetscErrorCode SelfBroadPhaseHash(const SelfMesh *m, const PetscReal *x0, const 
         const PetscInt *T = m->tri + 3 * t;
         if (g.key[e] != key) continue;
         if (p == T[0] || p == T[1] || p == T[2] || !Overlap(&vb[v], &tb[t]) || !FirstCell(&g, &vb[v], &tb[t], c)) continue;
-        PetscCall(KeysPush(&keys, (PetscInt64) v * m->nt + t));
+        PetscCall(PairsPush(&P, t));
       }
     }
+    PetscCall(PairsFlush(&P, v));
   }
   PetscCall(GridDestroy(&g));
-  PetscCall(KeysStore(&keys, m->nt, npt, pt));
+  PetscCall(PairsStore(&P, npt, pt));
   /* edge - edge */
-  keys.n = keys.cap = 0;
   PetscCall(GridCreate(m->ne, eb, &g));
   for (PetscInt a = 0; a < m->ne; a++) {
     const PetscInt *A = m->edge + 2 * a;
@@ -258,12 +282,14 @@ PetscErrorCode SelfBroadPhaseHash(const SelfMesh *m, const PetscReal *x0, const 
         const PetscInt *B = m->edge + 2 * b;
         if (b <= a || g.key[e] != key) continue;
         if (A[0] == B[0] || A[0] == B[1] || A[1] == B[0] || A[1] == B[1] || !Overlap(&eb[a], &eb[b]) || !FirstCell(&g, &eb[a], &eb[b], c)) continue;
-        PetscCall(KeysPush(&keys, (PetscInt64) a * m->ne + b));
+        PetscCall(PairsPush(&P, b));
       }
     }
+    PetscCall(PairsFlush(&P, a));
   }
   PetscCall(GridDestroy(&g));
-  PetscCall(KeysStore(&keys, m->ne, nee, ee));
+  PetscCall(PairsStore(&P, nee, ee));
+  PetscCall(PetscFree(P.sec));
   PetscCall(PetscFree3(vb, tb, eb));
   PetscFunctionReturn(0);
 }
