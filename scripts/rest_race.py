@@ -57,9 +57,9 @@ SCENES = {
                                 ("1e-2 s, settling at 1e-3 J/kg", ["-ts_dt", "1e-2", "-drape_settle_tol", "1e-3"]),
                                 ("1e-2 s, settling, steps up to 1 s", ["-ts_dt", "1e-2", "-drape_settle_tol", "1e-3", "-ts_adapt_drape_settle_factor", "100"]),
                                 ("5e-2 s", ["-ts_dt", "5e-2"])]),
+    # (steps up to 1 s, as on 64^2, never came to rest by 60 s: 271 CPU s a run, 22 mm away)
     "hang128": (HANG, 128, [("1e-2 s", ["-ts_dt", "1e-2"]),
-                                  ("1e-2 s, settling at 1e-3 J/kg", ["-ts_dt", "1e-2", "-drape_settle_tol", "1e-3"]),
-                                  ("1e-2 s, settling, steps up to 1 s", ["-ts_dt", "1e-2", "-drape_settle_tol", "1e-3", "-ts_adapt_drape_settle_factor", "100"])]),
+                                  ("1e-2 s, settling at 1e-3 J/kg", ["-ts_dt", "1e-2", "-drape_settle_tol", "1e-3"])]),
     "hangv64": (HANG + ["-cloth_orientation", "vertical"], 64, [("1e-2 s", ["-ts_dt", "1e-2"]),
                                                                      ("1e-2 s, settling at 1e-3 J/kg", ["-ts_dt", "1e-2", "-drape_settle_tol", "1e-3"]),
                                                                      ("5e-2 s, settling at 1e-3 J/kg", ["-ts_dt", "5e-2", "-drape_settle_tol", "1e-3"])]),
