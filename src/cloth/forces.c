@@ -994,6 +994,16 @@ static inline void AddFilteredBlock(Cloth c, PetscBool blk, const PetscInt *p, P
   AddBlock(blk, v, si, b, Bo);
 }
 
+/* Does an element on particles p[0..n) need AddFilteredBlock: is one constrained? */
+static inline PetscBool ElementConstrained(Cloth c, const PetscInt *p, PetscInt n)
+{
+  PetscBool any = PETSC_FALSE;
+
+  if (c->constrained)
+    for (PetscInt a = 0; a < n; a++) any = (PetscBool) (any || c->ctype[p[a]] != CLOTH_FREE);
+  return any;
+}
+
 /* The buffer's row stride of row k when not blk (RowBufferStrides' si) */
 static inline PetscInt RowStride(Cloth c, PetscBool blk, PetscInt k) { return blk ? 1 : 3 * c->rb_ncols[k]; }
 
@@ -1014,7 +1024,7 @@ static inline void AddStretchBlocks(Cloth c, PetscBool blk, PetscReal b, const P
         B[0][Layout(blk, i, j)] = h[3 * i + j];
         B[1][Layout(blk, i, j)] = -h[3 * i + j];
       }
-    const PetscBool filter = (PetscBool) (c->constrained && (c->ctype[p[0]] != CLOTH_FREE || c->ctype[p[1]] != CLOTH_FREE));
+    const PetscBool filter = ElementConstrained(c, p, 2);
     for (PetscInt a = 0; a < 2; a++)
       if (p[a] < c->nowned) AddHdiag(c, blk, p[a], B[0]);
     for (PetscInt a = 0; a < 2; a++) {
@@ -1094,7 +1104,7 @@ static inline void AddAngleBlocks(Cloth c, PetscInt kind, PetscBool blk, PetscRe
           B[8][l]           = h11 + h12 + h21 + h22;
         }
       }
-      const PetscBool filter = (PetscBool) (c->constrained && (c->ctype[p[0]] != CLOTH_FREE || c->ctype[p[1]] != CLOTH_FREE || c->ctype[p[2]] != CLOTH_FREE));
+      const PetscBool filter = ElementConstrained(c, p, 3);
       for (PetscInt a = 0; a < 3; a++)
         if (p[a] < c->nowned) AddHdiag(c, blk, p[a], B[4 * a]);
       for (PetscInt a = 0; a < 3; a++) {

@@ -75,15 +75,18 @@ static inline void KernelProjectPSD3(PetscReal A[9])
  * -1e-7 max|A_ij|, far below what could make the implicit matrix indefinite). A
  * cheap test that spares the Jacobi projection for the (most) elements that need
  * none. */
-static inline PetscBool KernelIsPSD3Sym(PetscReal a0, PetscReal a1, PetscReal a2, PetscReal a4, PetscReal a5, PetscReal a8)
+static inline PetscReal KernelPSD3Margin(PetscReal a0, PetscReal a1, PetscReal a2, PetscReal a4, PetscReal a5, PetscReal a8)
 {
+  /* the seven minors less their bounds (x >= t as x - t >= 0, exact), the least of
+   * them: no branch, so that KernelProjectPSD3Lanes's loop vectorises */
   const PetscReal s  = PetscMax(PetscMax(PetscMax(PetscAbsReal(a0), PetscAbsReal(a1)), PetscMax(PetscAbsReal(a2), PetscAbsReal(a4))), PetscMax(PetscAbsReal(a5), PetscAbsReal(a8)));
   const PetscReal t1 = -1e-14 * s, t2 = t1 * s, t3 = t2 * s;
-
-  return (PetscBool) (a0 >= t1 && a4 >= t1 && a8 >= t1 && a0 * a4 - a1 * a1 >= t2 && a0 * a8 - a2 * a2 >= t2 && a4 * a8 - a5 * a5 >= t2 && a0 * (a4 * a8 - a5 * a5) - a1 * (a1 * a8 - a5 * a2) + a2 * (a1 * a5 - a4 * a2) >= t3);
+  const PetscReal m1 = PetscMin(PetscMin(a0 - t1, a4 - t1), a8 - t1), m2 = PetscMin(PetscMin(a0 * a4 - a1 * a1 - t2, a0 * a8 - a2 * a2 - t2), a4 * a8 - a5 * a5 - t2);
+  const PetscReal m3 = a0 * (a4 * a8 - a5 * a5) - a1 * (a1 * a8 - a5 * a2) + a2 * (a1 * a5 - a4 * a2) - t3;
+  return PetscMin(PetscMin(m1, m2), m3);
 }
 
-static inline PetscBool KernelIsPSD3(const PetscReal A[9]) { return KernelIsPSD3Sym(A[0], A[1], A[2], A[4], A[5], A[8]); }
+static inline PetscBool KernelIsPSD3(const PetscReal A[9]) { return (PetscBool) (KernelPSD3Margin(A[0], A[1], A[2], A[4], A[5], A[8]) >= 0); }
 
 /* ---- Lanes: up to KERNEL_LANES small problems at once ----
  *
@@ -115,12 +118,7 @@ static inline void KernelProjectPSD3Lanes(PetscInt n, PetscBool test, PetscReal 
 
   for (PetscInt k = 0; k < n; k++) {
     const PetscReal a0 = A[0][k], a1 = A[1][k], a2 = A[2][k], a4 = A[3][k], a5 = A[4][k], a8 = A[5][k];
-    /* KernelIsPSD3Sym's seven minors against their bounds (x >= t as x - t >= 0) */
-    const PetscReal s  = PetscMax(PetscMax(PetscMax(PetscAbsReal(a0), PetscAbsReal(a1)), PetscMax(PetscAbsReal(a2), PetscAbsReal(a4))), PetscMax(PetscAbsReal(a5), PetscAbsReal(a8)));
-    const PetscReal t1 = -1e-14 * s, t2 = t1 * s, t3 = t2 * s;
-    const PetscReal m1 = PetscMin(PetscMin(a0 - t1, a4 - t1), a8 - t1), m2 = PetscMin(PetscMin(a0 * a4 - a1 * a1 - t2, a0 * a8 - a2 * a2 - t2), a4 * a8 - a5 * a5 - t2);
-    const PetscReal m3 = a0 * (a4 * a8 - a5 * a5) - a1 * (a1 * a8 - a5 * a2) + a2 * (a1 * a5 - a4 * a2) - t3;
-    const PetscReal mm = PetscMin(PetscMin(m1, m2), m3), minor = mm >= 0 ? 1.0 : 0.0, psd = tested * minor;
+    const PetscReal mm = KernelPSD3Margin(a0, a1, a2, a4, a5, a8), minor = mm >= 0 ? 1.0 : 0.0, psd = tested * minor;
     PetscReal       b0, b1, b2, pp;
     q[k] = (a0 + a4 + a8) / 3;
     b0   = a0 - q[k];
@@ -466,12 +464,10 @@ static inline void KernelCosine(PetscReal u, PetscReal w, PetscReal s, PetscInt 
   k->cws = -1 / (2 * w * P);
 }
 
-/* A shear corner's cosine, clamped inside (-1, 1): what its asin is taken of. */
-static inline PetscReal KernelShearCosine(PetscReal u, PetscReal w, PetscReal s)
-{
-  const PetscReal c = s / PetscSqrtReal(u * w);
-  return PetscMin(PetscMax(c, -1 + 1e-14), 1 - 1e-14);
-}
+/* A shear corner's cosine c = s / sqrt(u w) (as KernelCosine), clamped inside (-1, 1):
+ * what its asin is taken of. */
+static inline PetscReal KernelShearClamp(PetscReal c) { return PetscMin(PetscMax(c, -1 + 1e-14), 1 - 1e-14); }
+static inline PetscReal KernelShearCosine(PetscReal u, PetscReal w, PetscReal s) { return KernelShearClamp(s / PetscSqrtReal(u * w)); }
 
 /* Shear corner: E = kappa sqrt(u w) asin(c)^2, given a = asin(KernelShearCosine(u, w, s)). */
 static inline void KernelShearPartialsAt(PetscReal kappa, PetscReal u, PetscReal w, PetscReal s, PetscReal a, PetscInt order, KernelAnglePartials *d)
@@ -480,7 +476,7 @@ static inline void KernelShearPartialsAt(PetscReal kappa, PetscReal u, PetscReal
   PetscReal P, r, g, g1 = 0, g2 = 0, Pu, Pw, Puu, Pww, Puw;
 
   KernelCosine(u, w, s, order, &C);
-  C.c  = PetscMin(PetscMax(C.c, -1 + 1e-14), 1 - 1e-14);
+  C.c  = KernelShearClamp(C.c);
   P    = PetscSqrtReal(u * w);
   g    = a * a;
   d->E = kappa * P * g;
@@ -540,7 +536,8 @@ typedef struct {
   PetscReal e1[3][KERNEL_LANES], e2[3][KERNEL_LANES];
 } KernelAngleLanes;
 
-static inline void KernelAngleLanesSet(KernelAngleLanes *L, PetscInt k, const KernelAnglePartials *d, const PetscReal e1[3], const PetscReal e2[3])
+/* Lane k's partials from d (its edges are set by whoever fills L). */
+static inline void KernelAngleLanesSet(KernelAngleLanes *L, PetscInt k, const KernelAnglePartials *d)
 {
   L->Eu[k]    = d->Eu;
   L->Ew[k]    = d->Ew;
@@ -551,7 +548,6 @@ static inline void KernelAngleLanesSet(KernelAngleLanes *L, PetscInt k, const Ke
   L->E2[3][k] = d->Eww;
   L->E2[4][k] = d->Ews;
   L->E2[5][k] = d->Ess;
-  for (PetscInt i = 0; i < 3; i++) L->e1[i][k] = e1[i], L->e2[i][k] = e2[i];
 }
 
 /* The angle Hessian with respect to (e1, e2), 6 x 6 (H6[6 i + j][k] for lane k), of
@@ -620,7 +616,8 @@ static inline void KernelAngleHessian6(const KernelAnglePartials *d, const Petsc
   KernelAngleLanes L;
   PetscReal        H[36][KERNEL_LANES];
 
-  KernelAngleLanesSet(&L, 0, d, e1, e2);
+  for (PetscInt i = 0; i < 3; i++) L.e1[i][0] = e1[i], L.e2[i][0] = e2[i];
+  KernelAngleLanesSet(&L, 0, d);
   KernelAngleHessian6Lanes(1, &L, project, H);
   for (PetscInt i = 0; i < 36; i++) H6[i] = H[i][0];
 }
@@ -693,14 +690,13 @@ static inline void KernelAngleLanesPartials(KernelAngleKind kind, PetscInt n, co
     for (PetscInt k = 0; k < n; k++) a[k] = PetscAsinReal(a[k]); /* a call: the loops around it vectorise */
   }
   for (PetscInt k = 0; k < n; k++) {
-    const PetscReal     e1[3] = {L->e1[0][k], L->e1[1][k], L->e1[2][k]}, e2[3] = {L->e2[0][k], L->e2[1][k], L->e2[2][k]};
     KernelAnglePartials d = {0};
 
     if (kind == KERNEL_SHEAR)
       KernelShearPartialsAt(kappa[k], u[k], w[k], s[k], a[k], 2, &d);
     else
       KernelBendPartials(kappa[k], law ? law[k] : NULL, u[k], w[k], s[k], 2, &d);
-    KernelAngleLanesSet(L, k, &d, e1, e2);
+    KernelAngleLanesSet(L, k, &d);
   }
 }
 

@@ -191,17 +191,25 @@ typedef struct {
   PetscInt *sec, ns, scap; /* the current query's seconds      */
 } Pairs;
 
+/* *a, holding used entries, made to hold at least need (doubled, at least 64) */
+static PetscErrorCode Reserve(PetscInt **a, PetscInt *cap, PetscInt used, PetscInt need)
+{
+  PetscInt *na;
+
+  PetscFunctionBeginUser;
+  if (need <= *cap) PetscFunctionReturn(0);
+  *cap = PetscMax(PetscMax(2 * *cap, need), 64);
+  PetscCall(PetscMalloc1(*cap, &na));
+  PetscCall(PetscArraycpy(na, *a, used));
+  PetscCall(PetscFree(*a));
+  *a = na;
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode PairsPush(Pairs *P, PetscInt second)
 {
   PetscFunctionBeginUser;
-  if (P->ns == P->scap) {
-    PetscInt *ns;
-    P->scap = PetscMax(2 * P->scap, 64);
-    PetscCall(PetscMalloc1(P->scap, &ns));
-    PetscCall(PetscArraycpy(ns, P->sec, P->ns));
-    PetscCall(PetscFree(P->sec));
-    P->sec = ns;
-  }
+  PetscCall(Reserve(&P->sec, &P->scap, P->ns, P->ns + 1));
   P->sec[P->ns++] = second;
   PetscFunctionReturn(0);
 }
@@ -212,13 +220,7 @@ static PetscErrorCode PairsFlush(Pairs *P, PetscInt first)
   PetscFunctionBeginUser;
   if (!P->ns) PetscFunctionReturn(0);
   PetscCall(PetscSortInt(P->ns, P->sec));
-  if (2 * (P->n + P->ns) > P->cap) {
-    PetscInt *np, cap = PetscMax(PetscMax(2 * P->cap, 2 * (P->n + P->ns)), 2048);
-    PetscCall(PetscMalloc1(cap, &np));
-    PetscCall(PetscArraycpy(np, P->pair, 2 * P->n));
-    PetscCall(PetscFree(P->pair));
-    P->pair = np, P->cap = cap;
-  }
+  PetscCall(Reserve(&P->pair, &P->cap, 2 * P->n, 2 * (P->n + P->ns)));
   for (PetscInt k = 0; k < P->ns; k++) P->pair[2 * (P->n + k)] = first, P->pair[2 * (P->n + k) + 1] = P->sec[k];
   P->n += P->ns;
   P->ns = 0;
