@@ -8,7 +8,8 @@ run spent in the self-contact filter (the DrapeSelfContact event of -log_view:
 gathering the cloth, the broad phase, proximity and collision passes), the filter's
 time per step, the broad phase's time per candidate list (DrapeSelfBroad) and how
 often the list was rebuilt, for each broad phase of --broad-phase (CGAL's box
-intersection, the spatial hash: the same pairs, so the same collisions). Medians of
+intersection, the spatial hash of the primitives, the hash of the lattice's tiles:
+the same pairs, so the same collisions). Medians of
 --repeat runs, one after the other on an otherwise idle machine.
 
     .venv/bin/python scripts/bench_self_contact.py --sizes 41,61,81 --repeat 3
@@ -41,7 +42,7 @@ from bench_common import machine, md_table, median  # noqa: E402
 from drape_run import Drape, fail  # noqa: E402
 
 PROG = "bench_self_contact.py"
-KINDS = ("cgal", "hash")
+KINDS = ("cgal", "hash", "tiles")
 
 
 def event(stdout, name):
@@ -129,7 +130,7 @@ def main():
     ap.add_argument("--sizes", default="41,61,81", help="lattice sizes n (n x n), comma-separated")
     ap.add_argument("--time", type=float, default=1.0, help="simulated time of each run (s)")
     ap.add_argument("--repeat", type=int, default=3, help="runs per case (medians)")
-    ap.add_argument("--broad-phase", default="cgal,hash", help="broad phases to time, comma-separated (cgal, hash)")
+    ap.add_argument("--broad-phase", default="cgal,hash,tiles", help="broad phases to time, comma-separated (cgal, hash, tiles)")
     ap.add_argument("--build", default="build")
     ap.add_argument("--ranks", help="time the filter on these numbers of ranks instead (comma-separated; the pile scene)")
     ap.add_argument("--scenes", action="store_true", help="time self-contact's share of a step on the scenes of issue 27 instead")

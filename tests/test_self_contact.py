@@ -183,12 +183,14 @@ def test_fast_fold_never_crosses(tmp, scheme):
         rep1 = run(f"{base} -contact_self -contact_self_solve 0 -output_file {filt}").report
         assert crossings(filt).max() == 0 and rep1["strain_max"] < 0.1, rep1
         assert rep1["self_collisions"] > 0 and rep1["self_failsafe"] > 0 and rep1["self_solve_pairs_max"] == 0, rep1  # the continuous pass and the zones acted
-        # CGAL's broad phase instead of the spatial hash (the default): the same pairs
-        # in the same order, so the same arithmetic: the same frames, bitwise
-        cgal = tmp / "cgal.h5"
-        rep2 = run(f"{base} -contact_self -contact_self_solve 0 -contact_self_broad_phase cgal -output_file {cgal}").report
-        assert rep2["self_collisions"] == rep1["self_collisions"] and rep2["self_broad_phases"] == rep1["self_broad_phases"]
-        assert np.array_equal(drape_h5.load(cgal).positions, drape_h5.load(filt).positions)
+        # CGAL's broad phase and the hash of the primitives instead of the hash of the
+        # lattice's tiles (the default): the same pairs in the same order, so the same
+        # arithmetic: the same frames, bitwise
+        for kind in ("cgal", "hash"):
+            other = tmp / f"{kind}.h5"
+            rep2 = run(f"{base} -contact_self -contact_self_solve 0 -contact_self_broad_phase {kind} -output_file {other}").report
+            assert rep2["self_collisions"] == rep1["self_collisions"] and rep2["self_broad_phases"] == rep1["self_broad_phases"], kind
+            assert np.array_equal(drape_h5.load(other).positions, drape_h5.load(filt).positions), kind
         run(f"{base} -output_file {free}")
         assert crossings(free).max() > 0
 
@@ -372,10 +374,11 @@ def test_self_contact_options_are_checked(tmp):
 
 def test_bench_self_contact_quick(tmp):
     """scripts/bench_self_contact.py --quick: a row for 21^2 per broad phase (CGAL, the
-    spatial hash) with both wall times and their ratio, the filter's share of the run
-    between 0 and 100 %, a positive broad-phase time, and the same candidate lists,
-    collisions and fail-safe stops for both (they find the same pairs in the same
-    order, so the runs are the same; no assertion on speed: that is the benchmark's);
+    spatial hash, the hash of the lattice's tiles) with both wall times and their
+    ratio, the filter's share of the run between 0 and 100 %, a positive broad-phase
+    time, and the same candidate lists, collisions and fail-safe stops for all (they
+    find the same pairs in the same order, so the runs are the same; no assertion on
+    speed: that is the benchmark's);
     --ranks: the filter's table on 1 and 2 ranks; --scenes: a row per scene of issue
     27, each with lists made and the near list taken."""
     import subprocess
@@ -384,10 +387,10 @@ def test_bench_self_contact_quick(tmp):
     p = subprocess.run([sys.executable, "scripts/bench_self_contact.py", "--quick"], cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stdout + p.stderr
     rows = [[c.strip() for c in l.strip().strip("|").split("|")] for l in p.stdout.splitlines() if l.startswith("| 21^2")]
-    assert [r[1] for r in rows] == ["cgal", "hash"], p.stdout
+    assert [r[1] for r in rows] == ["cgal", "hash", "tiles"], p.stdout
     for cells in rows:
         assert float(cells[4]) > 0 and 0 < float(cells[5].rstrip(" %")) < 100 and float(cells[7]) > 0, cells
-    assert rows[0][8:] == rows[1][8:], rows
+    assert rows[0][8:] == rows[1][8:] == rows[2][8:], rows
     # --ranks: the filter on 1 and 2 ranks, the same run (the same close pairs), a
     # halo only on 2 ranks
     p = subprocess.run([sys.executable, "scripts/bench_self_contact.py", "--ranks", "1,2", "--sizes", "21", "--time", "0.02", "--repeat", "1"],

@@ -295,3 +295,192 @@ PetscErrorCode SelfBroadPhaseHash(const SelfMesh *m, const PetscReal *x0, const 
   PetscCall(PetscFree3(vb, tb, eb));
   PetscFunctionReturn(0);
 }
+
+/* ---- the broad phase on the lattice's tiles ----
+ * The same pairs again, found in two levels: the primitives grouped by the tile of
+ * the lattice their first particle is in (a vertex's own, a triangle's or an edge's
+ * lowest corner: TILE x TILE cells), each tile's box the union of its primitives'
+ * (vertices, triangles and edges apart); the pairs of tiles whose boxes overlap
+ * found by the hash above, and within each such pair every pair of primitives
+ * tested. A cloth is its lattice: a tile's primitives lie together, so its box is
+ * barely larger than theirs and the hash holds a few times fewer entries. Two
+ * primitives' boxes overlap only if their tiles' do, and the hash finds each pair
+ * of tiles once: each pair of primitives is found once. The pairs are then put in
+ * the others' order (by first, then second) by a counting sort on the first. */
+#define TILE 2
+
+typedef struct {
+  PetscInt  n;     /* tiles with a primitive of the kind             */
+  PetscInt *start; /* primitives of tile k: item[start[k] .. start[k + 1]), ascending */
+  PetscInt *item;
+  SelfBox  *box; /* each tile's box                                 */
+} TileSet;
+
+/* The tiles of the n primitives (stride particles each, the first at prim[stride e])
+ * with boxes b: those that hold one, numbered in the lattice's order. */
+static PetscErrorCode TileSetCreate(PetscInt n, const PetscInt *prim, PetscInt stride, const SelfBox *b, const PetscInt *nat, PetscInt Mx, TileSet *T)
+{
+  PetscInt lo[2] = {PETSC_MAX_INT, PETSC_MAX_INT}, hi[2] = {0, 0}, nx, ncell, *of, *count, *fill;
+
+  PetscFunctionBeginUser;
+  for (PetscInt e = 0; e < n; e++) {
+    const PetscInt a = nat[prim[stride * e]], c[2] = {(a % Mx) / TILE, (a / Mx) / TILE};
+    for (PetscInt d = 0; d < 2; d++) lo[d] = PetscMin(lo[d], c[d]), hi[d] = PetscMax(hi[d], c[d]);
+  }
+  nx    = n ? hi[0] - lo[0] + 1 : 0;
+  ncell = n ? nx * (hi[1] - lo[1] + 1) : 0;
+  PetscCall(PetscMalloc1(n + 1, &of));
+  PetscCall(PetscCalloc1(ncell + 1, &count));
+  for (PetscInt e = 0; e < n; e++) {
+    const PetscInt a = nat[prim[stride * e]];
+    of[e]            = ((a / Mx) / TILE - lo[1]) * nx + (a % Mx) / TILE - lo[0];
+    count[of[e]]++;
+  }
+  T->n = 0;
+  for (PetscInt c = 0; c < ncell; c++) T->n += count[c] > 0;
+  PetscCall(PetscMalloc3(T->n + 1, &T->start, n + 1, &T->item, T->n + 1, &T->box));
+  PetscCall(PetscMalloc1(ncell + 1, &fill));
+  T->start[0] = 0;
+  for (PetscInt c = 0, k = 0; c < ncell; c++) { /* the tiles that hold one, in order; fill: each one's number */
+    fill[c] = -1;
+    if (!count[c]) continue;
+    fill[c]         = k;
+    T->start[k + 1] = T->start[k] + count[c];
+    for (PetscInt d = 0; d < 3; d++) T->box[k].lo[d] = PETSC_MAX_REAL, T->box[k].hi[d] = -PETSC_MAX_REAL;
+    k++;
+  }
+  for (PetscInt k = 0; k < T->n; k++) count[k] = T->start[k];
+  for (PetscInt e = 0; e < n; e++) {
+    const PetscInt k    = fill[of[e]];
+    SelfBox       *B    = &T->box[k];
+    T->item[count[k]++] = e;
+    for (PetscInt d = 0; d < 3; d++) B->lo[d] = PetscMin(B->lo[d], b[e].lo[d]), B->hi[d] = PetscMax(B->hi[d], b[e].hi[d]);
+  }
+  PetscCall(PetscFree(fill));
+  PetscCall(PetscFree(count));
+  PetscCall(PetscFree(of));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode TileSetDestroy(TileSet *T)
+{
+  PetscFunctionBeginUser;
+  PetscCall(PetscFree3(T->start, T->item, T->box));
+  PetscFunctionReturn(0);
+}
+
+/* pairs found in any order, 2 entries each */
+typedef struct {
+  PetscInt *p, n, cap;
+} Found;
+
+static inline PetscErrorCode FoundPush(Found *F, PetscInt first, PetscInt second)
+{
+  PetscFunctionBeginUser;
+  if (PetscUnlikely(2 * F->n + 2 > F->cap)) PetscCall(Reserve(&F->p, &F->cap, 2 * F->n, 2 * F->n + 2));
+  F->p[2 * F->n] = first, F->p[2 * F->n + 1] = second;
+  F->n++;
+  PetscFunctionReturn(0);
+}
+
+/* The found pairs in order (by first, of nfirst, then by second) as SelfBroadPhase returns them. */
+static PetscErrorCode FoundStore(Found *F, PetscInt nfirst, PetscInt *n, PetscInt **out)
+{
+  PetscInt *start, *pair;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscCalloc1(nfirst + 2, &start));
+  PetscCall(PetscMalloc1(2 * F->n + 1, &pair));
+  for (PetscInt k = 0; k < F->n; k++) start[F->p[2 * k] + 2]++;
+  for (PetscInt f = 0; f < nfirst; f++) start[f + 2] += start[f + 1];
+  for (PetscInt k = 0; k < F->n; k++) pair[2 * start[F->p[2 * k] + 1]++ + 1] = F->p[2 * k + 1];
+  for (PetscInt f = 0; f < nfirst; f++) { /* start[f] .. start[f + 1]: f's seconds */
+    const PetscInt b = f ? start[f] : 0, e = start[f + 1];
+    PetscInt       i, j;
+    for (i = b + 1; i < e; i++) { /* insertion: a few each */
+      const PetscInt v = pair[2 * i + 1];
+      for (j = i; j > b && pair[2 * j - 1] > v; j--) pair[2 * j + 1] = pair[2 * j - 1];
+      pair[2 * j + 1] = v;
+    }
+    for (i = b; i < e; i++) pair[2 * i] = f;
+  }
+  PetscCall(PetscFree(start));
+  PetscCall(PetscFree(F->p));
+  F->cap = 0;
+  *n     = F->n;
+  *out   = pair;
+  F->n   = 0;
+  PetscFunctionReturn(0);
+}
+
+/* The pairs of tiles of A (queries) and B (entered) whose boxes overlap, each once
+ * (self: A is B, and only tiles b > a, and each tile with itself), handed to fine(a, b). */
+#define FOR_TILE_PAIRS(A, B, self, ta_, tb_, ...)                                                                                                                                                                                                        \
+  do {                                                                                                                                                                                                                                                   \
+    SelfGrid g_;                                                                                                                                                                                                                                         \
+    PetscCall(GridCreate((B)->n, (B)->box, &g_));                                                                                                                                                                                                        \
+    for (PetscInt ta_ = 0; ta_ < (A)->n; ta_++) {                                                                                                                                                                                                        \
+      PetscInt64 c_[3];                                                                                                                                                                                                                                  \
+      if (self) {                                                                                                                                                                                                                                        \
+        const PetscInt tb_ = ta_;                                                                                                                                                                                                                        \
+        __VA_ARGS__                                                                                                                                                                                                                                      \
+      }                                                                                                                                                                                                                                                  \
+      FOR_CELLS(&g_, &(A)->box[ta_], c_)                                                                                                                                                                                                                 \
+      {                                                                                                                                                                                                                                                  \
+        const PetscInt64         bk_  = Bucket(&g_, c_[0], c_[1], c_[2]);                                                                                                                                                                                \
+        const unsigned long long key_ = CellKey(&g_, c_);                                                                                                                                                                                                \
+        for (PetscInt e_ = g_.start[bk_]; e_ < g_.start[bk_ + 1]; e_++) {                                                                                                                                                                                \
+          const PetscInt tb_ = g_.item[e_];                                                                                                                                                                                                              \
+          if (g_.key[e_] != key_ || ((self) && tb_ <= ta_) || !Overlap(&(A)->box[ta_], &(B)->box[tb_]) || !FirstCell(&g_, &(A)->box[ta_], &(B)->box[tb_], c_)) continue;                                                                                 \
+          __VA_ARGS__                                                                                                                                                                                                                                    \
+        }                                                                                                                                                                                                                                                \
+      }                                                                                                                                                                                                                                                  \
+    }                                                                                                                                                                                                                                                    \
+    PetscCall(GridDestroy(&g_));                                                                                                                                                                                                                         \
+  } while (0)
+
+PetscErrorCode SelfBroadPhaseTiles(const SelfMesh *m, const PetscInt *nat, PetscInt Mx, const PetscReal *x0, const PetscReal *x1, PetscReal r, PetscInt *npt, PetscInt **pt, PetscInt *nee, PetscInt **ee)
+{
+  SelfBox *vb, *tb, *eb;
+  TileSet  V, T, E;
+  Found    F = {NULL, 0, 0};
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscMalloc3(m->nv + 1, &vb, m->nt + 1, &tb, m->ne + 1, &eb));
+  MakeBoxes(m->nv, 1, m->vert, x0, x1, r, vb);
+  MakeBoxes(m->nt, 3, m->tri, x0, x1, r, tb);
+  MakeBoxes(m->ne, 2, m->edge, x0, x1, r, eb);
+  PetscCall(TileSetCreate(m->nv, m->vert, 1, vb, nat, Mx, &V));
+  PetscCall(TileSetCreate(m->nt, m->tri, 3, tb, nat, Mx, &T));
+  PetscCall(TileSetCreate(m->ne, m->edge, 2, eb, nat, Mx, &E));
+  /* vertex - triangle */
+  FOR_TILE_PAIRS(
+    &V, &T, PETSC_FALSE, a, b, for (PetscInt i = V.start[a]; i < V.start[a + 1]; i++) {
+      const PetscInt v = V.item[i], p = m->vert[v];
+      if (!Overlap(&vb[v], &T.box[b])) continue;
+      for (PetscInt j = T.start[b]; j < T.start[b + 1]; j++) {
+        const PetscInt  t = T.item[j];
+        const PetscInt *P = m->tri + 3 * t;
+        if (p == P[0] || p == P[1] || p == P[2] || !Overlap(&vb[v], &tb[t])) continue;
+        PetscCall(FoundPush(&F, v, t));
+      }
+    });
+  PetscCall(FoundStore(&F, m->nv, npt, pt));
+  /* edge - edge */
+  FOR_TILE_PAIRS(
+    &E, &E, PETSC_TRUE, a, b, for (PetscInt i = E.start[a]; i < E.start[a + 1]; i++) {
+      const PetscInt e = E.item[i], *A = m->edge + 2 * e;
+      if (!Overlap(&eb[e], &E.box[b])) continue;
+      for (PetscInt j = (a == b ? i + 1 : E.start[b]); j < E.start[b + 1]; j++) {
+        const PetscInt f = E.item[j], *B = m->edge + 2 * f;
+        if (A[0] == B[0] || A[0] == B[1] || A[1] == B[0] || A[1] == B[1] || !Overlap(&eb[e], &eb[f])) continue;
+        PetscCall(FoundPush(&F, PetscMin(e, f), PetscMax(e, f)));
+      }
+    });
+  PetscCall(FoundStore(&F, m->ne, nee, ee));
+  PetscCall(TileSetDestroy(&V));
+  PetscCall(TileSetDestroy(&T));
+  PetscCall(TileSetDestroy(&E));
+  PetscCall(PetscFree3(vb, tb, eb));
+  PetscFunctionReturn(0);
+}

@@ -50,6 +50,10 @@
  * 3.57 s. A step longer than half the margin (drapebe's) keeps 2. */
 #define SELF_PREDICT_STEPS 2
 #define SELF_PREDICT_MAX   10
+/* Two patches whose pairs the candidate list may leave out (patches.c) are further
+ * apart than this many thicknesses (a pair the list's test leaves out is further
+ * apart than one thickness; rounding's slack). */
+#define SELF_PATCH_APART (1 + 1e-6)
 /* The near list's radius (-contact_self_near_radius), in thicknesses: past the
  * implicit solve's reach (2) by half a thickness, and below the 2.83 at which a
  * flat lattice at the default thickness (a quarter of the spacing) has the
@@ -68,7 +72,7 @@ PetscErrorCode SelfContactCreate(MPI_Comm comm, Cloth cloth, SelfContact *self)
   sc->its           = 8;
   sc->margin        = 1;
   sc->near          = SELF_NEAR_RADIUS;
-  sc->hash          = PETSC_TRUE;
+  sc->broad         = SELF_BROAD_TILES;
   sc->zones         = PETSC_TRUE;
   sc->unit3         = MPI_DATATYPE_NULL;
   sc->unit9         = MPI_DATATYPE_NULL;
@@ -89,10 +93,11 @@ PetscErrorCode SelfContactSetFromOptions(SelfContact sc)
   PetscCall(PetscOptionsReal("-contact_self_near_radius", "The passes take the candidates closer than this many thicknesses while no particle moved far enough to bring another within reach (0: every candidate, every pass)",
                              "SelfContactSetFromOptions", sc->near, &sc->near, NULL));
   {
-    const char *const kinds[] = {"cgal", "hash"};
-    PetscInt          kind    = sc->hash;
-    PetscCall(PetscOptionsEList("-contact_self_broad_phase", "Broad phase: CGAL's box intersection or a uniform spatial hash (the same pairs)", "SelfContactSetFromOptions", kinds, 2, kinds[kind], &kind, NULL));
-    sc->hash = (PetscBool) (kind == 1);
+    const char *const kinds[] = {"cgal", "hash", "tiles"};
+    PetscInt          kind    = sc->broad;
+    PetscCall(
+      PetscOptionsEList("-contact_self_broad_phase", "Broad phase: CGAL's box intersection, a uniform spatial hash of the primitives, or of the lattice's tiles (the same pairs)", "SelfContactSetFromOptions", kinds, 3, kinds[kind], &kind, NULL));
+    sc->broad = kind;
   }
   {
     const char *const kinds[] = {"freeze", "zones"};
@@ -499,6 +504,7 @@ PetscErrorCode SelfContactSetUp(SelfContact sc)
   PetscCallMPI(MPI_Type_contiguous(9, MPIU_REAL, &sc->unit9));
   PetscCallMPI(MPI_Type_commit(&sc->unit9));
   PetscCall(LocalSetBuild(sc, sc->nh1, sc->h1));
+  PetscCall(SelfPatchesSetUp(sc, natural));
   PetscFunctionReturn(0);
 }
 
@@ -538,6 +544,7 @@ PetscErrorCode SelfContactDestroy(SelfContact *self)
   if (sc->unit9 != MPI_DATATYPE_NULL) PetscCallMPI(MPI_Type_free(&sc->unit9));
   PetscCall(PetscFree(sc->gstart));
   PetscCall(SelfSolveDestroy(sc));
+  PetscCall(SelfPatchesDestroy(sc));
   PetscCall(PetscFree(*self));
   PetscFunctionReturn(0);
 }
@@ -615,9 +622,19 @@ static PetscErrorCode BroadPhaseRun(void *ctx)
 {
   const BroadCtx *b = (const BroadCtx *) ctx;
   SelfSet        *s = b->s;
+  const PetscReal r = (0.5 + b->sc->margin) * b->sc->thickness;
 
   PetscFunctionBeginUser;
-  PetscCall((b->sc->hash ? SelfBroadPhaseHash : SelfBroadPhase)(&s->mesh, s->lo, s->hi, (0.5 + b->sc->margin) * b->sc->thickness, &s->ncpt, &s->cpt, &s->ncee, &s->cee));
+  switch (b->sc->broad) {
+  case SELF_BROAD_CGAL:
+    PetscCall(SelfBroadPhase(&s->mesh, s->lo, s->hi, r, &s->ncpt, &s->cpt, &s->ncee, &s->cee));
+    break;
+  case SELF_BROAD_HASH:
+    PetscCall(SelfBroadPhaseHash(&s->mesh, s->lo, s->hi, r, &s->ncpt, &s->cpt, &s->ncee, &s->cee));
+    break;
+  default:
+    PetscCall(SelfBroadPhaseTiles(&s->mesh, s->nat, b->sc->Mx, s->lo, s->hi, r, &s->ncpt, &s->cpt, &s->ncee, &s->cee));
+  }
   PetscFunctionReturn(0);
 }
 
@@ -647,6 +664,7 @@ static PetscErrorCode SetBroadPhase(SelfContact sc, SelfSet *s)
       *np = n;
     }
   }
+  PetscCall(SelfPatchesBoxes(sc, s->lo, s->hi, sc->patches.list_box));
   s->listed   = PETSC_TRUE;
   s->has_near = PETSC_FALSE;
   PetscFunctionReturn(0);
@@ -687,6 +705,8 @@ static PetscErrorCode SetListValid(SelfContact sc, const SelfSet *s, PetscBool *
   for (PetscInt j = 0; j < 2; j++)
     for (PetscInt d = 0; d < 3; d++)
       if (!(g[6 * j + d] < PETSC_MAX_REAL && g[6 * j + d] + g[6 * j + 3 + d] <= 2 * m)) *valid = PETSC_FALSE;
+  /* (a position not finite fails the test above and is not taken further) */
+  if (!*valid && g[0] < PETSC_MAX_REAL) PetscCall(SelfPatchesListValid(sc, s->x0, s->x1, s->lo, s->hi, m, SELF_PATCH_APART * sc->thickness, valid));
   PetscFunctionReturn(0);
 }
 
@@ -844,13 +864,7 @@ static PetscErrorCode NearDisplacements(SelfContact sc, const SelfSet *s, const 
 }
 
 /* Does the near list hold every pair the passes need (delta from NearDisplacements)? */
-static PetscBool NearHolds(const SelfContact sc, const PetscReal delta[3], PetscReal reach, PetscBool gap_at_end)
-{
-  const PetscReal R = (1 - 1e-9) * sc->near * sc->thickness; /* less what rounding of the distances may take */
-
-  if (!(R - 2 * PetscMax(delta[0], delta[1]) > reach)) return PETSC_FALSE;
-  return (PetscBool) (!gap_at_end || R - 2 * delta[0] - 2 * delta[2] > reach);
-}
+static PetscBool NearHolds(const SelfContact sc, const PetscReal delta[3], PetscReal reach, PetscBool gap_at_end) { return SelfNearHolds(sc->near * sc->thickness, delta, reach, gap_at_end); }
 
 /* The near list at the present x0 (the whole local set's, the halo's included). */
 static PetscErrorCode NearMake(SelfContact sc, SelfSet *s)
@@ -866,6 +880,7 @@ static PetscErrorCode NearMake(SelfContact sc, SelfSet *s)
     s->nxr = 3 * s->n;
   }
   PetscCall(PetscArraycpy(s->xr, s->x0, 3 * s->n));
+  PetscCall(SelfPatchesBoxes(sc, s->xr, s->xr, sc->patches.near_box));
   if (!s->dc) { /* (one list's: SetFreeList frees them with it) */
     PetscCall(PetscFree(s->npt_));
     PetscCall(PetscFree(s->nee_));
@@ -964,6 +979,7 @@ static PetscErrorCode NearSelect(SelfContact sc, SelfSet *s, PetscReal reach, Pe
     if (s->has_near) {
       PetscCall(NearDisplacements(sc, s, s->xr, delta));
       use = NearHolds(sc, delta, reach, gap_at_end);
+      if (!use && delta[0] == delta[0] && delta[1] == delta[1]) PetscCall(SelfPatchesNearHolds(sc, s->x0, s->x1, s->xr, sc->near * sc->thickness, reach, gap_at_end, &use));
     }
     if (!use) {
       PetscCall(NearDisplacements(sc, s, NULL, delta));
@@ -972,9 +988,16 @@ static PetscErrorCode NearSelect(SelfContact sc, SelfSet *s, PetscReal reach, Pe
         sc->stats.near_lists++;
       } else {
         PetscInt  nlive = 0;
-        PetscBool fresh = PETSC_TRUE;
-        if (s->has_near) NearLive(s, reach, gap_at_end, &nlive, &fresh);
-        if (!s->has_near || (!fresh && 4 * nlive > s->ncpt + s->ncee)) {
+        PetscBool fresh = PETSC_TRUE, remake = (PetscBool) !s->has_near;
+        if (s->has_near) {
+          NearLive(s, reach, gap_at_end, &nlive, &fresh);
+          remake = (PetscBool) (!fresh && 4 * nlive > s->ncpt + s->ncee);
+        }
+        /* made again on every rank if on one: every rank's xr the same positions,
+         * so that the test of the near list (over the own particles of all) bounds
+         * the halo's displacements too */
+        if (sc->size > 1) PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &remake, 1, MPIU_BOOL, MPI_LOR, sc->comm));
+        if (remake) {
           PetscCall(NearMake(sc, s));
           sc->stats.near_lists++;
           NearLive(s, reach, gap_at_end, &nlive, &fresh);

@@ -30,6 +30,8 @@ typedef struct {
 PETSC_EXTERN PetscErrorCode SelfBroadPhase(const SelfMesh *, const PetscReal *x0, const PetscReal *x1, PetscReal r, PetscInt *npt, PetscInt **pt, PetscInt *nee, PetscInt **ee);
 /* The same pairs, in the same order, by a uniform spatial hash (hashgrid.c). */
 PETSC_EXTERN PetscErrorCode SelfBroadPhaseHash(const SelfMesh *, const PetscReal *x0, const PetscReal *x1, PetscReal r, PetscInt *npt, PetscInt **pt, PetscInt *nee, PetscInt **ee);
+/* The same pairs, in the same order, by the hash over tiles of the lattice (hashgrid.c): nat, the natural index of each particle, Mx the lattice's row. */
+PETSC_EXTERN PetscErrorCode SelfBroadPhaseTiles(const SelfMesh *, const PetscInt *nat, PetscInt Mx, const PetscReal *x0, const PetscReal *x1, PetscReal r, PetscInt *npt, PetscInt **pt, PetscInt *nee, PetscInt **ee);
 
 /* Particles the filter acts on, their copy of the state, their primitives and the
  * candidate pairs among them: a rank's own particles and its halo; or (only state
@@ -70,6 +72,21 @@ typedef struct {
   PetscBool released; /* let go once in this step */
 } SolvePair;
 
+enum {
+  SELF_BROAD_CGAL,
+  SELF_BROAD_HASH,
+  SELF_BROAD_TILES
+};
+
+/* The lattice's tiles for the lists' tests patch by patch (patches.c): square blocks of side particles, nx by ny. */
+typedef struct {
+  PetscInt   side, nx, ny, n;
+  PetscInt  *of;         /* the tile of each own particle */
+  PetscReal *list_box;   /* each patch's box (-lo, hi) when the candidate list was made: 6 a tile */
+  PetscReal *near_box;   /* each patch's box of xr when the near list was made */
+  PetscReal *work, *ext; /* 18 a tile */
+} SelfPatches;
+
 typedef struct {
   PetscBool  enabled;  /* -contact_self_solve (taken only by a scheme that calls SelfContactSolveBegin) */
   PetscBool  edges;    /* -contact_self_solve_edges: edge-edge pairs too */
@@ -95,7 +112,7 @@ struct _p_SelfContact {
   PetscReal        margin;     /* of the Verlet list, in thicknesses */
   PetscBool        margin_set; /* -contact_self_margin given */
   PetscReal        near;       /* radius of the near list, in thicknesses (0: none) */
-  PetscBool        hash;       /* broad phase by the spatial hash (else CGAL) */
+  PetscInt         broad;      /* broad phase: SELF_BROAD_CGAL, _HASH, _TILES */
   PetscBool        zones;      /* fail-safe by rigid impact zones (else stop the particles) */
   PetscInt         Mx, My, N, nowned;
   PetscInt         nt, ne;          /* the whole cloth's triangles and edges (counts) */
@@ -114,6 +131,7 @@ struct _p_SelfContact {
   PetscInt        *gstart;   /* global block index of each rank's first particle (size + 1) */
   MPI_Datatype     unit9;    /* 9 reals */
   SelfSolve        solve;
+  SelfPatches      patches;
   SelfContactStats stats;
 };
 
@@ -192,5 +210,23 @@ PETSC_INTERN PetscErrorCode SelfHaloUpdate(SelfContact, PetscReal *, PetscReal *
  * over the step x0 -> x1, or (gap_at_end) whose gap at x1 along the normal at x0
  * may be below reach. Collective. */
 PETSC_INTERN PetscErrorCode SelfListUpdate(SelfContact, PetscReal, PetscBool);
+/* Does a near list of radius R hold every pair within reach, when every particle's
+ * displacement since it was made, less one translation, is at most delta[0] (at the
+ * start), delta[1] (at the end), and its motion over the step less another at most
+ * delta[2]? (selfcontact.c, "the near list") */
+static inline PetscBool SelfNearHolds(PetscReal R, const PetscReal delta[3], PetscReal reach, PetscBool gap_at_end)
+{
+  R *= 1 - 1e-9; /* less what rounding of the distances may take */
+  if (!(R - 2 * PetscMax(delta[0], delta[1]) > reach)) return PETSC_FALSE;
+  return (PetscBool) (!gap_at_end || R - 2 * delta[0] - 2 * delta[2] > reach);
+}
+/* The patches (patches.c): set up from the own particles' natural indices, freed; the
+ * patches' boxes over the own particles' boxes lo .. hi; the candidate list's test
+ * and the near list's, patch by patch. Collective. */
+PETSC_INTERN PetscErrorCode SelfPatchesSetUp(SelfContact, const PetscInt *);
+PETSC_INTERN PetscErrorCode SelfPatchesDestroy(SelfContact);
+PETSC_INTERN PetscErrorCode SelfPatchesBoxes(SelfContact, const PetscReal *, const PetscReal *, PetscReal *);
+PETSC_INTERN PetscErrorCode SelfPatchesListValid(SelfContact, const PetscReal *, const PetscReal *, const PetscReal *, const PetscReal *, PetscReal, PetscReal, PetscBool *);
+PETSC_INTERN PetscErrorCode SelfPatchesNearHolds(SelfContact, const PetscReal *, const PetscReal *, const PetscReal *, PetscReal, PetscReal, PetscBool, PetscBool *);
 /* Frees the implicit step's arrays (implicit.c). */
 PETSC_INTERN PetscErrorCode SelfSolveDestroy(SelfContact);

@@ -1,6 +1,7 @@
-static const char help[] = "Unit tests of the self-contact broad phases (src/selfcontact/): CGAL's box intersection and the\n"
-                           "uniform spatial hash find exactly the pairs a brute-force test of every pair of boxes finds, in the\n"
-                           "same order, on folded, crumpled and partly exploded lattices.\n";
+static const char help[] = "Unit tests of the self-contact broad phases (src/selfcontact/): CGAL's box intersection, the\n"
+                           "uniform spatial hash and the hash of the lattice's tiles find exactly the pairs a brute-force test of\n"
+                           "every pair of boxes finds, in the same order, on folded, crumpled and partly exploded lattices, and\n"
+                           "with the particles numbered in any order (a rank's own particles, then its halo).\n";
 
 #include <petscsys.h>
 #include <selfcontact/selfcontactimpl.h>
@@ -148,22 +149,49 @@ static PetscErrorCode GroupAgainstBruteForce(PetscRandom rnd)
   for (size_t c = 0; c < sizeof(cases) / sizeof(cases[0]); c++) {
     SelfMesh   m;
     PetscReal *x0, *x1;
-    PetscInt   n[3][2], *pairs[3][2];
+    PetscReal *y0, *y1;
+    PetscInt   n[5][2], *pairs[5][2], *nat, *perm, *inv, N;
     PetscCall(LatticeMesh(cases[c].n, &m));
-    PetscCall(PetscMalloc2(3 * m.nv, &x0, 3 * m.nv, &x1));
+    N = m.nv;
+    PetscCall(PetscMalloc2(3 * N, &x0, 3 * N, &x1));
     Sheet(rnd, cases[c].n, s, cases[c].gap * s, cases[c].noise, cases[c].move, cases[c].fly, cases[c].far, x0, x1);
     PetscCall(BruteForce(&m, x0, x1, r, &n[0][0], &pairs[0][0], &n[0][1], &pairs[0][1]));
     PetscCall(SelfBroadPhase(&m, x0, x1, r, &n[1][0], &pairs[1][0], &n[1][1], &pairs[1][1]));
     PetscCall(SelfBroadPhaseHash(&m, x0, x1, r, &n[2][0], &pairs[2][0], &n[2][1], &pairs[2][1]));
+    PetscCall(PetscMalloc5(N, &nat, N, &perm, N, &inv, 3 * N, &y0, 3 * N, &y1));
+    for (PetscInt p = 0; p < N; p++) nat[p] = p;
+    PetscCall(SelfBroadPhaseTiles(&m, nat, cases[c].n, x0, x1, r, &n[3][0], &pairs[3][0], &n[3][1], &pairs[3][1]));
+    /* the same sheet with its particles numbered at random: a primitive's tile comes
+     * from its first particle's natural index, not from its number */
+    for (PetscInt p = 0; p < N; p++) perm[p] = p;
+    for (PetscInt p = N - 1; p > 0; p--) {
+      PetscReal u;
+      PetscInt  q, t;
+      PetscCall(PetscRandomGetValueReal(rnd, &u));
+      q = (PetscInt) (u * (p + 1)) % (p + 1), t = perm[p], perm[p] = perm[q], perm[q] = t;
+    }
+    for (PetscInt p = 0; p < N; p++) {
+      inv[perm[p]] = p, nat[perm[p]] = p;
+      for (PetscInt d = 0; d < 3; d++) y0[3 * perm[p] + d] = x0[3 * p + d], y1[3 * perm[p] + d] = x1[3 * p + d];
+    }
+    for (PetscInt k = 0; k < m.nv; k++) m.vert[k] = perm[m.vert[k]];
+    for (PetscInt k = 0; k < 3 * m.nt; k++) m.tri[k] = perm[m.tri[k]];
+    for (PetscInt k = 0; k < 2 * m.ne; k++) m.edge[k] = perm[m.edge[k]];
+    PetscCall(SelfBroadPhaseTiles(&m, nat, cases[c].n, y0, y1, r, &n[4][0], &pairs[4][0], &n[4][1], &pairs[4][1]));
     CHECK(n[0][0] > m.nv && n[0][1] > m.ne, "case %zu: too few pairs to test (%" PetscInt_FMT ", %" PetscInt_FMT ")", c, n[0][0], n[0][1]);
     PetscCall(Same("CGAL point-triangle", n[1][0], pairs[1][0], n[0][0], pairs[0][0]));
     PetscCall(Same("CGAL edge-edge", n[1][1], pairs[1][1], n[0][1], pairs[0][1]));
     PetscCall(Same("hash point-triangle", n[2][0], pairs[2][0], n[0][0], pairs[0][0]));
     PetscCall(Same("hash edge-edge", n[2][1], pairs[2][1], n[0][1], pairs[0][1]));
-    for (PetscInt i = 0; i < 3; i++) {
+    PetscCall(Same("tiles point-triangle", n[3][0], pairs[3][0], n[0][0], pairs[0][0]));
+    PetscCall(Same("tiles edge-edge", n[3][1], pairs[3][1], n[0][1], pairs[0][1]));
+    PetscCall(Same("tiles point-triangle, numbered at random", n[4][0], pairs[4][0], n[0][0], pairs[0][0]));
+    PetscCall(Same("tiles edge-edge, numbered at random", n[4][1], pairs[4][1], n[0][1], pairs[0][1]));
+    for (PetscInt i = 0; i < 5; i++) {
       PetscCall(PetscFree(pairs[i][0]));
       PetscCall(PetscFree(pairs[i][1]));
     }
+    PetscCall(PetscFree5(nat, perm, inv, y0, y1));
     PetscCall(PetscFree2(x0, x1));
     PetscCall(PetscFree3(m.vert, m.tri, m.edge));
   }
@@ -171,20 +199,24 @@ static PetscErrorCode GroupAgainstBruteForce(PetscRandom rnd)
   { /* 121 x 121, folded and moving: the two agree */
     SelfMesh   m;
     PetscReal *x0, *x1;
-    PetscInt   n[2][2], *pairs[2][2];
+    PetscInt   n[3][2], *pairs[3][2], *nat;
     PetscCall(LatticeMesh(121, &m));
-    PetscCall(PetscMalloc2(3 * m.nv, &x0, 3 * m.nv, &x1));
+    PetscCall(PetscMalloc3(3 * m.nv, &x0, 3 * m.nv, &x1, m.nv, &nat));
+    for (PetscInt p = 0; p < m.nv; p++) nat[p] = p;
     Sheet(rnd, 121, s, 0.3 * s, 0.2, 0.2, 40, 10, x0, x1);
     PetscCall(SelfBroadPhase(&m, x0, x1, r, &n[0][0], &pairs[0][0], &n[0][1], &pairs[0][1]));
     PetscCall(SelfBroadPhaseHash(&m, x0, x1, r, &n[1][0], &pairs[1][0], &n[1][1], &pairs[1][1]));
+    PetscCall(SelfBroadPhaseTiles(&m, nat, 121, x0, x1, r, &n[2][0], &pairs[2][0], &n[2][1], &pairs[2][1]));
     CHECK(n[0][0] > m.nv / 2 && n[0][1] > m.ne / 2, "121^2: too few pairs to test (%" PetscInt_FMT ", %" PetscInt_FMT ")", n[0][0], n[0][1]);
     PetscCall(Same("121^2 point-triangle", n[1][0], pairs[1][0], n[0][0], pairs[0][0]));
     PetscCall(Same("121^2 edge-edge", n[1][1], pairs[1][1], n[0][1], pairs[0][1]));
-    for (PetscInt i = 0; i < 2; i++) {
+    PetscCall(Same("121^2 point-triangle, tiles", n[2][0], pairs[2][0], n[0][0], pairs[0][0]));
+    PetscCall(Same("121^2 edge-edge, tiles", n[2][1], pairs[2][1], n[0][1], pairs[0][1]));
+    for (PetscInt i = 0; i < 3; i++) {
       PetscCall(PetscFree(pairs[i][0]));
       PetscCall(PetscFree(pairs[i][1]));
     }
-    PetscCall(PetscFree2(x0, x1));
+    PetscCall(PetscFree3(x0, x1, nat));
     PetscCall(PetscFree3(m.vert, m.tri, m.edge));
   }
   npassed++;
