@@ -123,6 +123,9 @@ $(BUILD)/src/cloth/lattice.o: DRAPE_CFLAGS += -fno-trapping-math
 # the same for the angle elements' Hessians, formed in lanes (src/cloth/kernels.h),
 # whose instruction-set versions must give the same bits: no fused multiply-adds
 $(BUILD)/src/cloth/forces.o: DRAPE_CFLAGS += -fno-trapping-math -ffp-contract=off
+# the near list's distances, in lanes (src/selfcontact/nearlanes.c): the same bits
+# as the scalar distance in every instruction-set version
+$(BUILD)/src/selfcontact/nearlanes.o: DRAPE_CFLAGS += -fno-trapping-math -ffp-contract=off
 
 $(BUILD)/%.o: %.c | check-deps
 	@mkdir -p $(dir $@)

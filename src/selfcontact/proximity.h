@@ -129,6 +129,164 @@ static inline PetscReal SegmentSegmentClosest(const PetscReal a[3], const PetscR
   return V3Norm(q);
 }
 
+/* The two distances above in lanes: SELF_LANES pairs at a time, their coordinates
+ * by lane (P[k][d][l]: point k of the pair, direction d, lane l), in loops without a
+ * branch that a compiler vectorises (every region's value computed, the region
+ * chosen by selects in the order of the branches above). Each lane gives the bits
+ * of the scalar function: the same operations on the same values, in the same order
+ * (no contraction into fused multiply-adds: ISO C's -ffp-contract=off). */
+#define SELF_LANES 8
+
+/* |p - closest point of triangle (a, b, c)|: P[0] = p, P[1..3] = a, b, c. */
+static inline void PointTriangleDistanceLanes(int n, const PetscReal P[4][3][SELF_LANES], PetscReal dist[SELF_LANES])
+{
+  PetscReal       d1[SELF_LANES], d2[SELF_LANES], d3[SELF_LANES], d4[SELF_LANES], d5[SELF_LANES], d6[SELF_LANES], va[SELF_LANES], vb[SELF_LANES], vc[SELF_LANES];
+  PetscReal       w0[SELF_LANES], w1[SELF_LANES], w2[SELF_LANES], u[SELF_LANES], v[SELF_LANES];
+  const PetscReal zero = 0, one = 1;
+
+  for (int l = 0; l < n; l++) {
+    const PetscReal ab[3] = {P[2][0][l] - P[1][0][l], P[2][1][l] - P[1][1][l], P[2][2][l] - P[1][2][l]};
+    const PetscReal ac[3] = {P[3][0][l] - P[1][0][l], P[3][1][l] - P[1][1][l], P[3][2][l] - P[1][2][l]};
+    const PetscReal ap[3] = {P[0][0][l] - P[1][0][l], P[0][1][l] - P[1][1][l], P[0][2][l] - P[1][2][l]};
+    const PetscReal bp[3] = {P[0][0][l] - P[2][0][l], P[0][1][l] - P[2][1][l], P[0][2][l] - P[2][2][l]};
+    const PetscReal cp[3] = {P[0][0][l] - P[3][0][l], P[0][1][l] - P[3][1][l], P[0][2][l] - P[3][2][l]};
+    d1[l] = V3Dot(ab, ap), d2[l] = V3Dot(ac, ap), d3[l] = V3Dot(ab, bp), d4[l] = V3Dot(ac, bp), d5[l] = V3Dot(ab, cp), d6[l] = V3Dot(ac, cp);
+    vc[l] = d1[l] * d4[l] - d3[l] * d2[l];
+    vb[l] = d5[l] * d2[l] - d1[l] * d6[l];
+    va[l] = d3[l] * d6[l] - d5[l] * d4[l];
+  }
+  /* the interior, then each region of the branches from the last to the first: the first that holds is chosen */
+  for (int l = 0; l < n; l++) {
+    const PetscReal den = 1 / (va[l] + vb[l] + vc[l]);
+    u[l]                = vb[l] * den;
+    v[l]                = vc[l] * den;
+    w0[l] = 1 - u[l] - v[l], w1[l] = u[l], w2[l] = v[l];
+  }
+  for (int l = 0; l < n; l++) { /* edge bc */
+    const PetscReal e = d4[l] - d3[l], f = d5[l] - d6[l], t = e / (e + f);
+    const int       m = (va[l] <= 0) & (e >= 0) & (f >= 0);
+    w0[l]             = m ? zero : w0[l];
+    w1[l]             = m ? 1 - t : w1[l];
+    w2[l]             = m ? t : w2[l];
+  }
+  for (int l = 0; l < n; l++) { /* edge ac */
+    const PetscReal t = d2[l] / (d2[l] - d6[l]);
+    const int       m = (vb[l] <= 0) & (d2[l] >= 0) & (d6[l] <= 0);
+    w0[l]             = m ? 1 - t : w0[l];
+    w1[l]             = m ? zero : w1[l];
+    w2[l]             = m ? t : w2[l];
+  }
+  for (int l = 0; l < n; l++) { /* vertex c */
+    const int m = (d6[l] >= 0) & (d5[l] <= d6[l]);
+    w0[l]       = m ? zero : w0[l];
+    w1[l]       = m ? zero : w1[l];
+    w2[l]       = m ? one : w2[l];
+  }
+  for (int l = 0; l < n; l++) { /* edge ab */
+    const PetscReal t = d1[l] / (d1[l] - d3[l]);
+    const int       m = (vc[l] <= 0) & (d1[l] >= 0) & (d3[l] <= 0);
+    w0[l]             = m ? 1 - t : w0[l];
+    w1[l]             = m ? t : w1[l];
+    w2[l]             = m ? zero : w2[l];
+  }
+  for (int l = 0; l < n; l++) { /* vertex b */
+    const int m = (d3[l] >= 0) & (d4[l] <= d3[l]);
+    w0[l]       = m ? zero : w0[l];
+    w1[l]       = m ? one : w1[l];
+    w2[l]       = m ? zero : w2[l];
+  }
+  for (int l = 0; l < n; l++) { /* vertex a */
+    const int m = (d1[l] <= 0) & (d2[l] <= 0);
+    w0[l]       = m ? one : w0[l];
+    w1[l]       = m ? zero : w1[l];
+    w2[l]       = m ? zero : w2[l];
+  }
+  for (int l = 0; l < n; l++) {
+    PetscReal q[3];
+    for (int d = 0; d < 3; d++) q[d] = P[0][d][l] - (w0[l] * P[1][d][l] + w1[l] * P[2][d][l] + w2[l] * P[3][d][l]);
+    dist[l] = PetscSqrtReal(V3Dot(q, q));
+  }
+}
+
+/* PetscClipInterval(x, 0, 1) in lanes, one select a statement (what GCC vectorises). */
+static inline void ClipUnitLanes(int n, PetscReal x[SELF_LANES])
+{
+  const PetscReal zero = 0, one = 1;
+  for (int l = 0; l < n; l++) {
+    const PetscReal a = x[l];
+    x[l]              = a < one ? a : one;
+  }
+  for (int l = 0; l < n; l++) {
+    const PetscReal a = x[l];
+    x[l]              = zero < a ? a : zero;
+  }
+}
+
+/* The distance of segments ab and cd: P[0..3] = a, b, c, d. */
+static inline void SegmentSegmentDistanceLanes(int n, const PetscReal P[4][3][SELF_LANES], PetscReal dist[SELF_LANES])
+{
+  PetscReal       A[SELF_LANES], B[SELF_LANES], C[SELF_LANES], E[SELF_LANES], F[SELF_LANES], s[SELF_LANES], t[SELF_LANES], sg[SELF_LANES], tg[SELF_LANES];
+  PetscReal       lo[SELF_LANES], hi[SELF_LANES], pt[SELF_LANES];
+  const PetscReal tiny = 1e-300, zero = 0, one = 1;
+
+  for (int l = 0; l < n; l++) {
+    const PetscReal d1[3] = {P[1][0][l] - P[0][0][l], P[1][1][l] - P[0][1][l], P[1][2][l] - P[0][2][l]};
+    const PetscReal d2[3] = {P[3][0][l] - P[2][0][l], P[3][1][l] - P[2][1][l], P[3][2][l] - P[2][2][l]};
+    const PetscReal r[3]  = {P[0][0][l] - P[2][0][l], P[0][1][l] - P[2][1][l], P[0][2][l] - P[2][2][l]};
+    A[l] = V3Dot(d1, d1), E[l] = V3Dot(d2, d2), F[l] = V3Dot(d2, r), C[l] = V3Dot(d1, r), B[l] = V3Dot(d1, d2);
+  }
+  /* both long: s from the lines (0 if parallel), t from s; each clipped */
+  for (int l = 0; l < n; l++) sg[l] = (B[l] * F[l] - C[l] * E[l]) / (A[l] * E[l] - B[l] * B[l]);
+  ClipUnitLanes(n, sg);
+  for (int l = 0; l < n; l++) {
+    const PetscReal x = sg[l];
+    const int       m = A[l] * E[l] - B[l] * B[l] > 1e-14 * A[l] * E[l];
+    sg[l]             = m ? x : zero;
+  }
+  for (int l = 0; l < n; l++) tg[l] = (B[l] * sg[l] + F[l]) / E[l];
+  for (int l = 0; l < n; l++) lo[l] = -C[l] / A[l], hi[l] = (B[l] - C[l]) / A[l], pt[l] = F[l] / E[l];
+  ClipUnitLanes(n, lo);
+  ClipUnitLanes(n, hi);
+  ClipUnitLanes(n, pt);
+  for (int l = 0; l < n; l++) {
+    const PetscReal x = hi[l], y = sg[l];
+    s[l] = tg[l] > 1 ? x : y;
+  }
+  for (int l = 0; l < n; l++) {
+    const PetscReal x = lo[l], y = s[l];
+    s[l] = tg[l] < 0 ? x : y;
+  }
+  for (int l = 0; l < n; l++) {
+    const PetscReal y = tg[l];
+    t[l]              = y > 1 ? one : y;
+  }
+  for (int l = 0; l < n; l++) {
+    const PetscReal y = t[l];
+    t[l]              = tg[l] < 0 ? zero : y;
+  }
+  for (int l = 0; l < n; l++) { /* cd a point (ab not): t = 0, s = lo */
+    const PetscReal x = lo[l], y = s[l], z = t[l];
+    const int       m = (A[l] > tiny) & (E[l] <= tiny);
+    s[l]              = m ? x : y;
+    t[l]              = m ? zero : z;
+  }
+  for (int l = 0; l < n; l++) { /* ab a point: s = 0, t = pt (both points: 0) */
+    const PetscReal x = pt[l], y = s[l], z = t[l];
+    const int       m = A[l] <= tiny, both = (A[l] <= tiny) & (E[l] <= tiny);
+    s[l] = m ? zero : y;
+    t[l] = m ? x : z;
+    t[l] = both ? zero : t[l];
+  }
+  for (int l = 0; l < n; l++) {
+    PetscReal q[3];
+    for (int d = 0; d < 3; d++) {
+      const PetscReal d1 = P[1][d][l] - P[0][d][l], d2 = P[3][d][l] - P[2][d][l];
+      q[d] = (P[2][d][l] + t[l] * d2) - (P[0][d][l] + s[l] * d1);
+    }
+    dist[l] = PetscSqrtReal(V3Dot(q, q));
+  }
+}
+
 /* Coefficients of f(t) = ((e1 + t D1) x (e2 + t D2)) . (q + t Dq), c[0] + c[1] t +
  * c[2] t^2 + c[3] t^3, and a scale of its terms (for "f vanishes identically"). */
 static inline PetscReal TripleCubic(const PetscReal e1[3], const PetscReal D1[3], const PetscReal e2[3], const PetscReal D2[3], const PetscReal q[3], const PetscReal Dq[3], PetscReal c[4])

@@ -893,11 +893,8 @@ static PetscErrorCode NearMake(SelfContact sc, SelfSet *s)
     const PetscInt *from = kind ? s->cee : s->cpt;
     PetscInt       *to = kind ? s->nee_ : s->npt_, *n = kind ? &s->nnee : &s->nnpt;
     PetscReal      *dc = s->dc + (kind ? s->ncpt : 0);
+    SelfNearDistances(s, kind, kind ? s->ncee : s->ncpt, s->xr, dc);
     for (PetscInt k = 0; k < (kind ? s->ncee : s->ncpt); k++) {
-      Pair      pr;
-      PetscReal nrm[3];
-      PairParticles(s, kind, k, pr.p);
-      dc[k] = PairClosest(kind, s->xr, &pr, nrm);
       if (dc[k] >= R) continue; /* (a NaN distance is kept) */
       to[2 * *n] = from[2 * k], to[2 * *n + 1] = from[2 * k + 1];
       (*n)++;

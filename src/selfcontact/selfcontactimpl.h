@@ -201,6 +201,9 @@ static inline PetscReal PairClosest(PetscInt kind, const PetscReal *X, Pair *pr,
   return dist;
 }
 
+/* The distances of candidates [0, n) of kind (0 point-triangle, 1 edge-edge; s->pt or
+ * s->ee set) at positions X, each PairClosest's to the bit, in lanes (nearlanes.c). */
+PETSC_INTERN void SelfNearDistances(const SelfSet *, PetscInt, PetscInt, const PetscReal *, PetscReal *);
 /* The halo's copies of x0, x1 and v (any may be NULL; arrays over the local set)
  * from their owners. Collective. */
 PETSC_INTERN PetscErrorCode SelfHaloUpdate(SelfContact, PetscReal *, PetscReal *, PetscReal *);

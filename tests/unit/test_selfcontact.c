@@ -1,9 +1,10 @@
 static const char help[] = "Unit tests of the self-contact narrow phase (src/selfcontact/proximity.h): closest points of a point\n"
                            "and a triangle and of two segments against brute force, cubic roots, continuous collision times with\n"
-                           "known answers, and random sweeps checked against a dense sampling of the motion.\n";
+                           "known answers, random sweeps checked against a dense sampling of the motion, and the near list's\n"
+                           "distances in lanes equal to the bit to the scalar ones in every region and degenerate case.\n";
 
 #include <petscsys.h>
-#include <selfcontact/proximity.h>
+#include <selfcontact/selfcontactimpl.h>
 
 static PetscInt npassed = 0;
 
@@ -161,6 +162,74 @@ static PetscErrorCode GroupRandomSweeps(PetscRandom rnd)
   PetscFunctionReturn(0);
 }
 
+/* The near list's distances in lanes (SelfNearDistances: the instruction set this
+ * machine's start-up chose) against PairClosest's, to the bit: points about
+ * triangles at every scale (every Voronoi region), degenerate triangles and
+ * segments (collinear, a point, two points), parallel and crossing segments;
+ * batches of every length 1..8 and their remainders. */
+static PetscErrorCode GroupLanes(PetscRandom rnd)
+{
+  const PetscInt np = 53; /* pairs: six batches and a remainder of 5 */
+  PetscReal      X[3 * 4 * 53];
+  PetscInt       vert[53], tri[3 * 53], edge[4 * 53], pt[2 * 53], ee[2 * 53];
+  PetscReal      dist[53];
+  SelfSet        s;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscMemzero(&s, sizeof(s)));
+  for (PetscInt k = 0; k < np; k++) {
+    vert[k] = 4 * k, tri[3 * k] = 4 * k + 1, tri[3 * k + 1] = 4 * k + 2, tri[3 * k + 2] = 4 * k + 3;
+    edge[4 * k] = 4 * k, edge[4 * k + 1] = 4 * k + 1, edge[4 * k + 2] = 4 * k + 2, edge[4 * k + 3] = 4 * k + 3;
+    pt[2 * k] = k, pt[2 * k + 1] = k, ee[2 * k] = 2 * k, ee[2 * k + 1] = 2 * k + 1;
+  }
+  s.mesh.vert = vert, s.mesh.tri = tri, s.mesh.edge = edge, s.mesh.nv = np, s.mesh.nt = np, s.mesh.ne = 2 * np;
+  for (PetscInt cfg = 0; cfg < 400; cfg++) {
+    for (PetscInt k = 0; k < np; k++) {
+      PetscReal *x = X + 12 * k, u, scale;
+      PetscCall(PetscRandomGetValueReal(rnd, &u));
+      scale = PetscPowReal(10.0, 4 * u - 2); /* the point from 0.01 to 100 triangle sizes away */
+      for (PetscInt c = 0; c < 12; c++) {
+        PetscCall(PetscRandomGetValueReal(rnd, &u));
+        x[c] = (c < 3 ? scale : 1) * (u - 0.5);
+      }
+      switch ((cfg + k) % 7) { /* degenerate cases */
+      case 1:
+        for (PetscInt c = 0; c < 3; c++) x[9 + c] = 0.5 * (x[3 + c] + x[6 + c]); /* collinear triangle; segment cd's d on ab's line */
+        break;
+      case 2:
+        for (PetscInt c = 0; c < 3; c++) x[3 + c] = x[c]; /* a point on a vertex; ab of length 0 */
+        break;
+      case 3:
+        for (PetscInt c = 0; c < 3; c++) x[9 + c] = x[6 + c]; /* cd of length 0 */
+        break;
+      case 4:
+        for (PetscInt c = 0; c < 3; c++) x[3 + c] = x[c], x[9 + c] = x[6 + c]; /* two points */
+        break;
+      case 5:
+        for (PetscInt c = 0; c < 3; c++) x[9 + c] = x[6 + c] + 2 * (x[3 + c] - x[c]); /* parallel segments */
+        break;
+      case 6:
+        for (PetscInt c = 0; c < 3; c++) x[c] = (x[3 + c] + x[6 + c] + x[9 + c]) / 3 + 1e-9 * x[c]; /* a point in the triangle */
+        break;
+      }
+    }
+    for (PetscInt kind = 0; kind < 2; kind++) {
+      const PetscInt n = 1 + (cfg * 7 + kind) % np; /* batches of every length */
+      s.pt = pt, s.ee = ee;
+      SelfNearDistances(&s, kind, n, X, dist);
+      for (PetscInt k = 0; k < n; k++) {
+        Pair      pr;
+        PetscReal nrm[3], d;
+        PairParticles(&s, kind, k, pr.p);
+        d = PairClosest(kind, X, &pr, nrm);
+        CHECK(d == dist[k], "%s %" PetscInt_FMT " of %" PetscInt_FMT ": lanes %.17g, scalar %.17g", kind ? "edge-edge" : "point-triangle", k, n, (double) dist[k], (double) d);
+      }
+    }
+  }
+  npassed++;
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode Run(void)
 {
   PetscRandom rnd;
@@ -173,6 +242,7 @@ static PetscErrorCode Run(void)
   PetscCall(GroupCubic());
   PetscCall(GroupKnownCollisions());
   PetscCall(GroupRandomSweeps(rnd));
+  PetscCall(GroupLanes(rnd));
   PetscCall(PetscRandomDestroy(&rnd));
   PetscCall(PetscPrintf(PETSC_COMM_WORLD, "%" PetscInt_FMT " passed, 0 failed\n", npassed));
   PetscFunctionReturn(0);
