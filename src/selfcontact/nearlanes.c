@@ -28,3 +28,63 @@ SelfNearDistances(const SelfSet *s, PetscInt kind, PetscInt n, const PetscReal *
     for (int l = 0; l < m; l++) dist[k0 + l] = d[l];
   }
 }
+
+/* The motion of particles [0, n) since the lists were made, in one pass (the
+ * filter's test of its lists at every step): list[6 j + d] and list[6 j + 3 + d] the
+ * largest x_j - hi and lo - x_j in direction d (x_0 = x0, x_1 = x1; when lo is
+ * given), near[6 j + d] and near[6 j + 3 + d] the largest a_j and -a_j of a = (x0 -
+ * xr, x1 - xr, x1 - x0) (when xr is given), and *zero the sum of 0 * every
+ * coordinate (NaN once one is not finite). Lanes of 8 particles' 24 coordinates,
+ * each lane keeping its own maxima (exact: a maximum is the same in any order). */
+#define MOTION_LANES 24
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__INTEL_COMPILER) && !defined(DRAPE_NO_TARGET_CLONES)
+__attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+#endif
+void
+SelfMotionMaxima(PetscInt n, const PetscReal *x0, const PetscReal *x1, const PetscReal *lo, const PetscReal *hi, const PetscReal *xr, PetscReal list[12], PetscReal near[18], PetscReal *zero)
+{
+  PetscReal       m[10][MOTION_LANES], z[MOTION_LANES];
+  const PetscInt  N    = 3 * n;
+  const PetscReal none = -PETSC_MAX_REAL;
+
+  for (int c = 0; c < 10; c++)
+    for (int l = 0; l < MOTION_LANES; l++) m[c][l] = none;
+  for (int l = 0; l < MOTION_LANES; l++) z[l] = 0;
+  for (PetscInt i0 = 0; i0 < N; i0 += MOTION_LANES) {
+    const int L = (int) PetscMin(MOTION_LANES, N - i0); /* (a multiple of 3) */
+    for (int l = 0; l < L; l++) z[l] += 0 * x0[i0 + l] + 0 * x1[i0 + l];
+    if (lo)
+      for (int l = 0; l < L; l++) {
+        const PetscReal a = x0[i0 + l] - hi[i0 + l], b = lo[i0 + l] - x0[i0 + l], c = x1[i0 + l] - hi[i0 + l], d = lo[i0 + l] - x1[i0 + l];
+        m[0][l] = a > m[0][l] ? a : m[0][l];
+        m[1][l] = b > m[1][l] ? b : m[1][l];
+        m[2][l] = c > m[2][l] ? c : m[2][l];
+        m[3][l] = d > m[3][l] ? d : m[3][l];
+      }
+    if (xr)
+      for (int l = 0; l < L; l++) {
+        const PetscReal a = x0[i0 + l] - xr[i0 + l], b = x1[i0 + l] - xr[i0 + l], c = x1[i0 + l] - x0[i0 + l];
+        m[4][l] = a > m[4][l] ? a : m[4][l];
+        m[5][l] = -a > m[5][l] ? -a : m[5][l];
+        m[6][l] = b > m[6][l] ? b : m[6][l];
+        m[7][l] = -b > m[7][l] ? -b : m[7][l];
+        m[8][l] = c > m[8][l] ? c : m[8][l];
+        m[9][l] = -c > m[9][l] ? -c : m[9][l];
+      }
+  }
+  for (int i = 0; i < 12; i++) list[i] = none;
+  for (int i = 0; i < 18; i++) near[i] = none;
+  *zero = 0;
+  for (int l = 0; l < MOTION_LANES; l++) {
+    const int d = l % 3;
+    *zero += z[l];
+    for (int j = 0; j < 2; j++) {
+      list[6 * j + d]     = PetscMax(list[6 * j + d], m[2 * j][l]);
+      list[6 * j + 3 + d] = PetscMax(list[6 * j + 3 + d], m[2 * j + 1][l]);
+    }
+    for (int j = 0; j < 3; j++) {
+      near[6 * j + d]     = PetscMax(near[6 * j + d], m[4 + 2 * j][l]);
+      near[6 * j + 3 + d] = PetscMax(near[6 * j + 3 + d], m[5 + 2 * j][l]);
+    }
+  }
+}

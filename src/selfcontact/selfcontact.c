@@ -679,34 +679,37 @@ static PetscErrorCode SetBroadPhase(SelfContact sc, SelfSet *s)
  * largest x - hi and the largest lo - x sum to at most twice the margin. Over every
  * rank; a position that is not finite makes the list invalid (SetBoxes then says
  * so). */
-static PetscErrorCode SetListValid(SelfContact sc, const SelfSet *s, PetscBool *valid)
+static PetscErrorCode SetListValid(SelfContact sc, const SelfSet *s, const PetscReal g[12], PetscBool *valid)
 {
   const PetscReal m = sc->margin * sc->thickness;
-  PetscReal       b[12], g[12], zero = 0; /* start and end, per direction: the largest x - hi, and lo - x; 0 * every x */
 
   PetscFunctionBeginUser;
   *valid = s->listed; /* the same on every rank */
   if (!*valid) PetscFunctionReturn(0);
-  for (PetscInt i = 0; i < 12; i++) b[i] = -PETSC_MAX_REAL;
-  for (PetscInt k = 0; k < s->nown; k++)
-    for (PetscInt d = 0; d < 3; d++) {
-      const PetscReal lo = s->lo[3 * k + d], hi = s->hi[3 * k + d], x[2] = {s->x0[3 * k + d], s->x1[3 * k + d]};
-      for (PetscInt j = 0; j < 2; j++) {
-        b[6 * j + d]     = PetscMax(b[6 * j + d], x[j] - hi);
-        b[6 * j + 3 + d] = PetscMax(b[6 * j + 3 + d], lo - x[j]);
-        zero += 0 * x[j]; /* NaN once an x is not finite */
-      }
-    }
-  if (zero != 0) b[0] = PETSC_MAX_REAL;
-  if (sc->size > 1)
-    PetscCallMPI(MPI_Allreduce(b, g, 12, MPIU_REAL, MPIU_MAX, sc->comm));
-  else
-    PetscCall(PetscArraycpy(g, b, 12));
   for (PetscInt j = 0; j < 2; j++)
     for (PetscInt d = 0; d < 3; d++)
       if (!(g[6 * j + d] < PETSC_MAX_REAL && g[6 * j + d] + g[6 * j + 3 + d] <= 2 * m)) *valid = PETSC_FALSE;
   /* (a position not finite fails the test above and is not taken further) */
   if (!*valid && g[0] < PETSC_MAX_REAL) PetscCall(SelfPatchesListValid(sc, s->x0, s->x1, s->lo, s->hi, m, SELF_PATCH_APART * sc->thickness, valid));
+  PetscFunctionReturn(0);
+}
+
+/* The motion since the lists were made, over the own particles of every rank, in
+ * one pass and one reduction: g[0, 12) SetListValid's maxima, start and end, per
+ * direction, the largest x - hi and lo - x (g[0] PETSC_MAX_REAL where a position is
+ * not finite; when a list exists), and g[12, 30) NearDisplacements' at xr (when a
+ * near list exists). */
+static PetscErrorCode ListMotion(SelfContact sc, const SelfSet *s, PetscReal g[30])
+{
+  PetscReal b[30], zero;
+
+  PetscFunctionBeginUser;
+  SelfMotionMaxima(s->nown, s->x0, s->x1, s->listed ? s->lo : NULL, s->hi, s->listed && s->has_near ? s->xr : NULL, b, b + 12, &zero);
+  if (zero != 0) b[0] = PETSC_MAX_REAL;
+  if (sc->size > 1)
+    PetscCallMPI(MPI_Allreduce(b, g, 30, MPIU_REAL, MPIU_MAX, sc->comm));
+  else
+    PetscCall(PetscArraycpy(g, b, 30));
   PetscFunctionReturn(0);
 }
 
@@ -839,27 +842,29 @@ static PetscErrorCode HaloRebuild(SelfContact sc)
  * on, in the candidates' order: the same pairs act, the same frames. delta and D
  * are half-diagonals of the boxes of the displacements over every rank (c their
  * centres). */
-/* The half-diagonals of the boxes of x0 - xr, x1 - xr (xr NULL: 0, and D) and x1 - x0 over the own particles of every rank. */
-static PetscErrorCode NearDisplacements(SelfContact sc, const SelfSet *s, const PetscReal *xr, PetscReal delta[3])
+/* The half-diagonals delta of the boxes of x0 - xr, x1 - xr and x1 - x0 from their
+ * largest and minus their smallest entries g (reduced over every rank). */
+static void NearDelta(const PetscReal g[18], PetscReal delta[3])
 {
-  PetscReal b[18], g[18]; /* for each box and direction: the largest, and minus the smallest */
-
-  PetscFunctionBeginUser;
-  for (PetscInt i = 0; i < 18; i++) b[i] = -PETSC_MAX_REAL;
-  for (PetscInt k = 0; k < s->nown; k++)
-    for (PetscInt d = 0; d < 3; d++) {
-      const PetscReal x0 = s->x0[3 * k + d], x1 = s->x1[3 * k + d], r = xr ? xr[3 * k + d] : x0, a[3] = {x0 - r, x1 - r, x1 - x0};
-      for (PetscInt j = 0; j < 3; j++) b[6 * j + d] = PetscMax(b[6 * j + d], a[j]), b[6 * j + 3 + d] = PetscMax(b[6 * j + 3 + d], -a[j]);
-    }
-  if (sc->size > 1)
-    PetscCallMPI(MPI_Allreduce(b, g, 18, MPIU_REAL, MPIU_MAX, sc->comm));
-  else
-    PetscCall(PetscArraycpy(g, b, 18));
   for (PetscInt j = 0; j < 3; j++) {
     PetscReal sq = 0;
     for (PetscInt d = 0; d < 3; d++) sq += PetscSqr(PetscMax(0, 0.5 * (g[6 * j + d] + g[6 * j + 3 + d])));
     delta[j] = PetscSqrtReal(sq);
   }
+}
+
+/* The half-diagonals of the boxes of x0 - xr, x1 - xr (xr NULL: x0, so 0 and D) and x1 - x0 over the own particles of every rank. */
+static PetscErrorCode NearDisplacements(SelfContact sc, const SelfSet *s, const PetscReal *xr, PetscReal delta[3])
+{
+  PetscReal b[18], g[18], list[12], zero;
+
+  PetscFunctionBeginUser;
+  SelfMotionMaxima(s->nown, s->x0, s->x1, NULL, NULL, xr ? xr : s->x0, list, b, &zero);
+  if (sc->size > 1)
+    PetscCallMPI(MPI_Allreduce(b, g, 18, MPIU_REAL, MPIU_MAX, sc->comm));
+  else
+    PetscCall(PetscArraycpy(g, b, 18));
+  NearDelta(g, delta);
   PetscFunctionReturn(0);
 }
 
@@ -966,7 +971,7 @@ static void NearLive(SelfSet *s, PetscReal reach, PetscBool gap_at_end, PetscInt
  * it no longer does and a list made there would), else the live list (NearLive;
  * the distances made again at x0 when more than a quarter of the candidates are
  * live). */
-static PetscErrorCode NearSelect(SelfContact sc, SelfSet *s, PetscReal reach, PetscBool gap_at_end)
+static PetscErrorCode NearSelect(SelfContact sc, SelfSet *s, PetscReal reach, PetscBool gap_at_end, const PetscReal motion[18])
 {
   PetscReal delta[3];
   PetscBool use = PETSC_FALSE, live = PETSC_FALSE;
@@ -974,7 +979,7 @@ static PetscErrorCode NearSelect(SelfContact sc, SelfSet *s, PetscReal reach, Pe
   PetscFunctionBeginUser;
   if (sc->near > 0) { /* (0: no near list) */
     if (s->has_near) {
-      PetscCall(NearDisplacements(sc, s, s->xr, delta));
+      NearDelta(motion, delta); /* (ListMotion's, the near list at xr) */
       use = NearHolds(sc, delta, reach, gap_at_end);
       if (!use && delta[0] == delta[0] && delta[1] == delta[1]) PetscCall(SelfPatchesNearHolds(sc, s->x0, s->x1, s->xr, sc->near * sc->thickness, reach, gap_at_end, &use));
     }
@@ -1020,9 +1025,11 @@ PetscErrorCode SelfListUpdate(SelfContact sc, PetscReal reach, PetscBool gap_at_
   SelfSet    *s = &sc->local;
   PetscMPIInt ok, all;
   PetscBool   valid;
+  PetscReal   motion[30];
 
   PetscFunctionBeginUser;
-  PetscCall(SetListValid(sc, s, &valid));
+  PetscCall(ListMotion(sc, s, motion));
+  PetscCall(SetListValid(sc, s, motion, &valid));
   if (!valid) {
     ok = SetBoxes(s, sc->margin * sc->thickness);
     if (sc->size > 1) {
@@ -1036,7 +1043,7 @@ PetscErrorCode SelfListUpdate(SelfContact sc, PetscReal reach, PetscBool gap_at_
     PetscCall(SetBroadPhase(sc, s));
     sc->stats.broad_phases++;
   }
-  PetscCall(NearSelect(sc, s, reach, gap_at_end));
+  PetscCall(NearSelect(sc, s, reach, gap_at_end, motion + 12)); /* (a new list has no near list: its motion is not taken) */
   PetscFunctionReturn(0);
 }
 

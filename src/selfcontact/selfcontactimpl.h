@@ -204,6 +204,10 @@ static inline PetscReal PairClosest(PetscInt kind, const PetscReal *X, Pair *pr,
 /* The distances of candidates [0, n) of kind (0 point-triangle, 1 edge-edge; s->pt or
  * s->ee set) at positions X, each PairClosest's to the bit, in lanes (nearlanes.c). */
 PETSC_INTERN void SelfNearDistances(const SelfSet *, PetscInt, PetscInt, const PetscReal *, PetscReal *);
+/* The motion of particles [0, n) since the lists were made, in one pass: the largest
+ * x - hi and lo - x at x0 and x1 (12; lo given), the largest and smallest x0 - xr,
+ * x1 - xr and x1 - x0 (18; xr given), and a sum of 0 * every coordinate (nearlanes.c). */
+PETSC_INTERN void SelfMotionMaxima(PetscInt, const PetscReal *, const PetscReal *, const PetscReal *, const PetscReal *, const PetscReal *, PetscReal[12], PetscReal[18], PetscReal *);
 /* The halo's copies of x0, x1 and v (any may be NULL; arrays over the local set)
  * from their owners. Collective. */
 PETSC_INTERN PetscErrorCode SelfHaloUpdate(SelfContact, PetscReal *, PetscReal *, PetscReal *);
