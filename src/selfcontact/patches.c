@@ -20,7 +20,8 @@
  * guarantee the whole cloth's test gives every pair. So the lists hold the same
  * pairs: the passes act on the same pairs in the same order, only the lists are
  * made less often. Every quantity is a maximum over a tile's own particles, reduced
- * over the ranks, so every rank decides the same. */
+ * over the ranks, so every rank decides the same. (The candidate list is tested so
+ * in the explicit schemes only: SetListValid says why.) */
 #include "selfcontactimpl.h"
 
 /* Tiles of at least this many particles a side, and at most about this many a side

@@ -132,6 +132,8 @@ struct _p_SelfContact {
   MPI_Datatype     unit9;    /* 9 reals */
   SelfSolve        solve;
   SelfPatches      patches;
+  PetscBool        implicit;    /* SelfContactSetImplicit: the candidate list is not tested patch by patch */
+  PetscBool        use_patches; /* -contact_self_patches */
   SelfContactStats stats;
 };
 
