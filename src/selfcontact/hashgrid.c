@@ -183,14 +183,6 @@ static PetscErrorCode GridDestroy(SelfGrid *g)
   PetscFunctionReturn(0);
 }
 
-/* Pairs (first, second), 2 entries each, made in increasing order of first: each
- * query's seconds sorted on their own (a few) and appended, so the whole array is
- * sorted as SelfBroadPhase returns it, with no sort of all the pairs. */
-typedef struct {
-  PetscInt *pair, n, cap;  /* pairs so far                    */
-  PetscInt *sec, ns, scap; /* the current query's seconds      */
-} Pairs;
-
 /* *a, holding used entries, made to hold at least need (doubled, at least 64) */
 static PetscErrorCode Reserve(PetscInt **a, PetscInt *cap, PetscInt used, PetscInt need)
 {
@@ -206,35 +198,48 @@ static PetscErrorCode Reserve(PetscInt **a, PetscInt *cap, PetscInt used, PetscI
   PetscFunctionReturn(0);
 }
 
-static PetscErrorCode PairsPush(Pairs *P, PetscInt second)
+/* The pairs a broad phase finds, in any order, 2 entries each (both hashes); FoundStore
+ * puts them in the order SelfBroadPhase returns them. */
+typedef struct {
+  PetscInt *p, n, cap;
+} Found;
+
+static inline PetscErrorCode FoundPush(Found *F, PetscInt first, PetscInt second)
 {
   PetscFunctionBeginUser;
-  PetscCall(Reserve(&P->sec, &P->scap, P->ns, P->ns + 1));
-  P->sec[P->ns++] = second;
+  if (PetscUnlikely(2 * F->n + 2 > F->cap)) PetscCall(Reserve(&F->p, &F->cap, 2 * F->n, 2 * F->n + 2));
+  F->p[2 * F->n] = first, F->p[2 * F->n + 1] = second;
+  F->n++;
   PetscFunctionReturn(0);
 }
 
-/* the current query's pairs (first, its seconds sorted) to the array */
-static PetscErrorCode PairsFlush(Pairs *P, PetscInt first)
+/* The found pairs in order (by first, of nfirst, then by second) as SelfBroadPhase returns them. */
+static PetscErrorCode FoundStore(Found *F, PetscInt nfirst, PetscInt *n, PetscInt **out)
 {
-  PetscFunctionBeginUser;
-  if (!P->ns) PetscFunctionReturn(0);
-  PetscCall(PetscSortInt(P->ns, P->sec));
-  PetscCall(Reserve(&P->pair, &P->cap, 2 * P->n, 2 * (P->n + P->ns)));
-  for (PetscInt k = 0; k < P->ns; k++) P->pair[2 * (P->n + k)] = first, P->pair[2 * (P->n + k) + 1] = P->sec[k];
-  P->n += P->ns;
-  P->ns = 0;
-  PetscFunctionReturn(0);
-}
+  PetscInt *start, *pair;
 
-/* the pairs as SelfBroadPhase returns them (PetscMalloc'ed, at least one entry) */
-static PetscErrorCode PairsStore(Pairs *P, PetscInt *n, PetscInt **out)
-{
   PetscFunctionBeginUser;
-  if (!P->pair) PetscCall(PetscMalloc1(1, &P->pair));
-  *n      = P->n;
-  *out    = P->pair;
-  P->pair = NULL, P->n = P->cap = 0;
+  PetscCall(PetscCalloc1(nfirst + 2, &start));
+  PetscCall(PetscMalloc1(2 * F->n + 1, &pair));
+  for (PetscInt k = 0; k < F->n; k++) start[F->p[2 * k] + 2]++;
+  for (PetscInt f = 0; f < nfirst; f++) start[f + 2] += start[f + 1];
+  for (PetscInt k = 0; k < F->n; k++) pair[2 * start[F->p[2 * k] + 1]++ + 1] = F->p[2 * k + 1];
+  for (PetscInt f = 0; f < nfirst; f++) { /* start[f] .. start[f + 1]: f's seconds */
+    const PetscInt b = f ? start[f] : 0, e = start[f + 1];
+    PetscInt       i, j;
+    for (i = b + 1; i < e; i++) { /* insertion: a few each */
+      const PetscInt v = pair[2 * i + 1];
+      for (j = i; j > b && pair[2 * j - 1] > v; j--) pair[2 * j + 1] = pair[2 * j - 1];
+      pair[2 * j + 1] = v;
+    }
+    for (i = b; i < e; i++) pair[2 * i] = f;
+  }
+  PetscCall(PetscFree(start));
+  PetscCall(PetscFree(F->p));
+  F->cap = 0;
+  *n     = F->n;
+  *out   = pair;
+  F->n   = 0;
   PetscFunctionReturn(0);
 }
 
@@ -242,7 +247,7 @@ PetscErrorCode SelfBroadPhaseHash(const SelfMesh *m, const PetscReal *x0, const 
 {
   SelfBox *vb, *tb, *eb;
   SelfGrid g;
-  Pairs    P = {NULL, 0, 0, NULL, 0, 0};
+  Found    F = {NULL, 0, 0};
 
   PetscFunctionBeginUser;
   PetscCall(PetscMalloc3(m->nv + 1, &vb, m->nt + 1, &tb, m->ne + 1, &eb));
@@ -263,13 +268,12 @@ PetscErrorCode SelfBroadPhaseHash(const SelfMesh *m, const PetscReal *x0, const 
         const PetscInt *T = m->tri + 3 * t;
         if (g.key[e] != key) continue;
         if (p == T[0] || p == T[1] || p == T[2] || !Overlap(&vb[v], &tb[t]) || !FirstCell(&g, &vb[v], &tb[t], c)) continue;
-        PetscCall(PairsPush(&P, t));
+        PetscCall(FoundPush(&F, v, t));
       }
     }
-    PetscCall(PairsFlush(&P, v));
   }
   PetscCall(GridDestroy(&g));
-  PetscCall(PairsStore(&P, npt, pt));
+  PetscCall(FoundStore(&F, m->nv, npt, pt));
   /* edge - edge */
   PetscCall(GridCreate(m->ne, eb, &g));
   for (PetscInt a = 0; a < m->ne; a++) {
@@ -284,14 +288,12 @@ PetscErrorCode SelfBroadPhaseHash(const SelfMesh *m, const PetscReal *x0, const 
         const PetscInt *B = m->edge + 2 * b;
         if (b <= a || g.key[e] != key) continue;
         if (A[0] == B[0] || A[0] == B[1] || A[1] == B[0] || A[1] == B[1] || !Overlap(&eb[a], &eb[b]) || !FirstCell(&g, &eb[a], &eb[b], c)) continue;
-        PetscCall(PairsPush(&P, b));
+        PetscCall(FoundPush(&F, a, b));
       }
     }
-    PetscCall(PairsFlush(&P, a));
   }
   PetscCall(GridDestroy(&g));
-  PetscCall(PairsStore(&P, nee, ee));
-  PetscCall(PetscFree(P.sec));
+  PetscCall(FoundStore(&F, m->ne, nee, ee));
   PetscCall(PetscFree3(vb, tb, eb));
   PetscFunctionReturn(0);
 }
@@ -366,50 +368,6 @@ static PetscErrorCode TileSetDestroy(TileSet *T)
 {
   PetscFunctionBeginUser;
   PetscCall(PetscFree3(T->start, T->item, T->box));
-  PetscFunctionReturn(0);
-}
-
-/* pairs found in any order, 2 entries each */
-typedef struct {
-  PetscInt *p, n, cap;
-} Found;
-
-static inline PetscErrorCode FoundPush(Found *F, PetscInt first, PetscInt second)
-{
-  PetscFunctionBeginUser;
-  if (PetscUnlikely(2 * F->n + 2 > F->cap)) PetscCall(Reserve(&F->p, &F->cap, 2 * F->n, 2 * F->n + 2));
-  F->p[2 * F->n] = first, F->p[2 * F->n + 1] = second;
-  F->n++;
-  PetscFunctionReturn(0);
-}
-
-/* The found pairs in order (by first, of nfirst, then by second) as SelfBroadPhase returns them. */
-static PetscErrorCode FoundStore(Found *F, PetscInt nfirst, PetscInt *n, PetscInt **out)
-{
-  PetscInt *start, *pair;
-
-  PetscFunctionBeginUser;
-  PetscCall(PetscCalloc1(nfirst + 2, &start));
-  PetscCall(PetscMalloc1(2 * F->n + 1, &pair));
-  for (PetscInt k = 0; k < F->n; k++) start[F->p[2 * k] + 2]++;
-  for (PetscInt f = 0; f < nfirst; f++) start[f + 2] += start[f + 1];
-  for (PetscInt k = 0; k < F->n; k++) pair[2 * start[F->p[2 * k] + 1]++ + 1] = F->p[2 * k + 1];
-  for (PetscInt f = 0; f < nfirst; f++) { /* start[f] .. start[f + 1]: f's seconds */
-    const PetscInt b = f ? start[f] : 0, e = start[f + 1];
-    PetscInt       i, j;
-    for (i = b + 1; i < e; i++) { /* insertion: a few each */
-      const PetscInt v = pair[2 * i + 1];
-      for (j = i; j > b && pair[2 * j - 1] > v; j--) pair[2 * j + 1] = pair[2 * j - 1];
-      pair[2 * j + 1] = v;
-    }
-    for (i = b; i < e; i++) pair[2 * i] = f;
-  }
-  PetscCall(PetscFree(start));
-  PetscCall(PetscFree(F->p));
-  F->cap = 0;
-  *n     = F->n;
-  *out   = pair;
-  F->n   = 0;
   PetscFunctionReturn(0);
 }
 

@@ -131,12 +131,10 @@ PetscErrorCode SelfPatchesListValid(SelfContact sc, const PetscReal *x0, const P
   for (PetscInt P = 0; P < T->n && *valid; P++) {
     const PetscReal *a = T->ext + 12 * P;
     for (PetscInt Q = P; Q < T->n; Q++) {
-      const PetscReal *b     = T->ext + 12 * Q;
-      PetscBool        joint = PETSC_TRUE;
-      for (PetscInt j = 0; j < 2 && joint; j++)
-        for (PetscInt d = 0; d < 3; d++)
-          if (!(PetscMax(a[6 * j + d], b[6 * j + d]) + PetscMax(a[6 * j + 3 + d], b[6 * j + 3 + d]) <= 2 * m)) joint = PETSC_FALSE;
-      if (joint || (Q != P && Apart(T->list_box + 6 * P, e + 6 * P, T->list_box + 6 * Q, e + 6 * Q, H))) continue;
+      const PetscReal *b = T->ext + 12 * Q;
+      PetscReal        u[12]; /* P and Q together (the test is the same either way round) */
+      for (PetscInt c = 0; c < 12; c++) u[c] = PetscMax(a[c], b[c]);
+      if (SelfListTranslates(u, m) || (Q != P && Apart(T->list_box + 6 * P, e + 6 * P, T->list_box + 6 * Q, e + 6 * Q, H))) continue;
       *valid = PETSC_FALSE;
       break;
     }
@@ -165,37 +163,36 @@ PetscErrorCode SelfPatchesNearHolds(SelfContact sc, const PetscReal *x0, const P
     }
   }
   PetscCall(PatchesReduce(sc, 18, T->work, T->ext));
+  /* each patch's largest displacement (start or end; along the step it is a convex
+   * combination of the two) and largest motion over the step, in work */
+  for (PetscInt P = 0; P < T->n; P++) {
+    const PetscReal *c   = T->ext + 18 * P;
+    PetscReal        q01 = 0, qD = 0;
+    for (PetscInt d = 0; d < 3; d++) {
+      q01 += PetscSqr(PetscMax(0, PetscMax(PetscMax(c[d], c[3 + d]), PetscMax(c[6 + d], c[9 + d]))));
+      qD += PetscSqr(PetscMax(0, PetscMax(c[12 + d], c[15 + d])));
+    }
+    T->work[2 * P] = PetscSqrtReal(q01), T->work[2 * P + 1] = PetscSqrtReal(qD);
+  }
   *holds = PETSC_TRUE;
   for (PetscInt P = 0; P < T->n && *holds; P++) {
     const PetscReal *a = T->ext + 18 * P, *ba = T->near_box + 6 * P;
     for (PetscInt Q = P; Q < T->n; Q++) {
       const PetscReal *b = T->ext + 18 * Q, *bb = T->near_box + 6 * Q;
-      PetscReal        delta[3], far = 0, m01 = 0, mD = 0;
-      for (PetscInt j = 0; j < 3; j++) {
-        PetscReal sq = 0;
-        for (PetscInt d = 0; d < 3; d++) sq += PetscSqr(PetscMax(0, 0.5 * (PetscMax(a[6 * j + d], b[6 * j + d]) + PetscMax(a[6 * j + 3 + d], b[6 * j + 3 + d]))));
-        delta[j] = PetscSqrtReal(sq);
-      }
+      PetscReal        u[18], delta[3], far = 0, m01, mD;
+      for (PetscInt c = 0; c < 18; c++) u[c] = PetscMax(a[c], b[c]); /* P and Q together */
+      SelfNearDelta(u, delta);
       if (SelfNearHolds(R, delta, reach, gap_at_end)) continue;
       if (Q == P) {
         *holds = PETSC_FALSE;
         break;
       }
-      /* apart: the distance of the boxes at xr, less each patch's largest displacement
-       * (start or end; along the step it is a convex combination of the two) */
+      /* apart: the distance of the boxes at xr, less each patch's largest displacement */
       for (PetscInt d = 0; d < 3; d++) {
         const PetscReal gap = PetscMax(-bb[d] - ba[3 + d], -ba[d] - bb[3 + d]);
         far += PetscSqr(PetscMax(0, gap));
       }
-      for (PetscInt s = 0; s < 2; s++) {
-        const PetscReal *c   = s ? b : a;
-        PetscReal        q01 = 0, qD = 0;
-        for (PetscInt d = 0; d < 3; d++) {
-          q01 += PetscSqr(PetscMax(0, PetscMax(PetscMax(c[d], c[3 + d]), PetscMax(c[6 + d], c[9 + d]))));
-          qD += PetscSqr(PetscMax(0, PetscMax(c[12 + d], c[15 + d])));
-        }
-        m01 += PetscSqrtReal(q01), mD += PetscSqrtReal(qD);
-      }
+      m01 = T->work[2 * P] + T->work[2 * Q], mD = T->work[2 * P + 1] + T->work[2 * Q + 1];
       far = (1 - 1e-9) * PetscSqrtReal(far) - (1 + 1e-9) * m01;
       if (far > reach && (!gap_at_end || far - 2 * (1 + 1e-9) * mD > reach)) continue;
       *holds = PETSC_FALSE;

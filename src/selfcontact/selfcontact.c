@@ -690,9 +690,7 @@ static PetscErrorCode SetListValid(SelfContact sc, const SelfSet *s, const Petsc
   PetscFunctionBeginUser;
   *valid = s->listed; /* the same on every rank */
   if (!*valid) PetscFunctionReturn(0);
-  for (PetscInt j = 0; j < 2; j++)
-    for (PetscInt d = 0; d < 3; d++)
-      if (!(g[6 * j + d] < PETSC_MAX_REAL && g[6 * j + d] + g[6 * j + 3 + d] <= 2 * m)) *valid = PETSC_FALSE;
+  *valid = (PetscBool) (g[0] < PETSC_MAX_REAL && SelfListTranslates(g, m));
   /* Patch by patch only in the explicit schemes (a position not finite fails the
    * test above and is not taken further). The implicit solve takes the candidates
    * within two thicknesses, past the one thickness a list is kept for: which of those
@@ -852,17 +850,6 @@ static PetscErrorCode HaloRebuild(SelfContact sc)
  * on, in the candidates' order: the same pairs act, the same frames. delta and D
  * are half-diagonals of the boxes of the displacements over every rank (c their
  * centres). */
-/* The half-diagonals delta of the boxes of x0 - xr, x1 - xr and x1 - x0 from their
- * largest and minus their smallest entries g (reduced over every rank). */
-static void NearDelta(const PetscReal g[18], PetscReal delta[3])
-{
-  for (PetscInt j = 0; j < 3; j++) {
-    PetscReal sq = 0;
-    for (PetscInt d = 0; d < 3; d++) sq += PetscSqr(PetscMax(0, 0.5 * (g[6 * j + d] + g[6 * j + 3 + d])));
-    delta[j] = PetscSqrtReal(sq);
-  }
-}
-
 /* The half-diagonals of the boxes of x0 - xr, x1 - xr (xr NULL: x0, so 0 and D) and x1 - x0 over the own particles of every rank. */
 static PetscErrorCode NearDisplacements(SelfContact sc, const SelfSet *s, const PetscReal *xr, PetscReal delta[3])
 {
@@ -874,7 +861,7 @@ static PetscErrorCode NearDisplacements(SelfContact sc, const SelfSet *s, const 
     PetscCallMPI(MPI_Allreduce(b, g, 18, MPIU_REAL, MPIU_MAX, sc->comm));
   else
     PetscCall(PetscArraycpy(g, b, 18));
-  NearDelta(g, delta);
+  SelfNearDelta(g, delta);
   PetscFunctionReturn(0);
 }
 
@@ -989,7 +976,7 @@ static PetscErrorCode NearSelect(SelfContact sc, SelfSet *s, PetscReal reach, Pe
   PetscFunctionBeginUser;
   if (sc->near > 0) { /* (0: no near list) */
     if (s->has_near) {
-      NearDelta(motion, delta); /* (ListMotion's, the near list at xr) */
+      SelfNearDelta(motion, delta); /* (ListMotion's, the near list at xr) */
       use = NearHolds(sc, delta, reach, gap_at_end);
       if (!use && sc->use_patches && delta[0] == delta[0] && delta[1] == delta[1]) PetscCall(SelfPatchesNearHolds(sc, s->x0, s->x1, s->xr, sc->near * sc->thickness, reach, gap_at_end, &use));
     }

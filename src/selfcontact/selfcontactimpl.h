@@ -219,6 +219,26 @@ PETSC_INTERN PetscErrorCode SelfHaloUpdate(SelfContact, PetscReal *, PetscReal *
  * over the step x0 -> x1, or (gap_at_end) whose gap at x1 along the normal at x0
  * may be below reach. Collective. */
 PETSC_INTERN PetscErrorCode SelfListUpdate(SelfContact, PetscReal, PetscBool);
+/* Does one translation keep every particle within the margin m of its box, given per
+ * position (start, end) and direction the largest x - hi and the largest lo - x
+ * (g[6 j + d], g[6 j + 3 + d]) over the particles in question? (SetListValid) */
+static inline PetscBool SelfListTranslates(const PetscReal g[12], PetscReal m)
+{
+  for (PetscInt j = 0; j < 2; j++)
+    for (PetscInt d = 0; d < 3; d++)
+      if (!(g[6 * j + d] + g[6 * j + 3 + d] <= 2 * m)) return PETSC_FALSE;
+  return PETSC_TRUE;
+}
+/* The half-diagonals delta of the boxes of x0 - xr, x1 - xr and x1 - x0 from their
+ * largest and minus their smallest entries g (over the particles in question). */
+static inline void SelfNearDelta(const PetscReal g[18], PetscReal delta[3])
+{
+  for (PetscInt j = 0; j < 3; j++) {
+    PetscReal sq = 0;
+    for (PetscInt d = 0; d < 3; d++) sq += PetscSqr(PetscMax(0, 0.5 * (g[6 * j + d] + g[6 * j + 3 + d])));
+    delta[j] = PetscSqrtReal(sq);
+  }
+}
 /* Does a near list of radius R hold every pair within reach, when every particle's
  * displacement since it was made, less one translation, is at most delta[0] (at the
  * start), delta[1] (at the end), and its motion over the step less another at most
