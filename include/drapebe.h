@@ -75,6 +75,9 @@ PETSC_EXTERN PetscErrorCode TSDrapeBEGetStatistics(TS, PetscInt *solves, PetscIn
  * mechanical energy, and those cut because the step before added more than
  * -drape_energy_rise. Not collective (the same on every rank). */
 PETSC_EXTERN PetscErrorCode TSDrapeBEGetStepHistory(TS, PetscInt *pc_switched, PetscInt *error_rejected, PetscInt *filter_cut, PetscInt *rise_cut);
+/* Steps solved with the matrix of an earlier step (-drape_matrix_keep), and tries
+ * refused (made again with a new matrix). Not collective (the same on every rank). */
+PETSC_EXTERN PetscErrorCode TSDrapeBEGetMatrixKept(TS, PetscInt *kept, PetscInt *refused);
 /* The step at which drape's block IC(0) took its level-1 fill for the rest of the
  * run (-1: never, or drape did not choose the preconditioner). Not collective. */
 PETSC_EXTERN PetscErrorCode TSDrapeBEGetFillStep(TS, PetscInt *fill_step);

@@ -95,6 +95,8 @@ BAD = [
     ("-cusick_center 0.1", "-cusick_center needs two coordinates"),
     ("-ts_type basicsymplectic -ts_exact_final_time interpolate", "interpolate is not available with -ts_type basicsymplectic"),
     ("-ts_type drapebe -ksp_type preonly -pc_type none", "-pc_type none is not a direct solver"),  # issue 29, class 13: it froze the cloth
+    ("-ts_type drapebe -drape_solve_error 2", "-drape_solve_error must be zero or positive and finite, at most 1; got 2"),
+    ("-ts_type drapebe -drape_solve_error nan", "-drape_solve_error must be zero or positive and finite"),
 ]
 
 
@@ -253,6 +255,33 @@ def test_a_step_that_adds_energy_cuts_the_next(tmp):
     note = re.search(r"added ([0-9.e+-]+) % of the energy scale in mechanical energy \(more than -drape_energy_rise 0.1 %", cut.stderr + cut.stdout)
     assert note and 0.1 < float(note.group(1)) < 1, cut.stderr
     assert "of the energy scale in mechanical energy (more than" not in kept.stderr + kept.stdout
+
+
+def test_a_kept_matrix_changes_the_path_no_more_than_the_solve(tmp):
+    """Near rest drapebe solves with an earlier step's matrix (-drape_matrix_keep,
+    default), kept only where the backward-Euler residual it leaves is within twice
+    CG's tolerance, else made again with a new one. The hang at 32^2 (damping 5 1/s,
+    1e-2 s) to rest below 1e-8 J/kg: most of the creep keeps a matrix (measured 551
+    of 907 steps), tries are refused in the swing (23), and every frame is within 1.05
+    mm of the run with a new matrix every step (at t = 0.5 s, where the middle
+    buckles: rtol 1e-6 instead of 1e-4 moves that frame 0.92 mm), the rest within
+    0.02 mm. Without the residual test (every try kept) the swing is solved with stale
+    matrices: its frames were 6-77 mm away and it had not come to rest by t = 60 s
+    (17881 steps, cut for the energy they added)."""
+    base = (f"-options_file runs/hang.opts -cloth_damping 5 -da_grid_x 32 -da_grid_y 32 -ts_dt 1e-2 -ts_max_time 60 -drape_rest_tol 1e-8 "
+            f"-output_interval 0.25")
+    kept = run(f"{base} -output_file {tmp / 'k.h5'}").report
+    new = run(f"{base} -drape_matrix_keep 0 -output_file {tmp / 'n.h5'}").report
+    assert kept["at_rest"] and new["at_rest"], (kept, new)
+    assert new["steps_matrix_kept"] == 0 and new["matrix_keep_refused"] == 0, new
+    assert kept["steps_matrix_kept"] > 0.4 * kept["steps"] and kept["matrix_keep_refused"] >= 1, kept
+    assert abs(kept["steps"] - new["steps"]) <= 0.02 * new["steps"], (kept["steps"], new["steps"])
+    fk, fn = drape_h5.load(tmp / "k.h5"), drape_h5.load(tmp / "n.h5")
+    n = min(len(fk.time), len(fn.time)) - 1  # the frames every 0.25 s; the last, at rest, at each run's own time
+    assert np.array_equal(fk.time[:n], fn.time[:n])
+    apart = np.linalg.norm(fk.positions[:n] - fn.positions[:n], axis=-1).reshape(n, -1).max(axis=1)
+    assert apart.max() < 2e-3, apart
+    assert np.linalg.norm(fk.positions[-1] - fn.positions[-1], axis=-1).max() < 1e-4
 
 
 def test_backward_euler_direct_solve_matches_cg(tmp):

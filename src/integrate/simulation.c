@@ -1190,6 +1190,12 @@ static PetscErrorCode SimulationViewSummary(Simulation s, PetscViewer viewer, Pe
       PetscCall(ReportSetString(r, "pc_type", pt));
       PetscCall(ReportSetString(r, "mat_type", mt));
     }
+    if (implicit) {
+      PetscInt kept, refused;
+      PetscCall(TSDrapeBEGetMatrixKept(s->ts, &kept, &refused));
+      PetscCall(ReportViewInt(r, kept ? viewer : NULL, "steps_matrix_kept", ", %" PetscInt_FMT " steps with an earlier step's matrix", kept));
+      PetscCall(ReportSetInt(r, "matrix_keep_refused", refused));
+    }
     PetscCall(ReportViewInt(r, error_rejected ? viewer : NULL, "steps_rejected_error", ", %" PetscInt_FMT " steps rejected for their local error", error_rejected));
     PetscCall(ReportViewInt(r, filter_cut ? viewer : NULL, "steps_cut_filter", ", %" PetscInt_FMT " steps cut after the self-contact filter added energy", filter_cut));
     PetscCall(ReportViewInt(r, rise_cut ? viewer : NULL, "steps_cut_energy", ", %" PetscInt_FMT " steps cut after a step that added energy", rise_cut));
