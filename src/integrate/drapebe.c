@@ -81,8 +81,7 @@ typedef struct {
   /* the matrix kept from an earlier step (-drape_matrix_keep, BEStep) */
   PetscBool keep;                    /* the option */
   PetscBool ksponly;                 /* the single linearisation (SNES ksponly): the only solve a matrix may be kept for */
-  PetscReal asm_h;                   /* the step the matrix was assembled at; 0: none, or the solid's constraints or self-contact's blocks changed since */
-  PetscInt  nextra, asm_extra;       /* self-contact's blocks given to the cloth (BESelfBlocks), and in the matrix */
+  PetscReal asm_h;                   /* the step the matrix was assembled at; 0: none, or not the matrix of the solve since (a new one, the solid's constraints changed) */
   PetscInt  keep_wait, keep_backoff; /* steps before the next try after a refused one, and the next wait */
   PetscInt  nkept, nrefused;         /* steps made with a kept matrix, and tries refused */
   PetscInt  max_its;                 /* -ksp_max_it (ICC(0) chosen by drape stops at BE_ICC_MAX_ITS) */
@@ -155,8 +154,7 @@ static PetscErrorCode BEJacobian(SNES snes, Vec DV, Mat J, Mat P, void *ctx)
   PetscFunctionBeginUser;
   PetscCall(TrialState(be, DV));
   PetscCall(ClothAssembleMatrix(be->cloth, be->xt, 1 + be->h * be->damping, be->h * be->h, P));
-  be->asm_h     = be->h;
-  be->asm_extra = be->nextra;
+  be->asm_h = be->h;
   if (J != P) {
     PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
     PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
@@ -813,8 +811,7 @@ static PetscErrorCode BESelfBlocks(TS ts, TS_DrapeBE *be)
   PetscFunctionBeginUser;
   PetscCall(SelfContactSolveGetBlocks(be->self, &n, &rows, &cols, &vals));
   PetscCall(ClothSetExtraBlocks(be->cloth, n, rows, cols, vals, &fits));
-  be->nextra = n;
-  mine       = fits;
+  mine = fits;
   PetscCallMPI(MPI_Allreduce(&mine, &all, 1, MPI_INT, MPI_MIN, PetscObjectComm((PetscObject) ts)));
   if (!all) {
     SNES      snes;
@@ -843,7 +840,8 @@ static PetscErrorCode BESelfBlocks(TS ts, TS_DrapeBE *be)
  * preconditioner) is then most of the step (the hang at 128^2 to rest: 444 of its
  * 744 steps so, 17.6 ms of assembly and 8 ms of preconditioner a step against a
  * 5 ms V-cycle; BENCHMARKS.md). So a step may solve with the matrix of an earlier
- * one, at the same h, the same solid constraints and no self-contact blocks, and is
+ * one at the same h, in a scene without the solid or self-contact in its solve
+ * (BEStep: a refused try would leave their active sets changed), and is
  * kept only if the backward-Euler residual it leaves, R(dv) at its end (one force
  * evaluation), is within BE_KEEP_SLACK times the tolerance CG solves a fresh step
  * to (rtol times the larger of |R(0)| and |h M g|): the kept matrix adds less to
@@ -858,14 +856,13 @@ static PetscErrorCode BESelfBlocks(TS ts, TS_DrapeBE *be)
 #define BE_KEEP_MAX_WAIT 64
 
 /* The solves of a step at h = ts->time_step from U0 until the contact constraints
- * are consistent with the motion they allow. With try_keep, the matrix of an
- * earlier step if it may serve (*kept true); *refused: that step did not pass (its
- * solve failed or was slow, an active set changed, or its residual is too large)
- * and must be made again with a new matrix. *ok false: a solve failed. */
-static PetscErrorCode BEStepSolves(TS ts, TS_DrapeBE *be, PetscBool try_keep, PetscBool *ok, PetscBool *refused)
+ * are consistent with the motion they allow; with keep, the one solve with the matrix
+ * kept from an earlier step (BEStep). *refused: that step did not pass (its solve
+ * failed or was slow, or its residual is too large) and must be made again with a
+ * new matrix. *ok false: a solve failed. */
+static PetscErrorCode BEStepSolves(TS ts, TS_DrapeBE *be, PetscBool keep, PetscBool *ok, PetscBool *refused)
 {
-  SNES      snes;
-  PetscBool keep;
+  SNES snes;
 
   PetscFunctionBeginUser;
   *refused = PETSC_FALSE;
@@ -877,12 +874,6 @@ static PetscErrorCode BEStepSolves(TS ts, TS_DrapeBE *be, PetscBool try_keep, Pe
     PetscCall(BESetConstraints(be, pc_changes));
   }
   if (be->self) PetscCall(BESelfBlocks(ts, be));
-  if (try_keep) { /* still, after the active sets' start (self-contact's blocks are each rank's) */
-    PetscMPIInt mine = be->asm_h == be->h && !be->pc_stale && !be->nextra && !be->asm_extra, all;
-    PetscCallMPI(MPI_Allreduce(&mine, &all, 1, MPI_INT, MPI_MIN, PetscObjectComm((PetscObject) ts)));
-    keep = (PetscBool) all;
-  } else
-    keep = PETSC_FALSE;
   /* the matrix changes little from step to step: CG keeps the last factorisation as
    * its preconditioner for lag - 1 steps, unless contact constraints came or went
    * (the matrix itself is new every solve, so the answer is not affected) */
@@ -958,10 +949,6 @@ static PetscErrorCode BEStepSolves(TS ts, TS_DrapeBE *be, PetscBool try_keep, Pe
     }
     /* the pairs pressing in this solve are counted; their set changes only if another solve follows */
     if (be->self) PetscCall(SelfContactSolveUpdate(be->self, be->xt, (PetscBool) !last, &self_changes));
-    if (keep && (changes || self_changes)) {
-      *refused = PETSC_TRUE;
-      break;
-    }
     if (last || (!changes && !self_changes)) break;
     if (be->self) PetscCall(BESelfBlocks(ts, be)); /* new pairs, or the solid's constraints filter them anew */
   }
@@ -1010,7 +997,10 @@ static PetscErrorCode BEStep(TS ts, TS_DrapeBE *be, PetscBool *ok)
      * solves do: it stops there too, unless -snes_atol says otherwise */
     if (!be->snes_atol_set) PetscCall(SNESSetTolerances(snes, rtol * be->h * be->weight, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT));
   }
-  try_keep = (PetscBool) (be->keep && be->ksponly && be->asm_h == be->h && !be->pc_stale);
+  /* not with the solid nor self-contact in the solve: a try's active-set update
+   * leaves state for the next step's start (a particle lifted or landed), which a
+   * refused try must not */
+  try_keep = (PetscBool) (be->keep && be->ksponly && !be->contact && !be->self && be->asm_h == be->h && !be->pc_stale);
   if (try_keep && be->keep_wait > 0) { /* a try was refused not long ago */
     be->keep_wait--;
     try_keep = PETSC_FALSE;
