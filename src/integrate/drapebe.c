@@ -561,8 +561,9 @@ static PetscErrorCode BEUseFill(TS ts, TS_DrapeBE *be)
  * |r| <= eta/2 (1 + h c) m_min |dv|, the solve's error then at most a fraction eta
  * (-drape_solve_error) of the step's, with |dv| estimated by CG's start (the last
  * step's dv, scaled) over the particles no solid constraint holds (as the local
- * error estimate leaves them out: a landing stops its particles at once). The bound is a worst case (the whole residual in the softest
- * mode); measured against the true motion (scripts/rtol_accuracy.py, the hang at 64^2)
+ * error estimate leaves them out: a landing stops its particles at once). The
+ * bound is a worst case (the whole residual in the softest mode); measured against
+ * the true motion (scripts/rtol_accuracy.py, the hang at 64^2)
  * eta = 0.1 changed the error by +0.9 % at 2 x the symplectic limit and -0.1 % at 10 x
  * (rtol alone: -1.4 % and +0.0 %), with 1.9 and 2.2 x fewer CG iterations; 0.5 and 1
  * added 15 % and 50 % at 2 x. Near rest dv vanishes and rtol's absolute floor takes
@@ -860,10 +861,10 @@ static PetscErrorCode BESelfBlocks(TS ts, TS_DrapeBE *be)
  * the step's error than the linear solve may. A fresh step's single linearisation
  * is not held to that test (its residual carries the step's nonlinearity too), so
  * a kept step is at least as well solved as a fresh one claims to be. Otherwise
- * (or if its solve fails, is slow or changes an active set) the step is made again
- * from the start with a new matrix, and the next try waits 1, 2, 4 ... 64 steps.
- * Whatever matrix a step solves with, its fixed points are those of R: a kept
- * matrix changes the path to rest by less than the tolerance, not the rest. */
+ * (or if its solve fails or is slow) the step is made again from the start with a
+ * new matrix, and the next try waits 1, 2, 4 ... 64 steps. Whatever matrix a step
+ * solves with, its fixed points are those of R: a kept matrix changes the path to
+ * rest about as much as the solve's tolerance does, and not the rest. */
 #define BE_KEEP_SLACK    2.0
 #define BE_KEEP_MAX_WAIT 64
 
@@ -918,8 +919,8 @@ static PetscErrorCode BEStepSolves(TS ts, TS_DrapeBE *be, PetscBool keep, PetscB
      * smoother's, one factorisation of one stiff step's matrix: the V-cycle is
      * tried again at the preconditioner's next rebuild, and after each further
      * failure at the 2nd, 4th ... 64th rebuild after it (the hang at 128^2 to rest:
-     * one failure, at step 92; its hybrid cycle took 5.1 CG iterations a step
-     * against 4.3 so, 35.1 and 32.7 against 30.6 CPU s) */
+     * one failure, at step 92; kept to the end, its hybrid cycle took 5.07 CG
+     * iterations a step against 4.28 with the V-cycle back) */
     if (!*ok) {
       PetscBool mg, hybrid;
       PetscCall(PetscObjectTypeCompare((PetscObject) be->pc, PCLATTICEMG, &mg));
@@ -1486,8 +1487,9 @@ static PetscErrorCode TSSetFromOptions_DrapeBE(TS ts, PetscOptionItems *PetscOpt
                             "BEChoosePreconditioner", be->pc_overlap, &be->pc_overlap, NULL));
   PetscCall(
     PetscOptionsReal("-drape_solve_error", "CG also stops once its error bound is below this fraction of the step's local error estimate (0: at -ksp_rtol alone)", "BEStartFromLastSolution", be->solve_error, &be->solve_error, &be->solve_error_set));
-  PetscCall(PetscOptionsBool("-drape_matrix_keep", "A step may solve with an earlier step's matrix (same step size and constraints) where the backward-Euler residual it leaves passes the linear solve's tolerance (with -snes_type ksponly)", "BEStep",
-                             be->keep, &be->keep, NULL));
+  PetscCall(PetscOptionsBool("-drape_matrix_keep",
+                             "A step may solve with an earlier step's matrix (same step size; not with the solid or self-contact in the solve) where the backward-Euler residual it leaves passes the linear solve's tolerance (with -snes_type ksponly)",
+                             "BEStep", be->keep, &be->keep, NULL));
   PetscCall(PetscOptionsInt("-drape_contact_its", "Solves per step at most to make the contact constraints consistent with the motion (1: constraints found at the start of the step only)", "TSStep_DrapeBE", be->contact_its, &be->contact_its, NULL));
   PetscCall(PetscOptionsReal("-drape_energy_rise",
                              "A step that adds more mechanical energy than this fraction of the energy scale (M g L plus the cloth's energy without gravity) is kept, and the next step is cut (0: never; 1e-2 fails the step itself)", "BECheckRise",
