@@ -83,8 +83,7 @@ typedef struct {
   PetscBool ksponly;                                  /* the single linearisation (SNES ksponly): the only solve a matrix may be kept for */
   PetscBool hybrid_auto;                              /* drape switched the lattice multigrid to its hybrid cycle (BEStepSolves) */
   PetscInt  hybrid_step, hybrid_wait, hybrid_backoff; /* the step it did, rebuilds before the V-cycle is tried again, and the next wait */
-  PetscInt  nhybrid;                                  /* switches to the hybrid cycle */
-  PetscReal asm_h;                                    /* the step the matrix was assembled at; 0: none, or not the matrix of the solve since (a new one, the solid's constraints changed) */
+  PetscReal asm_h;                                    /* the step the matrix was assembled at; 0: none, or a new matrix since (BEUseMultigrid) */
   PetscInt  keep_wait, keep_backoff;                  /* steps before the next try after a refused one, and the next wait */
   PetscInt  nkept, nrefused;                          /* steps made with a kept matrix, and tries refused */
   PetscInt  max_its;                                  /* -ksp_max_it (ICC(0) chosen by drape stops at BE_ICC_MAX_ITS) */
@@ -183,7 +182,6 @@ static PetscErrorCode BESetConstraints(TS_DrapeBE *be, PetscInt pc_changes)
    * multigrid hierarchy, costly to build, copes with a few particles more or less in
    * contact and is rebuilt after a landing (more than 1 % of the particles) */
   be->pc_stale = (PetscBool) (be->pc_stale || pc_changes > (be->pc_amg ? PetscMax(8, be->nparticles / 100) : 0));
-  if (pc_changes) be->asm_h = 0; /* the matrix's rows of those particles are another constraint's */
   PetscFunctionReturn(0);
 }
 
@@ -842,7 +840,6 @@ static PetscErrorCode BESelfBlocks(TS ts, TS_DrapeBE *be)
     PetscCall(MatDestroy(&be->J));
     be->J        = J;
     be->pc_stale = PETSC_TRUE;
-    be->asm_h    = 0;
   }
   PetscFunctionReturn(0);
 }
@@ -887,13 +884,13 @@ static PetscErrorCode BEStepSolves(TS ts, TS_DrapeBE *be, PetscBool keep, PetscB
     PetscCall(BESetConstraints(be, pc_changes));
   }
   if (be->self) PetscCall(BESelfBlocks(ts, be));
+  PetscCall(SNESSetLagJacobian(snes, keep ? -1 : 1)); /* -1: SNES takes the matrix it has */
   /* the matrix changes little from step to step: CG keeps the last factorisation as
    * its preconditioner for lag - 1 steps, unless contact constraints came or went
    * (the matrix itself is new every solve, so the answer is not affected) */
   for (PetscInt it = 0;; it++) {
     PetscInt  changes, self_changes = 0;
     PetscBool rebuild = PETSC_TRUE, last;
-    PetscCall(SNESSetLagJacobian(snes, keep ? -1 : 1));
     if (keep)
       rebuild = PETSC_FALSE; /* the matrix is the preconditioner's */
     else if (be->lag > 1) {
@@ -927,15 +924,15 @@ static PetscErrorCode BEStepSolves(TS ts, TS_DrapeBE *be, PetscBool keep, PetscB
       PetscCall(PCLatticeMGGetHybrid(be->pc, &hybrid));
       if (mg && !hybrid) {
         PetscCall(PCLatticeMGSetHybrid(be->pc, PETSC_TRUE));
-        be->hybrid_auto    = PETSC_TRUE;
-        be->hybrid_step    = ts->steps;
-        be->hybrid_wait    = be->hybrid_backoff;
-        be->hybrid_backoff = PetscMin(PetscMax(1, 2 * be->hybrid_backoff), 64);
-        if (!be->nhybrid++)
+        if (!be->hybrid_backoff) /* the first switch */
           PetscCall(PetscPrintf(PetscObjectComm((PetscObject) ts),
                                 "note: at step %" PetscInt_FMT
                                 " (t = %g s) CG with the lattice multigrid's V-cycle failed (%s); the run goes on with its hybrid cycle, positive definite (-pc_latticemg_hybrid), the V-cycle tried again at later rebuilds of the preconditioner\n",
                                 ts->steps, (double) ts->ptime, be->failure));
+        be->hybrid_auto    = PETSC_TRUE;
+        be->hybrid_step    = ts->steps;
+        be->hybrid_wait    = be->hybrid_backoff;
+        be->hybrid_backoff = PetscMin(PetscMax(1, 2 * be->hybrid_backoff), 64);
         it--;
         continue;
       }
@@ -996,7 +993,6 @@ static PetscErrorCode BEStepSolves(TS ts, TS_DrapeBE *be, PetscBool keep, PetscB
     *refused = (PetscBool) !(r <= BE_KEEP_SLACK * PetscMax(rtol * r0, atol));
   }
   if (keep) {
-    PetscCall(SNESSetLagJacobian(snes, 1));
     if (*refused) {
       be->nrefused++;
       be->keep_wait    = be->keep_backoff;
