@@ -97,6 +97,8 @@ BAD = [
     ("-ts_type drapebe -ksp_type preonly -pc_type none", "-pc_type none is not a direct solver"),  # issue 29, class 13: it froze the cloth
     ("-ts_type drapebe -drape_solve_error 2", "-drape_solve_error must be zero or positive and finite, at most 1; got 2"),
     ("-ts_type drapebe -drape_solve_error nan", "-drape_solve_error must be zero or positive and finite"),
+    ("-ts_type drapebe -drape_start_history 0", "-drape_start_history must be an integer from 1 to 8; got 0"),
+    ("-ts_type drapebe -drape_start_history 9", "-drape_start_history must be an integer from 1 to 8; got 9"),
 ]
 
 
@@ -284,6 +286,34 @@ def test_a_kept_matrix_changes_the_path_no_more_than_the_solve(tmp):
     assert np.linalg.norm(fk.positions[-1] - fn.positions[-1], axis=-1).max() < 1e-4
 
 
+def test_cg_starts_from_the_best_combination_of_the_last_solutions(tmp):
+    """CG's start is the Galerkin projection of the step's solution onto the last
+    -drape_start_history solutions (default 3): never worse than the last solution
+    scaled (1), and better where the swing is smooth. The hang at 32^2 (damping 5
+    1/s, 1e-2 s, the lattice multigrid) to rest below 1e-8 J/kg: 1.06 CG iterations a
+    step with 1, 0.83 with 3 (the swing 1.98 and 1.58 in its first second), in 908
+    and 907 steps, frames every 0.25 s within 0.35 mm of each other (at t = 0.5 s,
+    where the middle buckles: rtol 1e-6 instead of 1e-4 moves that frame 0.92 mm,
+    the kept-matrix test below), the rest within 0.001 mm. 555 steps keep a matrix, where the
+    earlier solutions' products are reused (one product a start): were they stale,
+    the start would be worse, not better. A wrong combination (a sign, a coefficient)
+    would take more iterations, not fewer."""
+    base = (f"-options_file runs/hang.opts -cloth_damping 5 -da_grid_x 32 -da_grid_y 32 -ts_dt 1e-2 -ts_max_time 60 -drape_rest_tol 1e-8 "
+            f"-pc_type latticemg -output_interval 0.25")
+    one = run(f"{base} -drape_start_history 1 -output_file {tmp / '1.h5'}").report
+    three = run(f"{base} -output_file {tmp / '3.h5'}").report
+    assert one["at_rest"] and three["at_rest"], (one, three)
+    assert three["steps_matrix_kept"] > 0.4 * three["steps"], three
+    assert three["cg_per_step"] < 0.9 * one["cg_per_step"], (one["cg_per_step"], three["cg_per_step"])
+    assert abs(three["steps"] - one["steps"]) <= 0.02 * one["steps"], (one["steps"], three["steps"])
+    f1, f3 = drape_h5.load(tmp / "1.h5"), drape_h5.load(tmp / "3.h5")
+    n = min(len(f1.time), len(f3.time)) - 1
+    assert np.array_equal(f1.time[:n], f3.time[:n])
+    apart = np.linalg.norm(f1.positions[:n] - f3.positions[:n], axis=-1).reshape(n, -1).max(axis=1)
+    assert apart.max() < 2e-3, apart
+    assert np.linalg.norm(f1.positions[-1] - f3.positions[-1], axis=-1).max() < 1e-4
+
+
 def test_backward_euler_direct_solve_matches_cg(tmp):
     """A direct solve (-ksp_type preonly -pc_type cholesky: no start vector, which
     PETSc refuses with one) runs, and gives CG's answer at a tight tolerance, which
@@ -394,8 +424,11 @@ def test_block_icc_takes_its_fill_where_it_must_compensate(tmp):
     """Denim hanging at the Cusick scene's 161^2 spacing (7.5 cm on 41^2, 1.9 mm): block
     IC(0)'s first factorisation must compensate the fill it drops, so drapebe gives it
     its level-1 fill, IC(1), from step 0 on, on one rank and on two (the blocks of the
-    additive Schwarz); CG then takes at most 0.6 times the iterations of IC(0) kept
-    (-pc_blockicc_levels 0 given: the options' fill is kept), and the cloth hangs the
+    additive Schwarz); CG then takes at most 0.7 times the iterations of IC(0) kept
+    (-pc_blockicc_levels 0 given: the options' fill is kept; measured 5.92 against
+    9.38 a step, and 8.32 against 18.29 with CG started from the last solution
+    alone, -drape_start_history 1, whose three-solution start IC(0) gains more
+    from), and the cloth hangs the
     same to the solves' tolerance. Where IC(0) factors plainly (the hang at 48^2 and
     1e-2 s, multigrid on the lattice held off: -drape_mg_its 0), it stays."""
     base = "-cloth_fabric denim -cloth_size 0.075 -da_grid_x 41 -da_grid_y 41 -cloth_pin edge_corners -ts_type drapebe -ts_dt 1e-3 -ts_max_time 0.1 -output_interval 0.1"
@@ -403,7 +436,7 @@ def test_block_icc_takes_its_fill_where_it_must_compensate(tmp):
     kept = run(f"{base} -pc_blockicc_levels 0 -drape_mg_its 0 -output_file {tmp / 'k.h5'}")
     assert auto.report["pc_fill_step"] == 0 and "block IC(1) from step 0" in auto.stdout, auto.stdout
     assert kept.report["pc_fill_step"] == -1 and "block IC(1)" not in kept.stdout
-    assert auto.report["cg_per_step"] <= 0.6 * kept.report["cg_per_step"], (auto.report["cg_per_step"], kept.report["cg_per_step"])
+    assert auto.report["cg_per_step"] <= 0.7 * kept.report["cg_per_step"], (auto.report["cg_per_step"], kept.report["cg_per_step"])
     xa, xk = drape_h5.load(tmp / "a.h5").positions[-1], drape_h5.load(tmp / "k.h5").positions[-1]
     assert np.abs(xa - xk).max() < 1e-4, np.abs(xa - xk).max()
     assert run(base, np_=2).report["pc_fill_step"] == 0
