@@ -38,6 +38,7 @@ struct _p_ContactSolve {
   PetscScalar     *z;           /* the velocity change that gives the prescribed velocity, 3 each */
   PetscInt        *released;    /* times released in this step */
   PetscBool       *lifted;      /* released, and not yet out of the contact layer */
+  PetscBool       *lifted_acc;  /* lifted as the last accepted step left it: each try of a step starts from it */
   PetscReal       *clear;       /* a lower bound of the distance to the solid at the start, m */
   ClothConstraint *ctype_pc;    /* the constraints when the preconditioner was last built */
   PetscBool        constrained; /* any constraint on any rank */
@@ -86,7 +87,7 @@ static PetscErrorCode ContactSolveFree(ContactSolve s)
   PetscCall(PetscFree4(s->dvlast, s->a, s->z, s->cnormal));
   PetscCall(PetscFree5(s->ctype, s->ctarget, s->released, s->lifted, s->ctype_pc));
   PetscCall(PetscFree5(s->fnormal, s->fdir, s->fspeed, s->fimp, s->fblock));
-  PetscCall(PetscFree(s->clear));
+  PetscCall(PetscFree2(s->clear, s->lifted_acc));
   PetscFunctionReturn(0);
 }
 
@@ -113,7 +114,7 @@ PetscErrorCode ContactSolveSetUp(ContactSolve s)
   PetscCall(PetscCalloc4(3 * m, &s->dvlast, 3 * m, &s->a, 3 * m, &s->z, 3 * m, &s->cnormal));
   PetscCall(PetscCalloc5(m, &s->ctype, m, &s->ctarget, m, &s->released, m, &s->lifted, m, &s->ctype_pc)); /* CLOTH_FREE, PETSC_FALSE */
   PetscCall(PetscCalloc5(m, &s->fnormal, 3 * m, &s->fdir, m, &s->fspeed, 3 * m, &s->fimp, 9 * m, &s->fblock));
-  PetscCall(PetscCalloc1(m, &s->clear));
+  PetscCall(PetscCalloc2(m, &s->clear, m, &s->lifted_acc));
   PetscFunctionReturn(0);
 }
 
@@ -317,6 +318,9 @@ PetscErrorCode ContactSolveBegin(ContactSolve s, PetscReal h, const PetscScalar 
   s->h  = h;
   s->x0 = x0;
   s->v0 = v0;
+  /* a step tried again (a failed solve, a kept matrix refused) starts where its
+   * first try did, not from what that try's updates decided */
+  PetscCall(PetscArraycpy(s->lifted, s->lifted_acc, s->m));
   PetscCall(InitialConstraints(s));
   PetscCall(ApplyConstraints(s, pc_changes));
   PetscCall(PetscLogEventEnd(drape_log.contact, 0, 0, 0, 0));
@@ -470,6 +474,7 @@ PetscErrorCode ContactSolveUpdate(ContactSolve s, const PetscScalar *xt, const P
 PetscErrorCode ContactSolveAccept(ContactSolve s, PetscScalar *vt, const PetscScalar *at)
 {
   PetscFunctionBeginUser;
+  PetscCall(PetscArraycpy(s->lifted_acc, s->lifted, s->m));
   s->impulse[0] = s->impulse[1] = s->impulse[2] = 0;
   for (PetscInt k = 0; k < s->m; k++) {
     PetscReal *v = vt + 3 * k;
