@@ -113,3 +113,15 @@ def test_refusals():
     res = run(f"{base} -da_grid_x 8 -da_grid_y 8 -ts_max_steps 1", np_=2, check=False)
     msg = res.stdout + res.stderr
     assert res.returncode != 0 and "-pc_type latticemg runs on one rank, and this run has 2" in msg and "PETSC ERROR" not in msg, msg
+
+
+def test_a_gauss_seidel_v_cycle_that_fails_is_a_failed_solve():
+    """With -pc_latticemg_smoother sgs the V-cycle has no hybrid cycle to fall back on
+    (it needs a symmetric smoother). Where CG finds that V-cycle indefinite (the hang
+    at 24^2 and 1e-2 s, from about step 6) the solve failed like any other, and the
+    step is retried smaller: 30 steps, 5 retried. drapebe used to ask the multigrid
+    for its hybrid cycle there, and the run ended with the multigrid's refusal."""
+    res = run("-options_file runs/hang.opts -cloth_damping 5 -da_grid_x 24 -da_grid_y 24 -ts_dt 1e-2 -ts_max_steps 30 -output_interval 1 "
+              "-pc_type latticemg -pc_latticemg_smoother sgs")
+    assert "needs the block IC smoother" not in res.stdout + res.stderr
+    assert res.report["steps"] == 30 and res.report["steps_retried"] >= 1, res.report

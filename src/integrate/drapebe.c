@@ -1041,11 +1041,15 @@ static PetscErrorCode BEStepSolves(TS ts, TS_DrapeBE *be, PetscBool keep, PetscB
      * one failure, at step 92; kept to the end, its hybrid cycle took 5.07 CG
      * iterations a step against 4.28 with the V-cycle back) */
     if (!*ok) {
-      PetscBool mg, hybrid;
+      PetscBool mg, was, hybrid;
       PetscCall(PetscObjectTypeCompare((PetscObject) be->pc, PCLATTICEMG, &mg));
-      PetscCall(PCLatticeMGGetHybrid(be->pc, &hybrid));
-      if (mg && !hybrid) {
+      PetscCall(PCLatticeMGGetHybrid(be->pc, &was));
+      hybrid = was;
+      if (mg && !was) {
         PetscCall(PCLatticeMGSetHybrid(be->pc, PETSC_TRUE));
+        PetscCall(PCLatticeMGGetHybrid(be->pc, &hybrid)); /* not with the sgs smoother: then as any failed solve, below */
+      }
+      if (mg && !was && hybrid) {
         if (!be->hybrid_backoff) /* the first switch */
           PetscCall(PetscPrintf(PetscObjectComm((PetscObject) ts),
                                 "note: at step %" PetscInt_FMT

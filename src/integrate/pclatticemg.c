@@ -756,8 +756,10 @@ static PetscErrorCode PCLatticeMGSetConstraints_LatticeMG(PC pc, const ClothCons
 
 static PetscErrorCode PCLatticeMGSetHybrid_LatticeMG(PC pc, PetscBool hybrid)
 {
+  PC_LatticeMG *mg = (PC_LatticeMG *) pc->data;
+
   PetscFunctionBeginUser;
-  ((PC_LatticeMG *) pc->data)->hybrid = hybrid;
+  if (mg->smoother == LMG_SMOOTH_BLOCKICC) mg->hybrid = hybrid; /* the hybrid cycle needs a symmetric smoother (LMGCheckHybrid) */
   PetscFunctionReturn(0);
 }
 
