@@ -40,10 +40,13 @@ PETSC_EXTERN PetscErrorCode PCLatticeMGSetLattice(PC, PetscInt Mx, PetscInt My, 
  * while the PC is used, as ContactSolve's does); the next set-up filters the
  * interpolation with them. On a PC of another type, nothing. Not collective. */
 PETSC_EXTERN PetscErrorCode PCLatticeMGSetConstraints(PC, const ClothConstraint type[], const PetscReal normal[]);
-/* The hybrid cycle instead of V(1,1) (or back); on a PC of another type, or with
- * the Gauss-Seidel smoother (-pc_latticemg_smoother sgs: not symmetric), nothing
- * (PCLatticeMGGetHybrid says what it takes). Not collective. */
+/* The hybrid cycle instead of V(1,1) (or back); on a PC of another type, nothing.
+ * Not collective. */
 PETSC_EXTERN PetscErrorCode PCLatticeMGSetHybrid(PC, PetscBool);
 /* Whether it takes the hybrid cycle (PETSC_FALSE on a PC of another type). Not
  * collective. */
 PETSC_EXTERN PetscErrorCode PCLatticeMGGetHybrid(PC, PetscBool *);
+/* Whether it may take the hybrid cycle: with the block IC smoother, not with
+ * Gauss-Seidel (-pc_latticemg_smoother sgs: not symmetric, the cycle refused at its
+ * set-up); PETSC_FALSE on a PC of another type. Not collective. */
+PETSC_EXTERN PetscErrorCode PCLatticeMGHybridAllowed(PC, PetscBool *);

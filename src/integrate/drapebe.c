@@ -1041,15 +1041,12 @@ static PetscErrorCode BEStepSolves(TS ts, TS_DrapeBE *be, PetscBool keep, PetscB
      * one failure, at step 92; kept to the end, its hybrid cycle took 5.07 CG
      * iterations a step against 4.28 with the V-cycle back) */
     if (!*ok) {
-      PetscBool mg, was, hybrid;
+      PetscBool mg, hybrid, allowed;
       PetscCall(PetscObjectTypeCompare((PetscObject) be->pc, PCLATTICEMG, &mg));
-      PetscCall(PCLatticeMGGetHybrid(be->pc, &was));
-      hybrid = was;
-      if (mg && !was) {
+      PetscCall(PCLatticeMGGetHybrid(be->pc, &hybrid));
+      PetscCall(PCLatticeMGHybridAllowed(be->pc, &allowed)); /* not with the sgs smoother: then as any failed solve, below */
+      if (mg && !hybrid && allowed) {
         PetscCall(PCLatticeMGSetHybrid(be->pc, PETSC_TRUE));
-        PetscCall(PCLatticeMGGetHybrid(be->pc, &hybrid)); /* not with the sgs smoother: then as any failed solve, below */
-      }
-      if (mg && !was && hybrid) {
         if (!be->hybrid_backoff) /* the first switch */
           PetscCall(PetscPrintf(PetscObjectComm((PetscObject) ts),
                                 "note: at step %" PetscInt_FMT

@@ -756,10 +756,8 @@ static PetscErrorCode PCLatticeMGSetConstraints_LatticeMG(PC pc, const ClothCons
 
 static PetscErrorCode PCLatticeMGSetHybrid_LatticeMG(PC pc, PetscBool hybrid)
 {
-  PC_LatticeMG *mg = (PC_LatticeMG *) pc->data;
-
   PetscFunctionBeginUser;
-  if (mg->smoother == LMG_SMOOTH_BLOCKICC) mg->hybrid = hybrid; /* the hybrid cycle needs a symmetric smoother (LMGCheckHybrid) */
+  ((PC_LatticeMG *) pc->data)->hybrid = hybrid;
   PetscFunctionReturn(0);
 }
 
@@ -782,6 +780,21 @@ PetscErrorCode PCLatticeMGGetHybrid(PC pc, PetscBool *hybrid)
   PetscFunctionBeginUser;
   *hybrid = PETSC_FALSE;
   PetscTryMethod(pc, "PCLatticeMGGetHybrid_C", (PC, PetscBool *), (pc, hybrid));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode PCLatticeMGHybridAllowed_LatticeMG(PC pc, PetscBool *allowed)
+{
+  PetscFunctionBeginUser;
+  *allowed = (PetscBool) (((PC_LatticeMG *) pc->data)->smoother == LMG_SMOOTH_BLOCKICC); /* LMGCheckHybrid */
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode PCLatticeMGHybridAllowed(PC pc, PetscBool *allowed)
+{
+  PetscFunctionBeginUser;
+  *allowed = PETSC_FALSE;
+  PetscTryMethod(pc, "PCLatticeMGHybridAllowed_C", (PC, PetscBool *), (pc, allowed));
   PetscFunctionReturn(0);
 }
 
@@ -824,6 +837,7 @@ static PetscErrorCode PCDestroy_LatticeMG(PC pc)
   PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCLatticeMGSetConstraints_C", NULL));
   PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCLatticeMGSetHybrid_C", NULL));
   PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCLatticeMGGetHybrid_C", NULL));
+  PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCLatticeMGHybridAllowed_C", NULL));
   PetscCall(PetscFree(pc->data));
   PetscFunctionReturn(0);
 }
@@ -917,6 +931,7 @@ static PetscErrorCode PCCreate_LatticeMG(PC pc)
   PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCLatticeMGSetConstraints_C", PCLatticeMGSetConstraints_LatticeMG));
   PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCLatticeMGSetHybrid_C", PCLatticeMGSetHybrid_LatticeMG));
   PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCLatticeMGGetHybrid_C", PCLatticeMGGetHybrid_LatticeMG));
+  PetscCall(PetscObjectComposeFunction((PetscObject) pc, "PCLatticeMGHybridAllowed_C", PCLatticeMGHybridAllowed_LatticeMG));
   PetscFunctionReturn(0);
 }
 
