@@ -636,19 +636,15 @@ static PetscErrorCode BEStartCombination(TS_DrapeBE *be, Mat A, Vec b, Vec x)
       L[i][j] = lij / dj;
     }
   }
-  for (PetscInt i = 0; i < k; i++) { /* L y = rhs, then D L^T c = y, over the vectors used */
+  for (PetscInt i = 0; i < k; i++) { /* L y = rhs, then D L^T c = y, over the vectors used; any other c 0 */
     PetscReal y = PetscRealPart(rhs[i]);
-    c[i]        = 0;
-    if (!used[i] || !PetscIsNormalReal(y)) continue;
-    for (PetscInt m = 0; m < i; m++)
+    for (PetscInt m = 0; m < i && used[i]; m++)
       if (used[m]) y -= L[i][m] * PetscRealPart(c[m]);
-    c[i] = y;
+    c[i] = used[i] && PetscIsNormalReal(y) ? y : 0;
   }
   for (PetscInt i = k - 1; i >= 0; i--) {
-    PetscReal ci;
-    if (!used[i] || c[i] == 0.0) continue;
-    ci = PetscRealPart(c[i]) / d[i];
-    for (PetscInt m = i + 1; m < k; m++)
+    PetscReal ci = PetscRealPart(c[i]) / (used[i] ? d[i] : 1);
+    for (PetscInt m = i + 1; m < k && used[i]; m++)
       if (used[m]) ci -= L[m][i] * PetscRealPart(c[m]);
     c[i] = ci;
   }
@@ -681,8 +677,8 @@ static PetscErrorCode BEStartCombination(TS_DrapeBE *be, Mat A, Vec b, Vec x)
  * |r| / lambda_min(A) <= |r| / ((1 + h c) m_min) (A = (1 + h c) M + h^2 H, H
  * positive semi-definite, m_min the lightest free particle): so CG also stops once
  * |r| <= eta/2 (1 + h c) m_min |dv|, the solve's error then at most a fraction eta
- * (-drape_solve_error) of the step's, with |dv| estimated by CG's start (the last
- * step's dv, scaled) over the particles no solid constraint holds (as the local
+ * (-drape_solve_error) of the step's, with |dv| estimated by CG's start (the
+ * combination above) over the particles no solid constraint holds (as the local
  * error estimate leaves them out: a landing stops its particles at once). The
  * bound is a worst case (the whole residual in the softest mode); measured against
  * the true motion (scripts/rtol_accuracy.py, the hang at 64^2)
@@ -1041,11 +1037,10 @@ static PetscErrorCode BEStepSolves(TS ts, TS_DrapeBE *be, PetscBool keep, PetscB
      * one failure, at step 92; kept to the end, its hybrid cycle took 5.07 CG
      * iterations a step against 4.28 with the V-cycle back) */
     if (!*ok) {
-      PetscBool mg, hybrid, allowed;
-      PetscCall(PetscObjectTypeCompare((PetscObject) be->pc, PCLATTICEMG, &mg));
+      PetscBool hybrid, allowed;
       PetscCall(PCLatticeMGGetHybrid(be->pc, &hybrid));
-      PetscCall(PCLatticeMGHybridAllowed(be->pc, &allowed)); /* not with the sgs smoother: then as any failed solve, below */
-      if (mg && !hybrid && allowed) {
+      PetscCall(PCLatticeMGHybridAllowed(be->pc, &allowed)); /* the lattice multigrid with its block IC smoother (not sgs: then as any failed solve, below) */
+      if (!hybrid && allowed) {
         PetscCall(PCLatticeMGSetHybrid(be->pc, PETSC_TRUE));
         if (!be->hybrid_backoff) /* the first switch */
           PetscCall(PetscPrintf(PetscObjectComm((PetscObject) ts),
@@ -1285,8 +1280,6 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
   PetscCall(ClothCreateVector(be->cloth, &be->DV));
   PetscCall(VecDuplicate(be->DV, &be->R));
   PetscCall(VecDuplicate(be->DV, &be->W));
-  be->nhist    = 0;
-  be->hist_mat = 0;
   PetscCall(VecDuplicate(ts->vec_sol, &be->U0));
   PetscCall(TSGetSNES(ts, &snes));
   {

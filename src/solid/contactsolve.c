@@ -318,7 +318,7 @@ PetscErrorCode ContactSolveBegin(ContactSolve s, PetscReal h, const PetscScalar 
   s->h  = h;
   s->x0 = x0;
   s->v0 = v0;
-  /* a step tried again (a failed solve, a kept matrix refused) starts where its
+  /* a step tried again (a failed solve, too much energy added) starts where its
    * first try did, not from what that try's updates decided */
   PetscCall(PetscArraycpy(s->lifted, s->lifted_acc, s->m));
   PetscCall(InitialConstraints(s));
