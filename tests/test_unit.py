@@ -58,8 +58,11 @@ def test_assembled_matrix_matches_elementwise_reference(np_, opts):
     and 3 ranks, no leaks. A sum in another order, a constraint left out or the kinds'
     order broken by the tiles fails it. On several ranks (S)BAIJ's rows are summed in
     the diagonal block's own array, and a cut row's other blocks (below and above the
-    rank's columns: a middle rank of 3) are handed to PETSc."""
-    run_unit_ranks("test_assembly", np_, ["-da_grid_x", "25", "-da_grid_y", "23", "-cloth_pin", "edge_corners"] + opts.split(), 12)
+    rank's columns: a middle rank of 3) are handed to PETSc. Extra blocks (self-
+    contact's pairs) outside the pattern: a new matrix grown from the last one's
+    buffer (their union kept) and one made anew (the union reset), each against the
+    reference with its extra blocks; a block the grown pattern left out fails it."""
+    run_unit_ranks("test_assembly", np_, ["-da_grid_x", "25", "-da_grid_y", "23", "-cloth_pin", "edge_corners"] + opts.split(), 30)
 
 
 @pytest.mark.parametrize("np_", [1, 2])

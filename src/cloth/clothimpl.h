@@ -168,6 +168,7 @@ struct _p_Cloth {
   PetscBool  rb_coo, rb_csr, rb_sym;  /* rb_csr: copied into AIJ's arrays (RowBufferToAIJ) */
   PetscBool  rb_alias;                /* rb_val is the one-rank matrix's value array while it is assembled (else NULL) */
   PetscBool  rb_block;                /* blocks whole, by columns (RowBufferStrides); else scalar rows */
+  PetscBool  rb_built_block;          /* rb_block when the buffer's positions were made (RowBufferGrow keeps them only so) */
   PetscInt   rb_split;                /* several ranks, (S)BAIJ: 1 if the diagonal block's pattern is the buffer's owned columns (RowBufferSplitCheck), 0 if not, -1 unknown */
   PetscInt  *rb_lo, *rb_cut, rb_ncut; /* rb_split: per row its first owned column's position; the rows with blocks outside the diagonal block */
   PetscInt  *rb_done;                 /* rb_split: per tile the assembly step that completes it */

@@ -117,6 +117,71 @@ int main(int argc, char **argv)
       PetscCall(MatDestroy(&J));
     }
   }
+  /* extra blocks (self-contact's pairs) that leave the pattern: a new matrix that
+   * holds them, grown from the last one's buffer while the union of the blocks is
+   * kept (RowBufferGrow: set 1 keeps every other pair of set 0 and adds 600 draws),
+   * made anew once the union is reset (set 2: 20 new pairs against about 2400 held
+   * blocks); bitwise (AIJ, BAIJ) or to round-off (SBAIJ) the reference's */
+  PetscCall(ClothSetConstraints(cloth, NULL, normal, NULL));
+  for (size_t t = 0; t < sizeof(types) / sizeof(types[0]); t++) {
+    Mat        J = NULL;
+    PetscBool  sym;
+    PetscInt  *rows, *cols, ne = 0;
+    PetscReal *vals;
+    PetscCall(PetscStrcmp(types[t][0], MATSBAIJ, &sym));
+    PetscCall(PetscOptionsSetValue(NULL, "-drape_mat_assembly", types[t][1]));
+    PetscCall(PetscMalloc3(4800, &rows, 4800, &cols, 9 * 4800, &vals));
+    for (PetscInt set = 0; set < 3; set++) {
+      PetscReal diff, scale;
+      PetscBool fits;
+      Mat       R;
+      if (set == 1) { /* every other pair of set 0 */
+        PetscInt m = 0;
+        for (PetscInt e = 0; e < ne; e += 4, m += 2) {
+          for (PetscInt f = 0; f < 2; f++) rows[m + f] = rows[e + f], cols[m + f] = cols[e + f];
+          PetscCall(PetscArraycpy(vals + 9 * m, vals + 9 * e, 18));
+        }
+        ne = m;
+      } else
+        ne = 0;
+      PetscCall(PetscRandomSetSeed(rnd, 100 * set + t));
+      PetscCall(PetscRandomSeed(rnd));
+      for (PetscInt q = 0; q < (set == 2 ? 20 : 600); q++) { /* a pair of free owned particles (a, b): blocks (a, b) and (b, a) = (a, b)^T */
+        PetscInt  pa, pb;
+        PetscReal r;
+        PetscCall(PetscRandomGetValueReal(rnd, &r));
+        pa = (PetscInt) (r * info.nowned) % info.nowned;
+        PetscCall(PetscRandomGetValueReal(rnd, &r));
+        pb = (PetscInt) (r * info.nowned) % info.nowned;
+        if (pa == pb || cloth->row_map[pa] < 0 || cloth->row_map[pb] < 0) continue;
+        rows[ne] = pa, cols[ne] = cloth->global[pb], rows[ne + 1] = pb, cols[ne + 1] = cloth->global[pa];
+        for (PetscInt i = 0; i < 9; i++) {
+          PetscCall(PetscRandomGetValueReal(rnd, &r));
+          vals[9 * ne + i] = r - 0.5;
+        }
+        for (PetscInt i = 0; i < 3; i++)
+          for (PetscInt j = 0; j < 3; j++) vals[9 * (ne + 1) + 3 * i + j] = vals[9 * ne + 3 * j + i];
+        ne += 2;
+      }
+      PetscCall(ClothSetExtraBlocks(cloth, ne, rows, cols, vals, &fits));
+      PetscCheck(!fits, PETSC_COMM_SELF, PETSC_ERR_PLIB, "set %" PetscInt_FMT ": %" PetscInt_FMT " extra blocks, new ones among them, reported within the last pattern", set, ne);
+      PetscCall(MatDestroy(&J));
+      PetscCall(ClothCreateMatrix(cloth, types[t][0], &J));
+      PetscCall(ClothAssembleMatrix(cloth, x, a, b, J));
+      PetscCall(MatCreateAIJ(comm, n, n, PETSC_DETERMINE, PETSC_DETERMINE, 81, NULL, 81, NULL, &R));
+      PetscCall(MatSetBlockSize(R, 3));
+      PetscCall(MatSetOption(R, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_FALSE));
+      PetscCall(ClothAssembleMatrixElementwise(cloth, x, a, b, R));
+      PetscCall(Compare(J, R, &diff, &scale));
+      PetscCheck(scale > 0 && (sym ? diff <= 1e-13 * scale : diff == 0), comm, PETSC_ERR_PLIB, "%s (%s), extra blocks set %" PetscInt_FMT ": max |J - reference| = %g of max |reference| %g", types[t][0], types[t][1], set, (double) diff,
+                 (double) scale);
+      passed++;
+      PetscCall(MatDestroy(&R));
+    }
+    PetscCall(MatDestroy(&J));
+    PetscCall(ClothSetExtraBlocks(cloth, 0, NULL, NULL, NULL, NULL));
+    PetscCall(PetscFree3(rows, cols, vals));
+  }
   PetscCall(PetscOptionsClearValue(NULL, "-drape_mat_assembly"));
   PetscCall(PetscPrintf(comm, "%" PetscInt_FMT " passed, 0 failed\n", passed));
   PetscCall(PetscRandomDestroy(&rnd));
