@@ -45,8 +45,22 @@
  * component there). Coarsest: a dense LDL^T with the same drop, if it has at most
  * -pc_latticemg_coarse_nodes nodes, else one symmetric Gauss-Seidel sweep.
  *
+ * On several ranks (MPISBAIJ) each rank holds its own rows of the finest level and
+ * every coarse level whole: the first coarse operator is each rank's rows' share
+ * (its diagonal block's, and through MatGetRow its blocks in other ranks' columns,
+ * with those columns' nodes and constraints from their owners) summed over the
+ * ranks; a cycle restricts each rank's rows, sums the restriction over the ranks,
+ * runs the coarse levels on every rank (the same numbers) and interpolates to each
+ * rank's rows. The finest level's smoother is each rank's block (block IC or block
+ * Gauss-Seidel of the diagonal block: block Jacobi over the ranks). The coarse
+ * levels' work and memory are not divided: about 150 bytes a particle of the whole
+ * lattice on every rank, and one sum over the ranks of the first coarse level's
+ * residual (24 bytes a coarse node) a cycle (BENCHMARKS.md, "The lattice multigrid on
+ * two ranks").
+ *
  * Blocks are PETSc's: 9 values by columns, B(r, c) = b[r + 3 c]. */
 #include <petsc/private/pcimpl.h>
+#include <petscsf.h>
 #include <pclatticemg.h>
 #include <pcblockicc.h>
 
@@ -89,7 +103,12 @@ typedef struct {
   PetscInt         setups;     /* set-ups since the coarse levels were made                 */
   PetscBool        fill_auto;  /* block IC smoother: IC(1) once IC(0) had to compensate     */
   PetscBool        hybrid;     /* M^-1 + (I - M^-1 A) Q (I - A M^-1) instead of the V(1,1) cycle: SPD for any SPD smoother */
+  PetscMPIInt      size;       /* ranks: on several, each holds its rows of the finest level and the coarse levels whole */
 } PC_LatticeMG;
+
+/* -log_view: a cycle's coarse correction (restriction, the sum over the ranks, the
+ * coarse levels, interpolation) */
+static PetscLogEvent LMG_Coarse;
 
 static inline PetscInt LMGCoarseSize(PetscInt n) { return n <= 3 ? n : n / 2 + 1; }
 
@@ -133,23 +152,41 @@ static inline void LMGFilter(const PC_LatticeMG *mg, PetscInt k, PetscScalar y[3
     y[0] = y[1] = y[2] = 0;
 }
 
-/* b = S_k b S_m for sliding rows k or m (b by columns; fixed rows are skipped before) */
-static inline void LMGFilterBlock(const PC_LatticeMG *mg, PetscInt k, PetscInt m, PetscScalar b[9])
+/* b = S_k b S_m for rows k, m of kinds kk, km (1 sliding, along the normals nk, nm;
+ * b by columns; fixed rows are skipped before) */
+static inline void LMGFilterBlockOf(unsigned char kk, const PetscReal *nk, unsigned char km, const PetscReal *nm, PetscScalar b[9])
 {
-  if (mg->kind[k] == 1) { /* (I - n n^T) b: each column */
-    const PetscReal *n = mg->normal + 3 * k;
+  if (kk == 1) { /* (I - n n^T) b: each column */
+    const PetscReal *n = nk;
     for (PetscInt c = 0; c < 3; c++) {
       const PetscScalar d = n[0] * b[3 * c] + n[1] * b[1 + 3 * c] + n[2] * b[2 + 3 * c];
       for (PetscInt r = 0; r < 3; r++) b[r + 3 * c] -= d * n[r];
     }
   }
-  if (mg->kind[m] == 1) { /* b (I - n n^T): each row */
-    const PetscReal *n = mg->normal + 3 * m;
+  if (km == 1) { /* b (I - n n^T): each row */
+    const PetscReal *n = nm;
     for (PetscInt r = 0; r < 3; r++) {
       const PetscScalar d = b[r] * n[0] + b[r + 3] * n[1] + b[r + 6] * n[2];
       for (PetscInt c = 0; c < 3; c++) b[r + 3 * c] -= d * n[c];
     }
   }
+}
+
+/* b = S_k b S_m for the rank's rows k, m */
+static inline void LMGFilterBlock(const PC_LatticeMG *mg, PetscInt k, PetscInt m, PetscScalar b[9]) { LMGFilterBlockOf(mg->kind[k], mg->kind[k] == 1 ? mg->normal + 3 * k : NULL, mg->kind[m], mg->kind[m] == 1 ? mg->normal + 3 * m : NULL, b); }
+
+/* The rank's rows and the blocks among them: the matrix on one rank, its diagonal block on several */
+static PetscErrorCode LMGLocalMatrix(Mat A, Mat *Ad)
+{
+  PetscBool mpi;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectTypeCompare((PetscObject) A, MATMPISBAIJ, &mpi));
+  if (mpi)
+    PetscCall(MatGetDiagonalBlock(A, Ad));
+  else
+    *Ad = A;
+  PetscFunctionReturn(0);
 }
 
 /* LDL^T of the symmetric n x n matrix a (by columns, leading dimension n) in place,
@@ -277,16 +314,113 @@ static inline void LMGAddProduct(LMGLevel *C, PetscInt nx, PetscInt ny, PetscInt
   }
 }
 
-/* The first coarse level's operator, P^T A P from A's upper triangle of blocks */
-static PetscErrorCode LMGGalerkinFine(PC pc, PC_LatticeMG *mg, Mat A)
+/* On several ranks, the blocks of the rank's rows in other ranks' columns (the upper
+ * triangle's: each such block is held by one rank, the owner of its row), added to
+ * the first coarse level's operator: read by MatGetRow (PETSc 3.18 has no accessor
+ * of MPISBAIJ's off-diagonal part), their columns' nodes and constraints from the
+ * columns' owners (a star forest over the block rows). */
+static PetscErrorCode LMGGalerkinCut(PC pc, PC_LatticeMG *mg, Mat A)
+{
+  LMGLevel      *C    = &mg->lev[0];
+  MPI_Comm       comm = PetscObjectComm((PetscObject) pc);
+  const PetscInt Mx   = mg->Mx;
+  PetscInt       rstart, rend, nb = 0, mb = 0, nleaf = 0, *brow = NULL, *bcol = NULL, *leaf, *rint, *lint;
+  PetscScalar   *bval = NULL;
+  PetscReal     *rnrm, *lnrm;
+  PetscSF        sf;
+  PetscLayout    map;
+  MPI_Datatype   unit;
+
+  PetscFunctionBeginUser;
+  PetscCall(MatGetOwnershipRange(A, &rstart, &rend));
+  rstart /= 3, rend /= 3; /* block rows */
+  PetscCall(MatGetRowUpperTriangular(A));
+  for (PetscInt k = 0; k < mg->nrows; k++) {
+    const PetscInt first = nb;
+    if (mg->kind[k] == 2) continue;
+    for (PetscInt r = 0; r < 3; r++) { /* the block row's three rows: the same block columns, sorted */
+      PetscInt           nz, q = first;
+      const PetscInt    *cols;
+      const PetscScalar *v;
+      PetscCall(MatGetRow(A, 3 * (rstart + k) + r, &nz, &cols, &v));
+      for (PetscInt e = 0; e < nz; e++) {
+        const PetscInt g = cols[e] / 3;
+        if (g >= rstart && g < rend) continue;
+        if (r == 0 && cols[e] % 3 == 0) { /* a new block */
+          if (nb == mb) {
+            mb = 2 * mb + 256;
+            PetscCall(PetscRealloc(mb * sizeof(*brow), &brow));
+            PetscCall(PetscRealloc(mb * sizeof(*bcol), &bcol));
+            PetscCall(PetscRealloc(9 * mb * sizeof(*bval), &bval));
+          }
+          brow[nb] = k, bcol[nb] = g;
+          PetscCall(PetscArrayzero(bval + 9 * nb, 9));
+          nb++;
+        }
+        while (q < nb && bcol[q] != g) q++;
+        PetscCheck(q < nb, PETSC_COMM_SELF, PETSC_ERR_PLIB, "block row %" PetscInt_FMT ": column %" PetscInt_FMT " in its row %" PetscInt_FMT " only", rstart + k, cols[e], r);
+        bval[9 * q + r + 3 * (cols[e] % 3)] = v[e];
+      }
+      PetscCall(MatRestoreRow(A, 3 * (rstart + k) + r, &nz, &cols, &v));
+    }
+  }
+  PetscCall(MatRestoreRowUpperTriangular(A));
+  /* the columns' nodes, kinds and normals from their owners */
+  PetscCall(PetscMalloc1(nb + 1, &leaf));
+  PetscCall(PetscArraycpy(leaf, bcol, nb));
+  nleaf = nb;
+  PetscCall(PetscSortRemoveDupsInt(&nleaf, leaf));
+  PetscCall(PetscMalloc4(2 * mg->nrows + 1, &rint, 2 * nleaf + 1, &lint, 3 * mg->nrows + 1, &rnrm, 3 * nleaf + 1, &lnrm));
+  for (PetscInt k = 0; k < mg->nrows; k++) {
+    rint[2 * k] = mg->node[k], rint[2 * k + 1] = mg->kind[k];
+    for (PetscInt d = 0; d < 3; d++) rnrm[3 * k + d] = mg->kind[k] == 1 ? mg->normal[3 * k + d] : 0;
+  }
+  PetscCall(PetscLayoutCreateFromSizes(comm, mg->nrows, PETSC_DECIDE, 1, &map));
+  PetscCall(PetscSFCreate(comm, &sf));
+  PetscCall(PetscSFSetGraphLayout(sf, map, nleaf, NULL, PETSC_USE_POINTER, leaf));
+  PetscCallMPI(MPI_Type_contiguous(2, MPIU_INT, &unit)); /* node, kind */
+  PetscCallMPI(MPI_Type_commit(&unit));
+  PetscCall(PetscSFBcastBegin(sf, unit, rint, lint, MPI_REPLACE));
+  PetscCall(PetscSFBcastEnd(sf, unit, rint, lint, MPI_REPLACE));
+  PetscCallMPI(MPI_Type_free(&unit));
+  PetscCallMPI(MPI_Type_contiguous(3, MPIU_REAL, &unit)); /* normal */
+  PetscCallMPI(MPI_Type_commit(&unit));
+  PetscCall(PetscSFBcastBegin(sf, unit, rnrm, lnrm, MPI_REPLACE));
+  PetscCall(PetscSFBcastEnd(sf, unit, rnrm, lnrm, MPI_REPLACE));
+  PetscCallMPI(MPI_Type_free(&unit));
+  PetscCall(PetscSFDestroy(&sf));
+  PetscCall(PetscLayoutDestroy(&map));
+  for (PetscInt b = 0; b < nb; b++) {
+    const PetscInt k = brow[b];
+    PetscInt       m = -1;
+    PetscCall(PetscFindInt(bcol[b], nleaf, leaf, &m));
+    if (lint[2 * m + 1] == 2) continue;
+    if (mg->kind[k] == 1 || lint[2 * m + 1] == 1) LMGFilterBlockOf(mg->kind[k], mg->kind[k] == 1 ? mg->normal + 3 * k : NULL, (unsigned char) lint[2 * m + 1], lnrm + 3 * m, bval + 9 * b);
+    LMGAddProduct(C, mg->Mx, mg->My, mg->node[k] % Mx, mg->node[k] / Mx, lint[2 * m] % Mx, lint[2 * m] / Mx, bval + 9 * b, PETSC_TRUE);
+  }
+  PetscCall(PetscLogFlops(18.0 * 9 * nb));
+  PetscCall(PetscFree4(rint, lint, rnrm, lnrm));
+  PetscCall(PetscFree(leaf));
+  PetscCall(PetscFree(brow));
+  PetscCall(PetscFree(bcol));
+  PetscCall(PetscFree(bval));
+  PetscFunctionReturn(0);
+}
+
+/* The first coarse level's operator, P^T A P from A's upper triangle of blocks: on
+ * several ranks each rank's rows' share, summed over the ranks (every rank holds
+ * the coarse levels whole) */
+static PetscErrorCode LMGGalerkinFine(PC pc, PC_LatticeMG *mg, Mat Aall)
 {
   LMGLevel       *C = &mg->lev[0];
   const PetscInt *ia, *ja, Mx = mg->Mx;
   PetscInt        n;
   PetscBool       done;
   MatScalar      *aa;
+  Mat             A;
 
   PetscFunctionBeginUser;
+  PetscCall(LMGLocalMatrix(Aall, &A));
   PetscCall(MatGetRowIJ(A, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &done));
   PetscCheck(done && n == mg->nrows, PetscObjectComm((PetscObject) pc), PETSC_ERR_ARG_WRONG, "-pc_type latticemg: the matrix has %" PetscInt_FMT " block rows and the lattice given %" PetscInt_FMT " particles", n, mg->nrows);
   PetscCall(MatSeqSBAIJGetArray(A, &aa));
@@ -305,6 +439,10 @@ static PetscErrorCode LMGGalerkinFine(PC pc, PC_LatticeMG *mg, Mat A)
   PetscCall(PetscLogFlops(18.0 * 9 * ia[n]));
   PetscCall(MatSeqSBAIJRestoreArray(A, &aa));
   PetscCall(MatRestoreRowIJ(A, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &done));
+  if (A != Aall) {
+    PetscCall(LMGGalerkinCut(pc, mg, Aall));
+    PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, C->a, (PetscMPIInt) (9 * LMG_U * C->n), MPI_FLOAT, MPI_SUM, PetscObjectComm((PetscObject) pc)));
+  }
   PetscFunctionReturn(0);
 }
 
@@ -535,7 +673,7 @@ static PetscErrorCode LMGFineSetUp(PC_LatticeMG *mg, Mat A)
      * scene at 41^2 took 8.6 CG iterations a step instead of 2.5 in its first 0.3 s. */
     PetscCall(PCSetUp(mg->fine));
     PetscCall(PCBlockICCGetLevels(mg->fine, &levels));
-    if (mg->fill_auto && levels == 0) { /* a compensated IC(0) smooths poorly: IC(1), from now on */
+    if (mg->fill_auto && levels == 0) { /* a compensated IC(0) smooths poorly: IC(1), from now on (on several ranks: on any) */
       PetscBool compensated;
       PetscCall(PCBlockICCGetCompensated(mg->fine, &compensated));
       if (compensated) {
@@ -546,6 +684,7 @@ static PetscErrorCode LMGFineSetUp(PC_LatticeMG *mg, Mat A)
     PetscFunctionReturn(0);
   }
   if (!mg->dinv) PetscCall(PetscMalloc1(9 * mg->nrows, &mg->dinv));
+  PetscCall(LMGLocalMatrix(A, &A));
   PetscCall(MatGetRowIJ(A, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &done));
   PetscCall(MatSeqSBAIJGetArray(A, &aa));
   for (PetscInt k = 0; k < n; k++) {
@@ -560,7 +699,8 @@ static PetscErrorCode LMGFineSetUp(PC_LatticeMG *mg, Mat A)
 /* x = M^-1 b (pre) or M^-T b (post), x may be b: block IC, symmetric; or block Gauss-Seidel,
  * M = D + L (a forward sweep from 0, in place: each row's update taken from the rows
  * below it through the upper triangle's blocks, transposed) and M^T = D + U (a
- * backward substitution through the upper triangle) */
+ * backward substitution through the upper triangle). On several ranks, of the
+ * rank's diagonal block (block Jacobi over the ranks). */
 static PetscErrorCode LMGFineSmooth(PC pc, PC_LatticeMG *mg, PetscBool pre, Vec b, Vec x)
 {
   const PetscInt    *ia, *ja;
@@ -569,6 +709,7 @@ static PetscErrorCode LMGFineSmooth(PC pc, PC_LatticeMG *mg, PetscBool pre, Vec 
   MatScalar         *aa;
   PetscScalar       *y;
   const PetscScalar *bb;
+  Mat                A;
 
   PetscFunctionBeginUser;
   if (mg->smoother == LMG_SMOOTH_BLOCKICC) {
@@ -578,8 +719,9 @@ static PetscErrorCode LMGFineSmooth(PC pc, PC_LatticeMG *mg, PetscBool pre, Vec 
       PetscCall(PCApply(mg->fine, b, x));
     PetscFunctionReturn(0);
   }
-  PetscCall(MatGetRowIJ(pc->pmat, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &done));
-  PetscCall(MatSeqSBAIJGetArray(pc->pmat, &aa));
+  PetscCall(LMGLocalMatrix(pc->pmat, &A));
+  PetscCall(MatGetRowIJ(A, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &done));
+  PetscCall(MatSeqSBAIJGetArray(A, &aa));
   if (b == x) { /* in place: row k's right-hand side is read before its result is written */
     PetscCall(VecGetArray(x, &y));
     bb = y;
@@ -618,14 +760,16 @@ static PetscErrorCode LMGFineSmooth(PC pc, PC_LatticeMG *mg, PetscBool pre, Vec 
     PetscCall(VecRestoreArrayRead(b, &bb));
   }
   PetscCall(PetscLogFlops(18.0 * (ia[n] + n)));
-  PetscCall(MatSeqSBAIJRestoreArray(pc->pmat, &aa));
-  PetscCall(MatRestoreRowIJ(pc->pmat, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &done));
+  PetscCall(MatSeqSBAIJRestoreArray(A, &aa));
+  PetscCall(MatRestoreRowIJ(A, 0, PETSC_FALSE, PETSC_TRUE, &n, &ia, &ja, &done));
   PetscFunctionReturn(0);
 }
 
 /* x += sign P B_c P^T r: the coarse levels' cycle (B_c) on the restricted r, the
- * interpolation and restriction filtered by the rows' constraints */
-static PetscErrorCode LMGCoarseCorrect(PC_LatticeMG *mg, Vec r, PetscReal sign, Vec x)
+ * interpolation and restriction filtered by the rows' constraints. On several ranks
+ * each rank restricts its rows, the sum goes to every rank, every rank runs the
+ * coarse cycle (the same numbers) and interpolates to its rows. */
+static PetscErrorCode LMGCoarseCorrect(PC pc, PC_LatticeMG *mg, Vec r, PetscReal sign, Vec x)
 {
   LMGLevel          *C  = &mg->lev[0];
   const PetscInt     Mx = mg->Mx;
@@ -633,6 +777,7 @@ static PetscErrorCode LMGCoarseCorrect(PC_LatticeMG *mg, Vec r, PetscReal sign, 
   PetscScalar       *xx;
 
   PetscFunctionBeginUser;
+  PetscCall(PetscLogEventBegin(LMG_Coarse, 0, 0, 0, 0));
   PetscCall(VecGetArrayRead(r, &w));
   PetscCall(PetscArrayzero(C->b, 3 * C->n));
   for (PetscInt k = 0; k < mg->nrows; k++) {
@@ -642,6 +787,7 @@ static PetscErrorCode LMGCoarseCorrect(PC_LatticeMG *mg, Vec r, PetscReal sign, 
     LMGRestrictNode(C, mg->Mx, mg->My, mg->node[k] % Mx, mg->node[k] / Mx, rk);
   }
   PetscCall(VecRestoreArrayRead(r, &w));
+  if (mg->size > 1) PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, C->b, (PetscMPIInt) (3 * C->n), MPIU_SCALAR, MPIU_SUM, PetscObjectComm((PetscObject) pc)));
   LMGCycle(mg, 0);
   PetscCall(VecGetArray(x, &xx));
   for (PetscInt k = 0; k < mg->nrows; k++) {
@@ -652,6 +798,7 @@ static PetscErrorCode LMGCoarseCorrect(PC_LatticeMG *mg, Vec r, PetscReal sign, 
     for (PetscInt s = 0; s < 3; s++) xx[3 * k + s] += sign * e[s];
   }
   PetscCall(VecRestoreArray(x, &xx));
+  PetscCall(PetscLogEventEnd(LMG_Coarse, 0, 0, 0, 0));
   PetscFunctionReturn(0);
 }
 
@@ -676,7 +823,7 @@ static PetscErrorCode PCApply_LatticeMG(PC pc, Vec b, Vec x)
     PetscCall(VecAYPX(mg->w, -1.0, b));
     if (!mg->y) PetscCall(VecDuplicate(mg->w, &mg->y));
     PetscCall(VecZeroEntries(mg->y));
-    PetscCall(LMGCoarseCorrect(mg, mg->w, 1.0, mg->y)); /* e = Q w */
+    PetscCall(LMGCoarseCorrect(pc, mg, mg->w, 1.0, mg->y)); /* e = Q w */
     PetscCall(VecAXPY(x, 1.0, mg->y));
     PetscCall(MatMult(pc->pmat, mg->y, mg->w)); /* A e */
     PetscCall(LMGFineSmooth(pc, mg, PETSC_FALSE, mg->w, mg->y));
@@ -686,7 +833,7 @@ static PetscErrorCode PCApply_LatticeMG(PC pc, Vec b, Vec x)
   PetscCall(LMGFineSmooth(pc, mg, PETSC_TRUE, b, x)); /* pre-smoothing from 0 */
   PetscCall(MatMult(pc->pmat, x, mg->w));
   PetscCall(VecAYPX(mg->w, -1.0, b));
-  PetscCall(LMGCoarseCorrect(mg, mg->w, 1.0, x));
+  PetscCall(LMGCoarseCorrect(pc, mg, mg->w, 1.0, x));
   PetscCall(MatMult(pc->pmat, x, mg->w)); /* post-smoothing */
   PetscCall(VecAYPX(mg->w, -1.0, b));
   PetscCall(LMGFineSmooth(pc, mg, PETSC_FALSE, mg->w, mg->w));
@@ -703,9 +850,10 @@ static PetscErrorCode PCSetUp_LatticeMG(PC pc)
 
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_size(PetscObjectComm((PetscObject) pc), &size));
-  PetscCheck(size == 1, PetscObjectComm((PetscObject) pc), PETSC_ERR_SUP, "-pc_type latticemg runs on one rank, and this run has %d: leave -pc_type out on several ranks (drape's additive Schwarz)", size);
+  mg->size = size;
   PetscCheck(mg->node, PetscObjectComm((PetscObject) pc), PETSC_ERR_ARG_WRONGSTATE, "-pc_type latticemg needs the cloth's lattice (PCLatticeMGSetLattice): it is drapebe's preconditioner");
-  PetscCall(PetscObjectTypeCompare((PetscObject) pc->pmat, MATSEQSBAIJ, &sbaij));
+  PetscCall(PetscObjectTypeCompareAny((PetscObject) pc->pmat, &sbaij, MATSEQSBAIJ, MATMPISBAIJ, ""));
+
   PetscCall(MatGetBlockSize(pc->pmat, &bs));
   PetscCheck(sbaij && bs == 3, PetscObjectComm((PetscObject) pc), PETSC_ERR_SUP, "-pc_type latticemg takes an SBAIJ matrix of block size 3, and this one is %s with block size %" PetscInt_FMT, ((PetscObject) pc->pmat)->type_name, bs);
   if (!mg->lev) PetscCall(LMGCreateLevels(mg));
@@ -939,5 +1087,6 @@ PetscErrorCode PCLatticeMGRegister(void)
 {
   PetscFunctionBeginUser;
   PetscCall(PCRegister(PCLATTICEMG, PCCreate_LatticeMG));
+  if (!LMG_Coarse) PetscCall(PetscLogEventRegister("PCLatticeMGCoarse", PC_CLASSID, &LMG_Coarse));
   PetscFunctionReturn(0);
 }
