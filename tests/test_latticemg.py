@@ -1,7 +1,7 @@
 """Geometric multigrid on the lattice (-pc_type latticemg, src/integrate/pclatticemg.c):
 CG iterations that do not grow with the lattice, the same step as a direct solve
 (with the solid's constraints filtering the interpolation), drapebe's switch to it
-on one rank, several ranks, and its refusals."""
+on one rank and on several, and its refusals."""
 import numpy as np
 
 from conftest import refused, run
@@ -120,11 +120,16 @@ def test_on_several_ranks(tmp):
     test_iterations_do_not_grow_with_the_lattice on 33^2 (measured: 6.9, 10.6 and
     16.6 CG iterations a step on 1, 2 and 3 ranks; without the other ranks' columns
     in the coarse operator 23.7 and 41; block IC alone on 2 ranks 178); the step of
-    the direct solve on 2 and 3 ranks, the sphere drop's sliding particles too."""
+    the direct solve on 2 and 3 ranks, the sphere drop's sliding particles too. And
+    drapebe, left to choose on 2 ranks, gives its additive Schwarz up for it as one
+    rank gives block IC up (at step 3: 86 iterations a solve)."""
     scene = f"{HANG} -da_grid_x 33 -da_grid_y 33 -ts_max_steps 10 -pc_type latticemg"
     cg = {np_: run(scene, np_=np_).report["cg_per_step"] for np_ in (1, 2, 3)}
     assert cg[2] <= 2 * cg[1] and cg[3] <= 3 * cg[1], cg
     assert cg[2] < 0.15 * run(f"{HANG} -da_grid_x 33 -da_grid_y 33 -ts_max_steps 10 -pc_type blockicc", np_=2).report["cg_per_step"], cg
+    auto = run(f"{HANG} -da_grid_x 33 -da_grid_y 33 -ts_max_steps 10", np_=2)
+    assert auto.report["pc_type"] == "latticemg" and 0 < auto.report["pc_switched_step"] <= 5, auto.report
+    assert "the run goes on with geometric multigrid on the lattice (latticemg)" in auto.stdout
     drop = "-da_grid_x 24 -da_grid_y 24 -ts_type drapebe -ts_dt 2e-3 -ts_max_time 0.3 -output_interval 0.1 -solid_type sphere -solid_radius 0.25 -contact_mode friction -contact_thickness 0.005 -cloth_center 0,0,0.3"
     for name, sc in (("hang", f"{HANG} -da_grid_x 24 -da_grid_y 24 -ts_max_steps 5 -output_interval 1e-2"), ("drop", drop)):
         direct = tmp / f"{name}-direct.h5"

@@ -219,8 +219,12 @@ static PetscErrorCode BESetConstraints(TS_DrapeBE *be, PetscInt pc_changes)
  * from the start above BE_AMG_STIFFNESS (the hang at 241^2 and 1e-2 s: 19 CPU s and
  * 244 MB against ML's 95 s and 601 MB), after a failed or slow solve, and once block
  * IC takes more than -drape_mg_its (BE_MG_ITS) iterations a solve (BEWatchIterations);
- * ML where the lattice multigrid fails too. */
+ * ML where the lattice multigrid fails too. On several ranks the same, except from
+ * the start above BE_AMG_STIFFNESS on a lattice of fewer than BE_MG_LARGE particles:
+ * ML there (the stiff hang at 65^2 and 1e-2 s on two ranks: ML 23 CG iterations a
+ * step, the lattice multigrid 36), where its 12.8 kB a particle do not matter. */
 #define BE_AMG_STIFFNESS 5e4
+#define BE_MG_LARGE      40000 /* particles: a large lattice (BEWatchIterations; on several ranks, BEChoosePreconditioner) */
 #define BE_ICC_MAX_ITS   300
 #define BE_MG_ITS        40
 
@@ -310,7 +314,7 @@ static PetscErrorCode BEChoosePreconditioner(TS ts, TS_DrapeBE *be, PC pc)
     be->omega = lim.omega;
   }
   PetscCallMPI(MPI_Comm_size(PetscObjectComm((PetscObject) ts), &size));
-  if (PetscSqr(ts->time_step * be->omega) > BE_AMG_STIFFNESS && size == 1)
+  if (PetscSqr(ts->time_step * be->omega) > BE_AMG_STIFFNESS && (size == 1 || be->nparticles >= BE_MG_LARGE))
     PetscCall(PCSetType(pc, PCLATTICEMG));
   else if (PetscSqr(ts->time_step * be->omega) > BE_AMG_STIFFNESS)
     PetscCall(BESetMultigrid(pc));
@@ -377,13 +381,14 @@ static PetscErrorCode BELatticeMGSetLattice(TS_DrapeBE *be, PC pc)
   PetscFunctionReturn(0);
 }
 
-/* On one rank, block IC, chosen by drape, gives way to geometric multigrid on the
- * lattice (PCLATTICEMG, include/pclatticemg.h) for the rest of the run: the same
+/* Block IC (on several ranks its additive Schwarz), chosen by drape, gives way to
+ * geometric multigrid on the lattice (PCLATTICEMG, include/pclatticemg.h) for the
+ * rest of the run: the same
  * SBAIJ matrix, a new preconditioner at the next solve. Why, and when
  * (BEWatchIterations, BEStep): a V-cycle costs about five CG iterations with block
  * IC, and takes 4-5 iterations a step where IC's grow with the lattice and the step
  * (the Cusick scene: 4.1 and 4.4 at 81^2 and 161^2 against 16.5 and 20.0; the hang
- * at 48^2 and 1e-2 s: 5.2 against 66, half the CPU time). Not collective (one rank). */
+ * at 48^2 and 1e-2 s: 5.2 against 66, half the CPU time). Collective. */
 static PetscErrorCode BEUseLatticeMG(TS ts, TS_DrapeBE *be, const char *why)
 {
   PC pc = be->pc;
@@ -405,7 +410,8 @@ static PetscErrorCode BEUseLatticeMG(TS ts, TS_DrapeBE *be, const char *why)
   PetscFunctionReturn(0);
 }
 
-/* The moving mean of CG iterations a solve with drape's block IC on one rank; past
+/* The moving mean of CG iterations a solve with drape's block IC (on several ranks,
+ * its additive Schwarz); past
  * -drape_mg_its (BE_MG_ITS; over at least 10 solves, or past twice it over 3: the
  * hang at 128^2 and 1e-2 s took 96 a solve from its first, and its 9 steps before the
  * switch cost 2.5 CPU s against 1.0 with the multigrid) block IC gives way to geometric multigrid
@@ -416,20 +422,20 @@ static PetscErrorCode BEUseLatticeMG(TS ts, TS_DrapeBE *be, const char *why)
  * levels pay sooner: the Cusick scene (denim) at 321^2, whose block IC(1) takes
  * about 30 a solve in its 1 ms phase and reached 40 only in its settled phase,
  * took 1163 CPU s so against 765 s with the multigrid from the start; so there
- * BE_MG_ITS_LARGE, unless -drape_mg_its is given. Not collective (one rank). */
-#define BE_MG_LARGE     40000
+ * BE_MG_ITS_LARGE, unless -drape_mg_its is given. On two ranks the multigrid takes
+ * about twice one rank's iterations (block Jacobi's smoother): at 161^2 (below
+ * BE_MG_LARGE) the Cusick scene's additive Schwarz (14.6 a step) was faster than it
+ * (3.8), at 321^2 (23.5 against 5.2) slower (BENCHMARKS.md, "The lattice multigrid on
+ * two ranks"). Collective (the iterations are every rank's). */
 #define BE_MG_ITS_LARGE 20
 static PetscErrorCode BEWatchIterations(TS ts, TS_DrapeBE *be)
 {
-  PetscMPIInt size;
-  PetscBool   mg;
-  PetscReal   limit;
+  PetscBool mg;
+  PetscReal limit;
 
   PetscFunctionBeginUser;
   PetscCall(PetscObjectTypeCompare((PetscObject) be->pc, PCLATTICEMG, &mg));
   if (!be->pc_auto || be->pc_amg || mg) PetscFunctionReturn(0);
-  PetscCallMPI(MPI_Comm_size(PetscObjectComm((PetscObject) ts), &size));
-  if (size > 1) PetscFunctionReturn(0);
   be->its_mean = be->its_solves ? 0.8 * be->its_mean + 0.2 * be->lits : be->lits;
   limit        = be->mg_its >= 0 ? be->mg_its : (be->nparticles >= BE_MG_LARGE ? BE_MG_ITS_LARGE : BE_MG_ITS);
   be->its_solves++;
@@ -1063,11 +1069,9 @@ static PetscErrorCode BEStepSolves(TS ts, TS_DrapeBE *be, PetscBool keep, PetscB
         continue;
       }
       if (rebuild) {
-        PetscMPIInt size;
-        PetscBool   mg;
-        PetscCallMPI(MPI_Comm_size(PetscObjectComm((PetscObject) ts), &size));
+        PetscBool mg;
         PetscCall(PetscObjectTypeCompare((PetscObject) be->pc, PCLATTICEMG, &mg));
-        if (size == 1 && !mg)
+        if (!mg)
           PetscCall(BEUseLatticeMG(ts, be, be->lits >= BE_ICC_MAX_ITS ? "reached " PetscStringize(BE_ICC_MAX_ITS) " iterations" : "failed"));
         else
           PetscCall(BEUseMultigrid(ts, be));
