@@ -222,9 +222,12 @@ static PetscErrorCode BESetConstraints(TS_DrapeBE *be, PetscInt pc_changes)
  * ML where the lattice multigrid fails too. On several ranks the same, except from
  * the start above BE_AMG_STIFFNESS on a lattice of fewer than BE_MG_LARGE particles:
  * ML there (the stiff hang at 65^2 and 1e-2 s on two ranks: ML 23 CG iterations a
- * step, the lattice multigrid 36), where its 12.8 kB a particle do not matter. */
+ * step, the lattice multigrid 36), where its 12.8 kB a particle do not matter; and
+ * on more than BE_MG_RANKS ranks additive Schwarz, then ML, as before: there the
+ * multigrid's coarse levels, whole on every rank, would outweigh a rank's share. */
 #define BE_AMG_STIFFNESS 5e4
 #define BE_MG_LARGE      40000 /* particles: a large lattice (BEWatchIterations; on several ranks, BEChoosePreconditioner) */
+#define BE_MG_RANKS      4     /* drape chooses the lattice multigrid on at most this many ranks: each holds its coarse levels whole, about 210 B a particle of the lattice (a quarter of the nodes, 13 single-precision blocks each, with their inverses, vectors and the coarser levels), a quarter of a rank's share of drapebe's 3 kB at 4 */
 #define BE_ICC_MAX_ITS   300
 #define BE_MG_ITS        40
 
@@ -314,7 +317,7 @@ static PetscErrorCode BEChoosePreconditioner(TS ts, TS_DrapeBE *be, PC pc)
     be->omega = lim.omega;
   }
   PetscCallMPI(MPI_Comm_size(PetscObjectComm((PetscObject) ts), &size));
-  if (PetscSqr(ts->time_step * be->omega) > BE_AMG_STIFFNESS && (size == 1 || be->nparticles >= BE_MG_LARGE))
+  if (PetscSqr(ts->time_step * be->omega) > BE_AMG_STIFFNESS && (size == 1 || (be->nparticles >= BE_MG_LARGE && size <= BE_MG_RANKS)))
     PetscCall(PCSetType(pc, PCLATTICEMG));
   else if (PetscSqr(ts->time_step * be->omega) > BE_AMG_STIFFNESS)
     PetscCall(BESetMultigrid(pc));
@@ -430,12 +433,14 @@ static PetscErrorCode BEUseLatticeMG(TS ts, TS_DrapeBE *be, const char *why)
 #define BE_MG_ITS_LARGE 20
 static PetscErrorCode BEWatchIterations(TS ts, TS_DrapeBE *be)
 {
-  PetscBool mg;
-  PetscReal limit;
+  PetscBool   mg;
+  PetscReal   limit;
+  PetscMPIInt size;
 
   PetscFunctionBeginUser;
   PetscCall(PetscObjectTypeCompare((PetscObject) be->pc, PCLATTICEMG, &mg));
-  if (!be->pc_auto || be->pc_amg || mg) PetscFunctionReturn(0);
+  PetscCallMPI(MPI_Comm_size(PetscObjectComm((PetscObject) ts), &size));
+  if (!be->pc_auto || be->pc_amg || mg || size > BE_MG_RANKS) PetscFunctionReturn(0);
   be->its_mean = be->its_solves ? 0.8 * be->its_mean + 0.2 * be->lits : be->lits;
   limit        = be->mg_its >= 0 ? be->mg_its : (be->nparticles >= BE_MG_LARGE ? BE_MG_ITS_LARGE : BE_MG_ITS);
   be->its_solves++;
@@ -1069,9 +1074,11 @@ static PetscErrorCode BEStepSolves(TS ts, TS_DrapeBE *be, PetscBool keep, PetscB
         continue;
       }
       if (rebuild) {
-        PetscBool mg;
+        PetscBool   mg;
+        PetscMPIInt size;
         PetscCall(PetscObjectTypeCompare((PetscObject) be->pc, PCLATTICEMG, &mg));
-        if (!mg)
+        PetscCallMPI(MPI_Comm_size(PetscObjectComm((PetscObject) ts), &size));
+        if (!mg && size <= BE_MG_RANKS)
           PetscCall(BEUseLatticeMG(ts, be, be->lits >= BE_ICC_MAX_ITS ? "reached " PetscStringize(BE_ICC_MAX_ITS) " iterations" : "failed"));
         else
           PetscCall(BEUseMultigrid(ts, be));

@@ -53,7 +53,7 @@
  * runs the coarse levels on every rank (the same numbers) and interpolates to each
  * rank's rows. The finest level's smoother is each rank's block (block IC or block
  * Gauss-Seidel of the diagonal block: block Jacobi over the ranks). The coarse
- * levels' work and memory are not divided: about 150 bytes a particle of the whole
+ * levels' work and memory are not divided: about 210 bytes a particle of the whole
  * lattice on every rank, and one sum over the ranks of the first coarse level's
  * residual (24 bytes a coarse node) a cycle (BENCHMARKS.md, "The lattice multigrid on
  * two ranks").
