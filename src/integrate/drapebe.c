@@ -227,9 +227,13 @@ static PetscErrorCode BESetConstraints(TS_DrapeBE *be, PetscInt pc_changes)
  * multigrid's coarse levels, whole on every rank, would outweigh a rank's share. */
 #define BE_AMG_STIFFNESS 5e4
 #define BE_MG_LARGE      40000 /* particles: a large lattice (BEWatchIterations; on several ranks, BEChoosePreconditioner) */
-#define BE_MG_RANKS      4     /* drape chooses the lattice multigrid on at most this many ranks: each holds its coarse levels whole, about 210 B a particle of the lattice (a quarter of the nodes, 13 single-precision blocks each, with their inverses, vectors and the coarser levels), a quarter of a rank's share of drapebe's 3 kB at 4 */
-#define BE_ICC_MAX_ITS   300
-#define BE_MG_ITS        40
+/* drape chooses the lattice multigrid on at most BE_MG_RANKS ranks: each holds its
+ * coarse levels whole, about 210 B a particle of the lattice (a quarter of the nodes,
+ * 13 single-precision blocks each, with their inverses, vectors and the coarser
+ * levels), a quarter of a rank's share of drapebe's 3 kB at 4 */
+#define BE_MG_RANKS    4
+#define BE_ICC_MAX_ITS 300
+#define BE_MG_ITS      40
 
 static PetscErrorCode BESetMultigrid(PC pc)
 {
