@@ -713,13 +713,14 @@ static PetscErrorCode RowBufferGrow(Cloth c, Mat J)
 static PetscErrorCode ClothBuildRowBuffer(Cloth c, Mat J)
 {
   PetscInt *count, total = 0, npairs = 0;
-  PetscBool sym, kept;
+  PetscBool sym, kept, grow;
 
   PetscFunctionBeginUser;
   PetscCall(PetscObjectTypeCompareAny((PetscObject) J, &sym, MATSEQSBAIJ, MATMPISBAIJ, ""));
   PetscCall(PatternMerge(c, &kept));
-  PetscCall(PetscInfo(NULL, "Row buffer pattern: %" PetscInt_FMT " extra blocks, %s\n", c->px_n, kept && c->rb_start && c->rb_split != 1 && c->rb_sym == sym && c->rb_built_block == c->rb_block ? "grown" : "built"));
-  if (kept && c->rb_start && c->rb_split != 1 && c->rb_sym == sym && c->rb_built_block == c->rb_block) {
+  grow = (PetscBool) (kept && c->rb_start && c->rb_split != 1 && c->rb_sym == sym && c->rb_built_block == c->rb_block); /* the last buffer's positions are the buffer's, of the same layout */
+  PetscCall(PetscInfo(NULL, "Row buffer pattern: %" PetscInt_FMT " extra blocks, %s\n", c->px_n, grow ? "grown" : "built"));
+  if (grow) {
     PetscCall(RowBufferGrow(c, J));
     PetscFunctionReturn(0);
   }

@@ -437,9 +437,9 @@ static PetscErrorCode BEUseLatticeMG(TS ts, TS_DrapeBE *be, const char *why)
 #define BE_MG_ITS_LARGE 20
 static PetscErrorCode BEWatchIterations(TS ts, TS_DrapeBE *be)
 {
+  PetscMPIInt size;
   PetscBool   mg;
   PetscReal   limit;
-  PetscMPIInt size;
 
   PetscFunctionBeginUser;
   PetscCall(PetscObjectTypeCompare((PetscObject) be->pc, PCLATTICEMG, &mg));
@@ -1078,10 +1078,10 @@ static PetscErrorCode BEStepSolves(TS ts, TS_DrapeBE *be, PetscBool keep, PetscB
         continue;
       }
       if (rebuild) {
-        PetscBool   mg;
         PetscMPIInt size;
-        PetscCall(PetscObjectTypeCompare((PetscObject) be->pc, PCLATTICEMG, &mg));
+        PetscBool   mg;
         PetscCallMPI(MPI_Comm_size(PetscObjectComm((PetscObject) ts), &size));
+        PetscCall(PetscObjectTypeCompare((PetscObject) be->pc, PCLATTICEMG, &mg));
         if (!mg && size <= BE_MG_RANKS)
           PetscCall(BEUseLatticeMG(ts, be, be->lits >= BE_ICC_MAX_ITS ? "reached " PetscStringize(BE_ICC_MAX_ITS) " iterations" : "failed"));
         else

@@ -673,7 +673,7 @@ static PetscErrorCode LMGFineSetUp(PC_LatticeMG *mg, Mat A)
      * scene at 41^2 took 8.6 CG iterations a step instead of 2.5 in its first 0.3 s. */
     PetscCall(PCSetUp(mg->fine));
     PetscCall(PCBlockICCGetLevels(mg->fine, &levels));
-    if (mg->fill_auto && levels == 0) { /* a compensated IC(0) smooths poorly: IC(1), from now on (on several ranks: on any) */
+    if (mg->fill_auto && levels == 0) { /* a compensated IC(0) smooths poorly: IC(1), from now on (on several ranks, every rank's once any rank's compensated) */
       PetscBool compensated;
       PetscCall(PCBlockICCGetCompensated(mg->fine, &compensated));
       if (compensated) {
@@ -853,7 +853,6 @@ static PetscErrorCode PCSetUp_LatticeMG(PC pc)
   mg->size = size;
   PetscCheck(mg->node, PetscObjectComm((PetscObject) pc), PETSC_ERR_ARG_WRONGSTATE, "-pc_type latticemg needs the cloth's lattice (PCLatticeMGSetLattice): it is drapebe's preconditioner");
   PetscCall(PetscObjectTypeCompareAny((PetscObject) pc->pmat, &sbaij, MATSEQSBAIJ, MATMPISBAIJ, ""));
-
   PetscCall(MatGetBlockSize(pc->pmat, &bs));
   PetscCheck(sbaij && bs == 3, PetscObjectComm((PetscObject) pc), PETSC_ERR_SUP, "-pc_type latticemg takes an SBAIJ matrix of block size 3, and this one is %s with block size %" PetscInt_FMT, ((PetscObject) pc->pmat)->type_name, bs);
   if (!mg->lev) PetscCall(LMGCreateLevels(mg));

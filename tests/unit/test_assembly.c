@@ -45,6 +45,17 @@ static PetscErrorCode Compare(Mat J, Mat R, PetscReal *diff, PetscReal *scale)
   PetscFunctionReturn(0);
 }
 
+/* R = the reference (ClothAssembleMatrixElementwise) of J = a M + b H(x), in AIJ */
+static PetscErrorCode Reference(Cloth cloth, const PetscScalar *x, PetscReal a, PetscReal b, PetscInt n, Mat *R)
+{
+  PetscFunctionBeginUser;
+  PetscCall(MatCreateAIJ(cloth->comm, n, n, PETSC_DETERMINE, PETSC_DETERMINE, 81, NULL, 81, NULL, R));
+  PetscCall(MatSetBlockSize(*R, 3));
+  PetscCall(MatSetOption(*R, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_FALSE));
+  PetscCall(ClothAssembleMatrixElementwise(cloth, x, a, b, *R));
+  PetscFunctionReturn(0);
+}
+
 int main(int argc, char **argv)
 {
   const char *const types[][2] = {{MATAIJ, "csr"}, {MATAIJ, "coo"}, {MATAIJ, "rows"}, {MATBAIJ, "rows"}, {MATSBAIJ, "rows"}, {MATSBAIJ, "coo"}};
@@ -100,10 +111,7 @@ int main(int argc, char **argv)
       PetscCall(ClothAssembleMatrix(cloth, x, a, b, J));
       PetscCall(ClothGetHessianDiagonal(cloth, &hd1));
       PetscCall(PetscArraycpy(hdiag, hd1, 9 * info.nowned));
-      PetscCall(MatCreateAIJ(comm, n, n, PETSC_DETERMINE, PETSC_DETERMINE, 81, NULL, 81, NULL, &R));
-      PetscCall(MatSetBlockSize(R, 3));
-      PetscCall(MatSetOption(R, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_FALSE));
-      PetscCall(ClothAssembleMatrixElementwise(cloth, x, a, b, R));
+      PetscCall(Reference(cloth, x, a, b, n, &R));
       PetscCall(ClothGetHessianDiagonal(cloth, &hd1));
       for (PetscInt i = 0; i < 9 * info.nowned; i++) hd = PetscMax(hd, PetscAbsReal(hdiag[i] - hd1[i]));
       PetscCall(MPIU_Allreduce(&hd, &hdmax, 1, MPIU_REAL, MPIU_MAX, comm));
@@ -168,10 +176,7 @@ int main(int argc, char **argv)
       PetscCall(MatDestroy(&J));
       PetscCall(ClothCreateMatrix(cloth, types[t][0], &J));
       PetscCall(ClothAssembleMatrix(cloth, x, a, b, J));
-      PetscCall(MatCreateAIJ(comm, n, n, PETSC_DETERMINE, PETSC_DETERMINE, 81, NULL, 81, NULL, &R));
-      PetscCall(MatSetBlockSize(R, 3));
-      PetscCall(MatSetOption(R, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_FALSE));
-      PetscCall(ClothAssembleMatrixElementwise(cloth, x, a, b, R));
+      PetscCall(Reference(cloth, x, a, b, n, &R));
       PetscCall(Compare(J, R, &diff, &scale));
       PetscCheck(scale > 0 && (sym ? diff <= 1e-13 * scale : diff == 0), comm, PETSC_ERR_PLIB, "%s (%s), extra blocks set %" PetscInt_FMT ": max |J - reference| = %g of max |reference| %g", types[t][0], types[t][1], set, (double) diff,
                  (double) scale);
