@@ -13,6 +13,7 @@ Usage::
     run.solid_triangles        # [ntri, 3, 3] or None: the solid's mesh (vertex xyz)
     run.floor                  # height of the -solid_floor plane, or None
     run.option("cloth_shape")  # value of an option of the run, or None
+    drape_h5.load("big.h5", frames=False)   # the same without the frames' positions and velocities
 
 Only complete frames are returned: drape writes ``/time`` last in each frame,
 so a run killed mid-frame may leave the other datasets one frame longer. The file
@@ -148,8 +149,10 @@ def active_mask(mx, my, shape=None):
     return disc & corner
 
 
-def load(path):
-    """Load a drape HDF5 file; raise ValueError if it is missing or not drape's."""
+def load(path, frames=True):
+    """Load a drape HDF5 file; raise ValueError if it is missing or not drape's.
+    frames=False: all but the positions and velocities (theirs of no frame, [0, My,
+    Mx, 3]; read a frame from /position yourself, as a large run's file asks)."""
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise ValueError(f"{path}: no such file")
@@ -175,8 +178,8 @@ def load(path):
             raise ValueError(f"{path}: /position has shape {pos.shape}, expected [>={n}][My][Mx][3]")
         return DrapeRun(
             path=path,
-            positions=pos[:n],
-            velocities=f["velocity"][:n],
+            positions=pos[:n] if frames else np.empty((0,) + pos.shape[1:]),
+            velocities=f["velocity"][:n] if frames else np.empty((0,) + pos.shape[1:]),
             time=f["time"][:n].reshape(n),
             step=f["step"][:n].reshape(n).astype(np.int64),
             energies={e: _series(f, f"energy_{e}", n) for e in ENERGIES if f"energy_{e}" in f},

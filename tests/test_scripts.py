@@ -325,3 +325,42 @@ def test_rest_race_quick(tmp_path):
         assert errors[-1] <= errors[0] + 1e-3, runs  # 1e-8 J/kg against 1e-6
     assert re.search(r"hangv64 \(16\^2; the reference and its check 0\.0\d mm apart\): fastest within 1 mm of the reference: symplectic Euler.*; drapebe.*; ratio \d", res.stdout), res.stdout
     assert "| hangv64 |" in (tmp_path / "rest_race.md").read_text()
+
+
+def test_cusick_folds_counts_a_known_outline():
+    """cusick_folds.count_folds, drape's walk of the outline, on r = R + A cos(k theta):
+    k folds for every k from 3 to 16 where the bumps stand out of the prominence,
+    none where they do not; and the raster's area of a disc is its area to a pixel's
+    share of the rim."""
+    import cusick_folds
+    theta = (np.arange(720) + 0.5) / 720 * 2 * np.pi - np.pi
+    for k in range(3, 17):
+        assert cusick_folds.count_folds(0.12 + 0.01 * np.cos(k * theta + 0.3), 0.006) == k, k
+        assert cusick_folds.count_folds(0.12 + 0.002 * np.cos(k * theta + 0.3), 0.006) == 0, k
+    n = 60  # a disc of radius 0.1 as a fan of triangles about its centre
+    phi = np.linspace(0, 2 * np.pi, n + 1)[:-1]
+    xy = np.concatenate([[[0.0, 0.0]], 0.1 * np.stack([np.cos(phi), np.sin(phi)], axis=1)])
+    tri = np.array([[0, 1 + i, 1 + (i + 1) % n] for i in range(n)])
+    covered, radius = cusick_folds.silhouette(xy, tri, np.zeros(2), 0.2)
+    polygon = 0.5 * n * 0.01 * np.sin(2 * np.pi / n)
+    assert abs(covered - polygon) < 2 * np.pi * 0.1 * (0.4 / 1200), (covered, polygon)
+    assert np.all(radius <= 0.1) and np.all(radius > 0.1 * np.cos(np.pi / n) - 0.4 / 1200)
+
+
+def test_cusick_folds_matches_the_report(tmp_path):
+    """scripts/cusick_folds.py on a Cusick run (denim, 41^2, to 0.6 s): its last frame's
+    folds are the run's report's and its DC the report's to round-off (the same
+    raster, the same walk); the first frame is the flat specimen (DC 1, no fold);
+    a file without a Cusick pedestal and a missing file are one-line errors."""
+    import cusick_folds
+    h5 = drape("-options_file runs/cusick.opts -cloth_fabric denim -da_grid_x 41 -da_grid_y 41 -ts_max_time 0.6 -output_interval 0.2",
+               tmp_path / "c41.h5")
+    rows = cusick_folds.history(h5)
+    rep = drape_h5.load(h5, frames=False).attrs
+    assert [r[0] for r in rows] == [0, 1, 2, 3] and rows[0][2:4] == (0, 1.0), rows
+    assert rows[-1][2] == rep["drape_folds"] > 0 and abs(rows[-1][3] - rep["drape_coefficient"]) < 1e-12, (rows[-1], rep["drape_coefficient"])
+    res = script("cusick_folds.py", h5, "--every", "2")
+    assert res.returncode == 0 and f"DC {rep['drape_coefficient']:.4f}, {rep['drape_folds']} folds" in res.stdout, res.stdout + res.stderr
+    for bad, why in ((tmp_path / "none.h5", "no such file"), (drape(SPHERE, tmp_path / "s.h5"), "has no Cusick pedestal")):
+        res = script("cusick_folds.py", bad)
+        assert res.returncode == 2 and why in res.stderr and res.stderr.count("\n") == 1, res.stderr
