@@ -4,6 +4,7 @@ count settle? (not a test)
 
     cusick_folds.py out/cusick.h5               # every frame: t, folds, DC, largest strain
     cusick_folds.py out/cusick.h5 --every 10    # every 10th frame (and the last)
+    cusick_folds.py a.h5 b.h5 --label A --label B --plot folds.png   # several runs, and a plot
 
     import cusick_folds
     cusick_folds.history("out/cusick.h5")       # [(frame, t, folds, DC, strain), ...]
@@ -186,24 +187,63 @@ def number_option(run, name, default):
         raise Error(f"{run.path}: option -{name} is not a number: {value!r}") from None
 
 
+def plot(histories, path, t_max=None):
+    """Folds, DC and the largest edge strain against t, a line per run."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(3, 1, figsize=(7, 7.5), sharex=True)
+    for label, rows in histories:
+        t = [r[1] for r in rows]
+        axes[0].step(t, [r[2] for r in rows], where="post", label=label)
+        axes[1].plot(t, [r[3] for r in rows], label=label)
+        if all(r[4] is not None for r in rows):
+            axes[2].plot(t, [100 * r[4] for r in rows], label=label)
+    axes[0].set_ylabel("folds")
+    axes[1].set_ylabel("drape coefficient")
+    axes[2].set_ylabel("largest edge strain (%)")
+    axes[2].set_xlabel("t (s)")
+    if t_max:
+        axes[2].set_xlim(0, t_max)
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("h5", help="the run's frames (-output_file)")
+    ap.add_argument("h5", nargs="+", help="the runs' frames (-output_file), one or more")
     ap.add_argument("--every", type=int, default=1, help="every this many frames (and the last)")
+    ap.add_argument("--label", action="append", help="a run's name in the plot, once per file in order (default: the files')")
+    ap.add_argument("--plot", help="also draw folds, DC and the largest strain against t into this PNG")
+    ap.add_argument("--t-max", type=float, help="the plot up to this time (s)")
     a = ap.parse_args(argv)
-    try:
-        rows = history(a.h5, a.every)
-        run = drape_h5.load(a.h5, frames=False)
-    except Error as e:
-        print(f"{PROG}: error: {e}", file=sys.stderr)
+    labels = a.label or [os.path.basename(h) for h in a.h5]
+    if len(labels) != len(a.h5):
+        print(f"{PROG}: error: --label given {len(labels)} times for {len(a.h5)} files", file=sys.stderr)
         return 2
-    print(f"# {a.h5}: {run.active.shape[1]} x {run.active.shape[0]} particles")
-    print(f"# {'frame':>5s} {'t (s)':>8s} {'folds':>5s} {'DC':>7s} {'strain %':>8s}")
-    for k, t, folds, dc, strain in rows:
-        print(f"  {k:5d} {t:8.3f} {folds:5d} {dc:7.4f} {'-' if strain is None else f'{100 * strain:.2f}':>8s}")
-    rep_dc, rep_folds = run.attrs.get("drape_coefficient"), run.attrs.get("drape_folds")
-    if rep_dc is not None:
-        print(f"# the run's report (its last frame): DC {float(rep_dc):.4f}, {int(float(rep_folds))} folds")
+    histories = []
+    for h5, label in zip(a.h5, labels):
+        try:
+            rows = history(h5, a.every)
+            run = drape_h5.load(h5, frames=False)
+        except Error as e:
+            print(f"{PROG}: error: {e}", file=sys.stderr)
+            return 2
+        histories.append((label, rows))
+        print(f"# {h5}: {run.active.shape[1]} x {run.active.shape[0]} particles")
+        print(f"# {'frame':>5s} {'t (s)':>8s} {'folds':>5s} {'DC':>7s} {'strain %':>8s}")
+        for k, t, folds, dc, strain in rows:
+            print(f"  {k:5d} {t:8.3f} {folds:5d} {dc:7.4f} {'-' if strain is None else f'{100 * strain:.2f}':>8s}")
+        rep_dc, rep_folds = run.attrs.get("drape_coefficient"), run.attrs.get("drape_folds")
+        if rep_dc is not None:
+            print(f"# the run's report (its last frame): DC {float(rep_dc):.4f}, {int(float(rep_folds))} folds")
+    if a.plot:
+        plot(histories, a.plot, a.t_max)
+        print(f"wrote {a.plot}")
     return 0
 
 

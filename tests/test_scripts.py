@@ -350,8 +350,9 @@ def test_cusick_folds_counts_a_known_outline():
 def test_cusick_folds_matches_the_report(tmp_path):
     """scripts/cusick_folds.py on a Cusick run (denim, 41^2, to 0.6 s): its last frame's
     folds are the run's report's and its DC the report's to round-off (the same
-    raster, the same walk); the first frame is the flat specimen (DC 1, no fold);
-    a file without a Cusick pedestal and a missing file are one-line errors."""
+    raster, the same walk); the first frame is the flat specimen (DC 1, no fold); the
+    plot is written; a file without a Cusick pedestal, a missing file and labels that
+    do not match the files are one-line errors."""
     import cusick_folds
     h5 = drape("-options_file runs/cusick.opts -cloth_fabric denim -da_grid_x 41 -da_grid_y 41 -ts_max_time 0.6 -output_interval 0.2",
                tmp_path / "c41.h5")
@@ -359,8 +360,11 @@ def test_cusick_folds_matches_the_report(tmp_path):
     rep = drape_h5.load(h5, frames=False).attrs
     assert [r[0] for r in rows] == [0, 1, 2, 3] and rows[0][2:4] == (0, 1.0), rows
     assert rows[-1][2] == rep["drape_folds"] > 0 and abs(rows[-1][3] - rep["drape_coefficient"]) < 1e-12, (rows[-1], rep["drape_coefficient"])
-    res = script("cusick_folds.py", h5, "--every", "2")
+    res = script("cusick_folds.py", h5, "--every", "2", "--plot", tmp_path / "f.png")
     assert res.returncode == 0 and f"DC {rep['drape_coefficient']:.4f}, {rep['drape_folds']} folds" in res.stdout, res.stdout + res.stderr
+    assert (tmp_path / "f.png").stat().st_size > 1000
+    res = script("cusick_folds.py", h5, h5, "--label", "one")
+    assert res.returncode == 2 and "--label given 1 times for 2 files" in res.stderr, res.stderr
     for bad, why in ((tmp_path / "none.h5", "no such file"), (drape(SPHERE, tmp_path / "s.h5"), "has no Cusick pedestal")):
         res = script("cusick_folds.py", bad)
         assert res.returncode == 2 and why in res.stderr and res.stderr.count("\n") == 1, res.stderr
