@@ -51,7 +51,7 @@ def triangles(active):
     cell = active[:-1, :-1] & active[:-1, 1:] & active[1:, 1:] & active[1:, :-1]
     j, i = np.nonzero(cell)
     q = np.stack([j * mx + i, j * mx + i + 1, (j + 1) * mx + i + 1, (j + 1) * mx + i], axis=1)
-    return np.concatenate([q[:, [0, 1, 2]], q[:, [0, 2, 3]]]).reshape(2, -1, 3).transpose(1, 0, 2).reshape(-1, 3)
+    return np.concatenate([q[:, [0, 1, 2]], q[:, [0, 2, 3]]])  # (their order: the raster is their union)
 
 
 def silhouette(xy, tri, centre, extent, npixels=PIXELS, bins=BINS):
@@ -124,17 +124,6 @@ def count_folds(radius, prominence):
             elif v - valley >= prominence:
                 rising, peak = True, v
     return folds
-
-
-def number_option(run, name, default):
-    """The numbers of an option of the run (comma-separated), or default."""
-    value = run.option(name)
-    if value is None:
-        return default
-    try:
-        return [float(v) for v in str(value).split(",")]
-    except ValueError:
-        fail(f"{run.path}: option -{name} is not a number: {value!r}")
 
 
 class Error(Exception):
