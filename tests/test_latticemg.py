@@ -11,6 +11,14 @@ import drape_h5
 HANG = "-cloth_fabric denim -cloth_size 0.3 -cloth_pin edge_corners -ts_type drapebe -ts_dt 1e-2 -ts_max_steps 30 -output_interval 1"
 
 
+def switch_of(args):
+    """A run's report, and the mean of block IC's iterations its note on the switch to
+    the multigrid gives (None: no switch)."""
+    res = run(args, checks=False)
+    note = res.stdout.split("CG with block IC took ")
+    return res.report, float(note[1].split()[0]) if len(note) > 1 else None
+
+
 def test_iterations_do_not_grow_with_the_lattice():
     """Denim, 30 cm, hanging from two corners at 1e-2 s (a stiff step): on 33^2 and
     65^2 (four times the particles) CG with the lattice multigrid takes at most 1.5
@@ -45,12 +53,28 @@ def test_a_large_lattice_takes_the_multigrid_sooner():
     small = run(f"{HANG} -da_grid_x 121 -da_grid_y 121 -ts_dt 2.5e-3 -ts_max_steps 12 -drape_solve_error 0", checks=False).report
     assert small["pc_switched_step"] == -1 and 20 < small["cg_per_step"] < 40, small
     large = f"{HANG} -da_grid_x 201 -da_grid_y 201 -ts_dt 1.5e-3 -ts_max_steps 12 -drape_solve_error 0"
-    res = run(large, checks=False)
-    assert res.report["pc_switched_step"] == 9 and res.report["pc_type"] == "latticemg", res.report
-    mean = float(res.stdout.split("CG with block IC took ")[1].split()[0])
-    assert 20 < mean < 40, res.stdout
-    held = run(f"{large} -drape_mg_its 40", checks=False).report
+    rep, mean = switch_of(large)
+    assert rep["pc_switched_step"] == 9 and rep["pc_type"] == "latticemg" and 20 < mean < 40, (rep, mean)
+    held, _ = switch_of(f"{large} -drape_mg_its 40")
     assert held["pc_switched_step"] == -1 and held["pc_type"] == "blockicc", held
+
+
+def test_at_the_steps_accuracy_a_large_lattice_switches_at_8():
+    """Where CG stops at the step's own accuracy (-drape_solve_error, the default)
+    block IC takes 2-3 x fewer iterations than at -ksp_rtol alone, and on a lattice
+    of 40 000 particles or more the threshold is 8 instead of 20. The 201^2 hang of
+    the test above, at drape's defaults: block IC's first solves take more than
+    twice 8 (measured 21.5 a solve) and the run goes on with the multigrid at step
+    2; with the threshold of 20 it keeps block IC, at 8-20 iterations a step
+    (measured 8.42), where the multigrid pays on a long run; below 40 000 particles
+    (121^2, 11.4 a step) the threshold stays 40."""
+    large = f"{HANG} -da_grid_x 201 -da_grid_y 201 -ts_dt 1.5e-3 -ts_max_steps 12"
+    rep, mean = switch_of(large)
+    assert rep["pc_switched_step"] == 2 and rep["pc_type"] == "latticemg" and 16 < mean < 40, (rep, mean)
+    held, _ = switch_of(f"{large} -drape_mg_its 20")
+    assert held["pc_switched_step"] == -1 and held["pc_type"] == "blockicc" and 8 < held["cg_per_step"] < 20, held
+    small, _ = switch_of(f"{HANG} -da_grid_x 121 -da_grid_y 121 -ts_dt 2.5e-3 -ts_max_steps 12")
+    assert small["pc_switched_step"] == -1 and 8 < small["cg_per_step"] < 20, small
 
 
 def test_solves_the_step_a_direct_solve_does(tmp):

@@ -435,6 +435,17 @@ static PetscErrorCode BEUseLatticeMG(TS ts, TS_DrapeBE *be, const char *why)
  * (3.8), at 321^2 (23.5 against 5.2) slower (BENCHMARKS.md, "The lattice multigrid on
  * two ranks"). Collective (the iterations are every rank's). */
 #define BE_MG_ITS_LARGE 20
+/* The same threshold on one rank where CG stops at the step's own accuracy
+ * (-drape_solve_error, the default; the thresholds above were measured at -ksp_rtol
+ * alone; on several ranks, not measured so, 20 stays): block IC
+ * then takes 2-3 x fewer iterations a solve (the hang at 121^2 and 2.5 ms: 11.7
+ * against 31), the multigrid 2-2.5 a solve, and on a large lattice the multigrid
+ * pays from about 8: the Cusick scene (denim) at 321^2 and 0.5 ms to rest, block IC
+ * at 12.1 a solve until step 2218 against the multigrid from step 2, 1124 against
+ * 953 CPU s (8 folds each, DC 0.5589 and 0.5565); at 161^2 and 1 ms (below
+ * BE_MG_LARGE) block IC at 8.6 a solve 135 against 129 s, at 81^2 at 8.7, 21.8
+ * against 25.7 (BENCHMARKS.md, "Block IC or the multigrid, at the step's accuracy"). */
+#define BE_MG_ITS_LARGE_STEP 8
 static PetscErrorCode BEWatchIterations(TS ts, TS_DrapeBE *be)
 {
   PetscMPIInt size;
@@ -446,7 +457,7 @@ static PetscErrorCode BEWatchIterations(TS ts, TS_DrapeBE *be)
   PetscCallMPI(MPI_Comm_size(PetscObjectComm((PetscObject) ts), &size));
   if (!be->pc_auto || be->pc_amg || mg || size > BE_MG_RANKS) PetscFunctionReturn(0);
   be->its_mean = be->its_solves ? 0.8 * be->its_mean + 0.2 * be->lits : be->lits;
-  limit        = be->mg_its >= 0 ? be->mg_its : (be->nparticles >= BE_MG_LARGE ? BE_MG_ITS_LARGE : BE_MG_ITS);
+  limit        = be->mg_its >= 0 ? be->mg_its : (be->nparticles >= BE_MG_LARGE ? (be->solve_error > 0 && size == 1 ? BE_MG_ITS_LARGE_STEP : BE_MG_ITS_LARGE) : BE_MG_ITS);
   be->its_solves++;
   if (limit > 0 && ((be->its_solves >= 10 && be->its_mean > limit) || (be->its_solves >= 3 && be->its_mean > 2 * limit))) {
     char why[128];
