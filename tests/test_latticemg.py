@@ -65,14 +65,15 @@ def test_at_the_steps_accuracy_a_large_lattice_switches_at_8():
     of 40 000 particles or more the threshold is 8 instead of 20. The 201^2 hang of
     the test above, at drape's defaults: block IC's first solves take more than
     twice 8 (measured 21.5 a solve) and the run goes on with the multigrid at step
-    2; with the threshold of 20 it keeps block IC, at 8-20 iterations a step
+    2; with the threshold of 20 it keeps block IC, under 20 iterations a step
     (measured 8.42), where the multigrid pays on a long run; below 40 000 particles
-    (121^2, 11.4 a step) the threshold stays 40."""
+    (121^2, 11.4 a step) the threshold stays 40 (at 8 this run would switch, at step
+    9)."""
     large = f"{HANG} -da_grid_x 201 -da_grid_y 201 -ts_dt 1.5e-3 -ts_max_steps 12"
     rep, mean = switch_of(large)
     assert rep["pc_switched_step"] == 2 and rep["pc_type"] == "latticemg" and 16 < mean < 40, (rep, mean)
     held, _ = switch_of(f"{large} -drape_mg_its 20")
-    assert held["pc_switched_step"] == -1 and held["pc_type"] == "blockicc" and 8 < held["cg_per_step"] < 20, held
+    assert held["pc_switched_step"] == -1 and held["pc_type"] == "blockicc" and 6 < held["cg_per_step"] < 20, held
     small, _ = switch_of(f"{HANG} -da_grid_x 121 -da_grid_y 121 -ts_dt 2.5e-3 -ts_max_steps 12")
     assert small["pc_switched_step"] == -1 and 8 < small["cg_per_step"] < 20, small
 
