@@ -446,6 +446,16 @@ static PetscErrorCode BEUseLatticeMG(TS ts, TS_DrapeBE *be, const char *why)
  * BE_MG_LARGE) block IC at 8.6 a solve 135 against 129 s, at 81^2 at 8.7, 21.8
  * against 25.7 (BENCHMARKS.md, "Block IC or the multigrid, at the step's accuracy"). */
 #define BE_MG_ITS_LARGE_STEP 8
+
+/* BEWatchIterations' threshold: -drape_mg_its if given, else by the lattice's size,
+ * where CG stops and the ranks (above) */
+static PetscReal BEMGThreshold(const TS_DrapeBE *be, PetscMPIInt size)
+{
+  if (be->mg_its >= 0) return be->mg_its;
+  if (be->nparticles < BE_MG_LARGE) return BE_MG_ITS;
+  return be->solve_error > 0 && size == 1 ? BE_MG_ITS_LARGE_STEP : BE_MG_ITS_LARGE;
+}
+
 static PetscErrorCode BEWatchIterations(TS ts, TS_DrapeBE *be)
 {
   PetscMPIInt size;
@@ -457,7 +467,7 @@ static PetscErrorCode BEWatchIterations(TS ts, TS_DrapeBE *be)
   PetscCallMPI(MPI_Comm_size(PetscObjectComm((PetscObject) ts), &size));
   if (!be->pc_auto || be->pc_amg || mg || size > BE_MG_RANKS) PetscFunctionReturn(0);
   be->its_mean = be->its_solves ? 0.8 * be->its_mean + 0.2 * be->lits : be->lits;
-  limit        = be->mg_its >= 0 ? be->mg_its : (be->nparticles >= BE_MG_LARGE ? (be->solve_error > 0 && size == 1 ? BE_MG_ITS_LARGE_STEP : BE_MG_ITS_LARGE) : BE_MG_ITS);
+  limit        = BEMGThreshold(be, size);
   be->its_solves++;
   if (limit > 0 && ((be->its_solves >= 10 && be->its_mean > limit) || (be->its_solves >= 3 && be->its_mean > 2 * limit))) {
     char why[128];
