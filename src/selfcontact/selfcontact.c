@@ -543,6 +543,7 @@ PetscErrorCode SelfContactDestroy(SelfContact *self)
   PetscCall(SetFreeList(&sc->local));
   PetscCall(PetscFree(sc->local.xr));
   PetscCall(PetscFree(sc->local.dr));
+  PetscCall(PetscFree(sc->local.dm));
   PetscCall(PetscSFDestroy(&sc->sf));
   if (sc->unit3 != MPI_DATATYPE_NULL) PetscCallMPI(MPI_Type_free(&sc->unit3));
   if (sc->unit9 != MPI_DATATYPE_NULL) PetscCallMPI(MPI_Type_free(&sc->unit9));
@@ -906,25 +907,113 @@ static PetscErrorCode NearMake(SelfContact sc, SelfSet *s)
   PetscFunctionReturn(0);
 }
 
+/* The mean c of the displacements dr (6 each) of each of the n primitives' particles
+ * (stride each, prim), and the largest distance of one of them from it at x0, at x1
+ * and over the step: 9 each (c at x0, c at x1, the three distances). */
+static void PrimitiveMotion(PetscInt n, PetscInt stride, const PetscInt *prim, const PetscReal *dr, PetscReal *dm)
+{
+  for (PetscInt e = 0; e < n; e++) {
+    const PetscInt *P = prim + stride * e;
+    PetscReal      *m = dm + 9 * e, q[3] = {0, 0, 0};
+    for (PetscInt d = 0; d < 6; d++) {
+      PetscReal c = 0;
+      for (PetscInt i = 0; i < stride; i++) c += dr[6 * P[i] + d];
+      m[d] = c * (stride == 3 ? 1.0 / 3 : 0.5); /* (any point serves: r is measured from it) */
+    }
+    for (PetscInt i = 0; i < stride; i++) {
+      const PetscReal *a  = dr + 6 * P[i];
+      PetscReal        r0 = 0, r1 = 0, rD = 0;
+      for (PetscInt d = 0; d < 3; d++) {
+        const PetscReal e0 = a[d] - m[d], e1 = a[3 + d] - m[3 + d];
+        r0 += e0 * e0, r1 += e1 * e1, rD += (e1 - e0) * (e1 - e0);
+      }
+      q[0] = PetscMax(q[0], r0), q[1] = PetscMax(q[1], r1), q[2] = PetscMax(q[2], rD);
+    }
+    for (PetscInt d = 0; d < 3; d++) m[6 + d] = PetscSqrtReal(q[d]);
+  }
+}
+
+/* NearLive's test of the n candidates from of one kind (0 point-triangle, 1
+ * edge-edge) with distances dc at xr: those kept go to `to`, in order; returns
+ * how many. */
+static inline PetscInt LiveOf(const SelfSet *s, PetscInt kind, PetscReal reach, PetscBool gap_at_end, PetscInt n, const PetscInt *restrict from, const PetscReal *restrict dc, PetscInt *restrict to)
+{
+  const PetscReal *restrict dr = s->dr, *restrict dm = s->dm, *restrict tm = dm + 9 * s->mesh.nt, none[3] = {0, 0, 0};
+  const PetscInt *restrict vert = s->mesh.vert;
+  PetscInt nkept                = 0;
+
+  for (PetscInt k = 0; k < n; k++) {
+    /* with rounding's slack, R = (1 - 1e-9) dc - reach: left out if (1 + 1e-9)
+     * max(M0, M1) < R and, with the gap, (1 + 1e-9) (M0 + MD) < R, compared in
+     * squares with (x + y)^2 <= 2 (x^2 + y^2) (R (1 - 2e-9) below R / (1 + 1e-9));
+     * else if max(m0, m1) < L, half of R / (1 + 1e-9), and m0 + mD < L */
+    const PetscReal R = (1 - 1e-9) * dc[k] - reach;
+    if (R > 0) { /* (a NaN distance is kept) */
+      const PetscReal *a = kind ? tm + 9 * from[2 * k] : dr + 6 * vert[from[2 * k]];
+      const PetscReal *b = kind ? tm + 9 * from[2 * k + 1] : dm + 9 * from[2 * k + 1], *ra = kind ? a + 6 : none, *rb = b + 6;
+      const PetscReal  Rs = R * (1 - 2e-9), R0 = Rs - ra[0] - rb[0], R1 = Rs - ra[1] - rb[1], RD = R0 - ra[2] - rb[2];
+      PetscReal        s0 = 0, s1 = 0, sD = 0;
+      for (PetscInt d = 0; d < 3; d++) {
+        const PetscReal e0 = a[d] - b[d], e1 = a[3 + d] - b[3 + d];
+        s0 += e0 * e0, s1 += e1 * e1, sD += (e1 - e0) * (e1 - e0);
+      }
+      if (R0 > 0 && R1 > 0 && s0 < R0 * R0 && s1 < R1 * R1 && (!gap_at_end || (RD > 0 && 2 * (s0 + sD) < RD * RD))) continue;
+      {
+        const PetscReal L = R / (2 * (1 + 1e-9)), L2 = L * L;
+        PetscInt        p[4];
+        PetscReal       q0 = 0, q1 = 0, qD = 0;
+        PairParticles(s, kind, k, p);
+        for (PetscInt i = 1; i < 4; i++) {
+          const PetscReal *u = dr + 6 * p[i], *w = dr + 6 * p[0];
+          PetscReal        r0 = 0, r1 = 0, rD = 0;
+          for (PetscInt d = 0; d < 3; d++) {
+            const PetscReal e0 = u[d] - w[d], e1 = u[3 + d] - w[3 + d];
+            r0 += e0 * e0, r1 += e1 * e1, rD += (e1 - e0) * (e1 - e0);
+          }
+          q0 = PetscMax(q0, r0), q1 = PetscMax(q1, r1), qD = PetscMax(qD, rD);
+        }
+        if (q0 < L2 && q1 < L2 && (!gap_at_end || 2 * (q0 + qD) < L2)) continue;
+      }
+    }
+    to[2 * nkept] = from[2 * k], to[2 * nkept + 1] = from[2 * k + 1];
+    nkept++;
+  }
+  return nkept;
+}
+
 /* The live list: the candidates that their distance at xr (dc) and the motion
  * since then do not keep beyond reach, in the candidates' order. Where the near
  * list cannot hold (NearHolds: a bound on every particle's displacement, less one
  * translation for the whole cloth), most candidates still can be left out by their
- * own bound, with the translation of one of their particles: the Cusick scene's
- * skirt swings about a pedestal that holds a third of the cloth, and the diagonal
- * neighbours of a cell (2.83 thicknesses apart at rest) are most of the list. With
- * d_i = x_i - xr_i, a primitive's points convex combinations of its particles', and
- * m = max_i |d_i - d_0| over the pair's particles, the pair's distance is at least
- * dc - 2 m; along the step (d interpolated) at least dc - 2 max(m at x0, m at x1);
- * and the implicit solve's gap at the end of the free motion (weights w_i summing
- * to 0, |w| to 2; SolveReachable) at least the distance at x0 less 2 max_i |D_i - D_0|,
- * D = x1 - x0. A pair left out is one no pass acts on: the same pairs act, in the same
- * order. *nlive: the candidates in the list; *fresh: every d_i at x0 is 0 (the
- * distances are those of x0). */
-static void NearLive(SelfSet *s, PetscReal reach, PetscBool gap_at_end, PetscInt *nlive, PetscBool *fresh)
+ * own bound: the Cusick scene's skirt swings about a pedestal that holds a third of
+ * the cloth, and the diagonal neighbours of a cell (2.83 thicknesses apart at rest)
+ * are most of the list. With d_i = x_i - xr_i and a primitive's points convex
+ * combinations of its particles', two bounds on how far the motion moved a pair's
+ * points apart, each enough to leave it out:
+ * - each primitive's mean displacement c and the largest distance r of one of its
+ *   particles' from it (PrimitiveMotion): a point of it moved within r of c, so the
+ *   pair's distance is at least dc - M, M = |c_A - c_B| + r_A + r_B;
+ * - m = max_i |d_i - d_0| over the pair's particles: at least dc - 2 m.
+ * The first costs two primitives' records a candidate instead of four particles'
+ * and leaves out most of what the second would; the second is taken where the
+ * first does not. Along the step (d interpolated) the distance is at least that
+ * bound at x0 or at x1, whichever less; and the implicit solve's gap at the end of
+ * the free motion (weights w_i summing to 0, |w| to 2; SolveReachable) at least the
+ * distance at x0 less the bound on sum_i w_i D_i, D = x1 - x0: M_D (the first) or
+ * 2 max_i |D_i - D_0|. A pair left out is one no pass acts on: the same pairs act,
+ * in the same order. *nlive: the candidates in the list; *fresh: every d_i at x0
+ * is 0 (the distances are those of x0). */
+static PetscErrorCode NearLive(SelfSet *s, PetscReal reach, PetscBool gap_at_end, PetscInt *nlive, PetscBool *fresh)
 {
-  PetscReal *dr = s->dr, zero = 0;
+  PetscReal *dr = s->dr, zero = 0, *dm;
 
+  PetscFunctionBeginUser;
+  if (s->ndm < 9 * (s->mesh.nt + s->mesh.ne)) {
+    PetscCall(PetscFree(s->dm));
+    s->ndm = 9 * (s->mesh.nt + s->mesh.ne);
+    PetscCall(PetscMalloc1(s->ndm + 1, &s->dm));
+  }
+  dm = s->dm;
   for (PetscInt k = 0; k < s->n; k++)
     for (PetscInt d = 0; d < 3; d++) {
       dr[6 * k + d]     = s->x0[3 * k + d] - s->xr[3 * k + d];
@@ -932,36 +1021,13 @@ static void NearLive(SelfSet *s, PetscReal reach, PetscBool gap_at_end, PetscInt
       zero              = PetscMax(zero, PetscAbsReal(dr[6 * k + d]));
     }
   *fresh = (PetscBool) (zero == 0);
-  s->pt = s->cpt, s->ee = s->cee, s->nlpt = s->nlee = 0; /* (PairParticles) */
-  for (PetscInt kind = 0; kind < 2; kind++) {
-    const PetscInt  *from = kind ? s->cee : s->cpt;
-    const PetscReal *dc   = s->dc + (kind ? s->ncpt : 0);
-    PetscInt        *to = kind ? s->lee_ : s->lpt_, *n = kind ? &s->nlee : &s->nlpt;
-    for (PetscInt k = 0; k < (kind ? s->ncee : s->ncpt); k++) {
-      /* left out if max(m0, m1), and with the gap m0 + mD, is below L, half of
-       * (1 - 1e-9) dc - reach (with rounding's slack); compared in squares, with
-       * (m0 + mD)^2 <= 2 (m0^2 + mD^2) */
-      const PetscReal L = ((1 - 1e-9) * dc[k] - reach) / (2 * (1 + 1e-9)), L2 = L * L;
-      PetscInt        p[4];
-      PetscReal       q0 = 0, q1 = 0, qD = 0;
-      if (L > 0) { /* (a NaN distance is kept) */
-        PairParticles(s, kind, k, p);
-        for (PetscInt i = 1; i < 4; i++) {
-          const PetscReal *a = dr + 6 * p[i], *b = dr + 6 * p[0];
-          PetscReal        r0 = 0, r1 = 0, rD = 0;
-          for (PetscInt d = 0; d < 3; d++) {
-            const PetscReal e0 = a[d] - b[d], e1 = a[3 + d] - b[3 + d];
-            r0 += e0 * e0, r1 += e1 * e1, rD += (e1 - e0) * (e1 - e0);
-          }
-          q0 = PetscMax(q0, r0), q1 = PetscMax(q1, r1), qD = PetscMax(qD, rD);
-        }
-        if (q0 < L2 && q1 < L2 && (!gap_at_end || 2 * (q0 + qD) < L2)) continue;
-      }
-      to[2 * *n] = from[2 * k], to[2 * *n + 1] = from[2 * k + 1];
-      (*n)++;
-    }
-  }
-  *nlive = s->nlpt + s->nlee;
+  PrimitiveMotion(s->mesh.nt, 3, s->mesh.tri, dr, dm);
+  PrimitiveMotion(s->mesh.ne, 2, s->mesh.edge, dr, dm + 9 * s->mesh.nt);
+  s->pt = s->cpt, s->ee = s->cee; /* (PairParticles) */
+  s->nlpt = LiveOf(s, 0, reach, gap_at_end, s->ncpt, s->cpt, s->dc, s->lpt_);
+  s->nlee = LiveOf(s, 1, reach, gap_at_end, s->ncee, s->cee, s->dc + s->ncpt, s->lee_);
+  *nlive  = s->nlpt + s->nlee;
+  PetscFunctionReturn(0);
 }
 
 /* The pairs the passes take: the near list if it holds them (made again at x0 if
@@ -989,7 +1055,7 @@ static PetscErrorCode NearSelect(SelfContact sc, SelfSet *s, PetscReal reach, Pe
         PetscInt  nlive = 0;
         PetscBool fresh = PETSC_TRUE, remake = (PetscBool) !s->has_near;
         if (s->has_near) {
-          NearLive(s, reach, gap_at_end, &nlive, &fresh);
+          PetscCall(NearLive(s, reach, gap_at_end, &nlive, &fresh));
           remake = (PetscBool) (!fresh && 4 * nlive > s->ncpt + s->ncee);
         }
         /* made again on every rank if on one: every rank's xr the same positions,
@@ -999,7 +1065,7 @@ static PetscErrorCode NearSelect(SelfContact sc, SelfSet *s, PetscReal reach, Pe
         if (remake) {
           PetscCall(NearMake(sc, s));
           sc->stats.near_lists++;
-          NearLive(s, reach, gap_at_end, &nlive, &fresh);
+          PetscCall(NearLive(s, reach, gap_at_end, &nlive, &fresh));
         }
         live = PETSC_TRUE;
         sc->stats.live_lists++;

@@ -53,6 +53,8 @@ typedef struct {
   PetscReal *dc;                       /* has_near: every candidate's distance at xr (point-triangle, then edge-edge) */
   PetscInt   nlpt, nlee, *lpt_, *lee_; /* the live list: the candidates that distance and the motion since xr leave within reach (NearLive) */
   PetscReal *dr;                       /* work: x0 - xr and x1 - xr, 6 each (nxr / 3 particles) */
+  PetscReal *dm;                       /* work: each triangle's, then edge's, mean of dr and its particles' largest distance from it (NearLive), 9 each */
+  PetscInt   ndm;                      /* entries dm holds */
   PetscInt   npt, nee, *pt, *ee;       /* the pairs the passes take: the near list, or every candidate */
 } SelfSet;
 
