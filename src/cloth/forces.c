@@ -487,6 +487,41 @@ static inline PetscBool ExtraHeld(Cloth c, PetscBool sym, PetscInt e) { return B
  * holds more than twice the present blocks and 1024: then it starts again from them
  * (*kept false). The union is sorted (row, column); the present blocks are sorted
  * and merged into it. */
+/* The n keys in [0, bound) sorted ascending, by their digits of RADIX_BITS from the
+ * lowest (a stable counting sort each): the same order as PetscSortInt64's, in a few
+ * passes over the keys. The present blocks of the drapebe sphere drop at 64^2 are
+ * 17 000 to 47 000 keys (16 a pair, most of them repeats) at nearly every step, and
+ * PetscSortInt64's quicksort took 1.7 % of the run. */
+#define RADIX_BITS 11
+static PetscErrorCode SortKeysRadix(PetscInt n, PetscInt64 bound, PetscInt64 *key)
+{
+  PetscInt64 *tmp, *from = key, *to;
+  PetscInt   *count;
+
+  PetscFunctionBeginUser;
+  PetscCall(PetscMalloc1(n + 1, &tmp));
+  PetscCall(PetscMalloc1((1 << RADIX_BITS) + 1, &count));
+  to = tmp;
+  for (PetscInt shift = 0; shift < 63 && (bound - 1) >> shift; shift += RADIX_BITS) {
+    const PetscInt64 mask = (1 << RADIX_BITS) - 1;
+    PetscInt         sum  = 0;
+    PetscCall(PetscArrayzero(count, 1 << RADIX_BITS));
+    for (PetscInt i = 0; i < n; i++) count[(from[i] >> shift) & mask]++;
+    for (PetscInt d = 0; d < 1 << RADIX_BITS; d++) {
+      const PetscInt c = count[d];
+      count[d]         = sum;
+      sum += c;
+    }
+    for (PetscInt i = 0; i < n; i++) to[count[(from[i] >> shift) & mask]++] = from[i];
+    to   = from;
+    from = from == key ? tmp : key;
+  }
+  if (from != key) PetscCall(PetscArraycpy(key, from, n));
+  PetscCall(PetscFree(count));
+  PetscCall(PetscFree(tmp));
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode PatternMerge(Cloth c, PetscBool *kept)
 {
   const PetscInt64 N = (PetscInt64) c->Mx * c->My;
@@ -498,7 +533,7 @@ static PetscErrorCode PatternMerge(Cloth c, PetscBool *kept)
   *kept = (PetscBool) (n == c->px_n);
   PetscCall(PetscMalloc1(c->ex_n + 1, &key));
   for (PetscInt e = 0; e < c->ex_n; e++) key[e] = (PetscInt64) c->ex_row[e] * N + c->ex_col[e];
-  PetscCall(PetscSortInt64(c->ex_n, key));
+  PetscCall(SortKeysRadix(c->ex_n, N * N, key));
   PetscCall(PetscMalloc2(n + c->ex_n + 1, &row, n + c->ex_n + 1, &col));
   while (i < n || j < c->ex_n) {
     const PetscInt64 a = i < n ? (PetscInt64) c->px_row[i] * N + c->px_col[i] : N * N;
