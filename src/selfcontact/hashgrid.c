@@ -316,7 +316,9 @@ typedef struct {
   PetscInt  n;     /* tiles with a primitive of the kind             */
   PetscInt *start; /* primitives of tile k: item[start[k] .. start[k + 1]), ascending */
   PetscInt *item;
-  SelfBox  *box; /* each tile's box                                 */
+  SelfBox  *box;  /* each tile's box                                 */
+  SelfBox  *ibox; /* the primitives' boxes in the order of item      */
+  PetscInt *ip;   /* and their particles, stride each                */
 } TileSet;
 
 /* The tiles of the n primitives (stride particles each, the first at prim[stride e])
@@ -359,6 +361,11 @@ static PetscErrorCode TileSetCreate(PetscInt n, const PetscInt *prim, PetscInt s
     T->item[count[k]++] = e;
     for (PetscInt d = 0; d < 3; d++) B->lo[d] = PetscMin(B->lo[d], b[e].lo[d]), B->hi[d] = PetscMax(B->hi[d], b[e].hi[d]);
   }
+  PetscCall(PetscMalloc2(n + 1, &T->ibox, stride * n + 1, &T->ip)); /* (the pairs' tests then read each tile's primitives in order) */
+  for (PetscInt j = 0; j < n; j++) {
+    T->ibox[j] = b[T->item[j]];
+    for (PetscInt d = 0; d < stride; d++) T->ip[stride * j + d] = prim[stride * T->item[j] + d];
+  }
   PetscCall(PetscFree(fill));
   PetscCall(PetscFree(count));
   PetscCall(PetscFree(of));
@@ -368,6 +375,7 @@ static PetscErrorCode TileSetCreate(PetscInt n, const PetscInt *prim, PetscInt s
 static PetscErrorCode TileSetDestroy(TileSet *T)
 {
   PetscFunctionBeginUser;
+  PetscCall(PetscFree2(T->ibox, T->ip));
   PetscCall(PetscFree3(T->start, T->item, T->box));
   PetscFunctionReturn(0);
 }
@@ -415,24 +423,25 @@ PetscErrorCode SelfBroadPhaseTiles(const SelfMesh *m, const PetscInt *nat, Petsc
   /* vertex - triangle */
   FOR_TILE_PAIRS(
     &V, &T, PETSC_FALSE, a, b, for (PetscInt i = V.start[a]; i < V.start[a + 1]; i++) {
-      const PetscInt v = V.item[i], p = m->vert[v];
-      if (!Overlap(&vb[v], &T.box[b])) continue;
+      const PetscInt v = V.item[i], p = V.ip[i];
+      const SelfBox *B = &V.ibox[i];
+      if (!Overlap(B, &T.box[b])) continue;
       for (PetscInt j = T.start[b]; j < T.start[b + 1]; j++) {
-        const PetscInt  t = T.item[j];
-        const PetscInt *P = m->tri + 3 * t;
-        if (p == P[0] || p == P[1] || p == P[2] || !Overlap(&vb[v], &tb[t])) continue;
-        PetscCall(FoundPush(&F, v, t));
+        const PetscInt *P = T.ip + 3 * j;
+        if (p == P[0] || p == P[1] || p == P[2] || !Overlap(B, &T.ibox[j])) continue;
+        PetscCall(FoundPush(&F, v, T.item[j]));
       }
     });
   PetscCall(FoundStore(&F, m->nv, npt, pt));
   /* edge - edge */
   FOR_TILE_PAIRS(
     &E, &E, PETSC_TRUE, a, b, for (PetscInt i = E.start[a]; i < E.start[a + 1]; i++) {
-      const PetscInt e = E.item[i], *A = m->edge + 2 * e;
-      if (!Overlap(&eb[e], &E.box[b])) continue;
+      const PetscInt e = E.item[i], *A = E.ip + 2 * i;
+      const SelfBox *Ab = &E.ibox[i];
+      if (!Overlap(Ab, &E.box[b])) continue;
       for (PetscInt j = (a == b ? i + 1 : E.start[b]); j < E.start[b + 1]; j++) {
-        const PetscInt f = E.item[j], *B = m->edge + 2 * f;
-        if (A[0] == B[0] || A[0] == B[1] || A[1] == B[0] || A[1] == B[1] || !Overlap(&eb[e], &eb[f])) continue;
+        const PetscInt f = E.item[j], *B = E.ip + 2 * j;
+        if (A[0] == B[0] || A[0] == B[1] || A[1] == B[0] || A[1] == B[1] || !Overlap(Ab, &E.ibox[j])) continue;
         PetscCall(FoundPush(&F, PetscMin(e, f), PetscMax(e, f)));
       }
     });
