@@ -479,14 +479,6 @@ static inline PetscBool BlockHeld(Cloth c, PetscBool sym, PetscInt row, PetscInt
 
 static inline PetscBool ExtraHeld(Cloth c, PetscBool sym, PetscInt e) { return BlockHeld(c, sym, c->ex_row[e], c->ex_col[e]); }
 
-/* The extra blocks the next pattern holds: those of every earlier pattern and the
- * present ones (sorted, no repeats). The self-contact pairs of a step come and go
- * from step to step; a pattern of the present ones only was remade at 590 of the
- * sphere scene's 750 steps (a new matrix, row buffer, COO map and ICC symbolic
- * factorisation each time). Blocks of pairs gone stay as zeros, until the union
- * holds more than twice the present blocks and 1024: then it starts again from them
- * (*kept false). The union is sorted (row, column); the present blocks are sorted
- * and merged into it. */
 /* The n keys in [0, bound) sorted ascending, by their digits of RADIX_BITS from the
  * lowest (a stable counting sort each): the same order as PetscSortInt64's, in a few
  * passes over the keys. The present blocks of the drapebe sphere drop at 64^2 are
@@ -522,6 +514,14 @@ static PetscErrorCode SortKeysRadix(PetscInt n, PetscInt64 bound, PetscInt64 *ke
   PetscFunctionReturn(0);
 }
 
+/* The extra blocks the next pattern holds: those of every earlier pattern and the
+ * present ones (sorted, no repeats). The self-contact pairs of a step come and go
+ * from step to step; a pattern of the present ones only was remade at 590 of the
+ * sphere scene's 750 steps (a new matrix, row buffer, COO map and ICC symbolic
+ * factorisation each time). Blocks of pairs gone stay as zeros, until the union
+ * holds more than twice the present blocks and 1024: then it starts again from them
+ * (*kept false). The union is sorted (row, column); the present blocks are sorted
+ * and merged into it. */
 static PetscErrorCode PatternMerge(Cloth c, PetscBool *kept)
 {
   const PetscInt64 N = (PetscInt64) c->Mx * c->My;

@@ -91,12 +91,11 @@ static inline unsigned long long CellKey(const SelfGrid *g, const PetscInt64 c[3
   return key;
 }
 
-/* (the six comparisons without a branch between them: a box test's outcome is
- * hard to predict, and a misprediction costs more than the comparisons) */
 static inline PetscBool Overlap(const SelfBox *a, const SelfBox *b)
 {
-  const int apart = (a->lo[0] > b->hi[0]) | (b->lo[0] > a->hi[0]) | (a->lo[1] > b->hi[1]) | (b->lo[1] > a->hi[1]) | (a->lo[2] > b->hi[2]) | (b->lo[2] > a->hi[2]);
-  return (PetscBool) !apart;
+  for (PetscInt d = 0; d < 3; d++)
+    if (a->lo[d] > b->hi[d] || b->lo[d] > a->hi[d]) return PETSC_FALSE;
+  return PETSC_TRUE;
 }
 
 /* Is (i, j, k) the cell of the lower corner of the intersection of a and b? */

@@ -912,13 +912,15 @@ static PetscErrorCode NearMake(SelfContact sc, SelfSet *s)
  * and over the step: 9 each (c at x0, c at x1, the three distances). */
 static void PrimitiveMotion(PetscInt n, PetscInt stride, const PetscInt *prim, const PetscReal *dr, PetscReal *dm)
 {
+  const PetscReal w = 1.0 / stride; /* (any point serves as c: r is measured from it) */
+
   for (PetscInt e = 0; e < n; e++) {
     const PetscInt *P = prim + stride * e;
     PetscReal      *m = dm + 9 * e, q[3] = {0, 0, 0};
     for (PetscInt d = 0; d < 6; d++) {
       PetscReal c = 0;
       for (PetscInt i = 0; i < stride; i++) c += dr[6 * P[i] + d];
-      m[d] = c * (stride == 3 ? 1.0 / 3 : 0.5); /* (any point serves: r is measured from it) */
+      m[d] = c * w;
     }
     for (PetscInt i = 0; i < stride; i++) {
       const PetscReal *a  = dr + 6 * P[i];
