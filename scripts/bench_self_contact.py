@@ -24,13 +24,14 @@ largest halo and the pairs gathered across ranks.
     .venv/bin/python scripts/bench_self_contact.py --ranks 1,2 --sizes 61,81 --time 0.3
 
 With --scenes it times instead what self-contact adds to a step on the scenes of
-issue 27 (the Cusick drape of denim at 81^2 in backward Euler, the peers' stiff
-sphere drop at 64^2 in symplectic Euler at 0.1 ms), in CPU seconds: without it,
-with it, and with it taking every candidate in every pass
-(-contact_self_near_radius 0: no near list), the three runs interleaved in each
-repeat.
+issue 27 (--scene-list: the Cusick drape of denim at 81^2 and 161^2 in backward
+Euler over its swing, the sphere drop at 64^2 in backward Euler at 10 ms to 1 s,
+the peers' stiff sphere drop at 64^2 in symplectic Euler at 0.1 ms to 0.3 s and to
+1 s), in CPU seconds: without it, with it, and with it taking every candidate in
+every pass (-contact_self_near_radius 0: no near list), the three runs interleaved
+in each repeat; the ratio a run and a step.
 
-    .venv/bin/python scripts/bench_self_contact.py --scenes --repeat 3
+    .venv/bin/python scripts/bench_self_contact.py --scenes --repeat 3   # about 30 minutes here
 """
 import argparse
 import re
@@ -89,22 +90,40 @@ def ranks(a, sizes, counts):
                     "pairs gathered", "close pairs at the end"], rows))
 
 
+STIFF = ["-cloth_size", "1", "-cloth_stretch", "1333", "-cloth_shear", "500", "-cloth_bend", "1e-5", "-cloth_density", "0.1", "-cloth_damping", "0",
+         "-solid_type", "sphere", "-solid_radius", "0.25", "-contact_mode", "friction", "-contact_thickness", "0.005", "-cloth_center", "0,0,0.3",
+         "-ts_type", "basicsymplectic", "-ts_dt", "1e-4"]
+CUSICK = ["-options_file", "runs/cusick.opts", "-cloth_fabric", "denim", "-drape_rest_tol", "0"]
+# key: (label, options, lattice, simulated s); the issue's scenes: the Cusick drape at 81^2
+# and 161^2 (its swing), the sphere drop of its floor (drapebe, 10 ms, to 1 s), and the
+# peers' stiff drop in symplectic Euler over its fall and landing (0.3 s) and its folding
+# on the sphere (to 1 s)
 SCENES = {
-    "Cusick denim, drapebe 1 ms": (["-options_file", "runs/cusick.opts", "-cloth_fabric", "denim", "-drape_rest_tol", "0"], 81, 1.5),
-    "stiff sphere drop, symplectic 0.1 ms": (["-cloth_size", "1", "-cloth_stretch", "1333", "-cloth_shear", "500",
-                                                   "-cloth_bend", "1e-5", "-cloth_density", "0.1", "-cloth_damping", "0", "-solid_type", "sphere",
-                                                   "-solid_radius", "0.25", "-contact_mode", "friction", "-contact_thickness", "0.005",
-                                                   "-cloth_center", "0,0,0.3", "-ts_type", "basicsymplectic", "-ts_dt", "1e-4"], 64, 0.3),
+    "cusick81": ("Cusick denim, drapebe 1 ms", CUSICK, 81, 1.5),
+    "cusick161": ("Cusick denim, drapebe 1 ms", CUSICK, 161, 1.5),
+    "sphere": ("sphere drop, drapebe 10 ms", ["-options_file", "runs/sphere.opts", "-ts_dt", "1e-2"], 64, 1.0),
+    "stiff": ("stiff sphere drop, symplectic 0.1 ms", STIFF, 64, 0.3),
+    "stiff1": ("stiff sphere drop, symplectic 0.1 ms", STIFF, 64, 1.0),
 }
+QUICK_SCENES = {"cusick81": 0.05, "sphere": 0.3, "stiff": 0.05}  # --quick: one of each at 21^2, simulated s
 VARIANTS = (("without", ["-contact_self", "0"]), ("with", ["-contact_self"]), ("every candidate", ["-contact_self", "-contact_self_near_radius", "0"]))
 
 
 def scenes(a):
-    """The --scenes table: CPU seconds without self-contact, with it, and with it on every candidate."""
+    """The --scenes table: CPU seconds without self-contact, with it, and with it on every
+    candidate; the ratio a run and a step (a run without self-contact may take other
+    steps: the drapebe drop's folds pass through each other, and steps that added
+    energy are cut)."""
     drape = Drape(PROG, a.build)
+    keys = [k for k in a.scene_list.split(",") if k]
+    if not keys or any(k not in SCENES for k in keys):
+        fail(PROG, f"--scene-list takes {', '.join(SCENES)}, comma-separated; got {a.scene_list!r}")
+    if a.quick:
+        keys = [k for k in keys if k in QUICK_SCENES]
     rows = []
-    for name, (args, n, t) in SCENES.items():
-        n, t = (21, a.time) if a.quick else (n, t)
+    for key in keys:
+        name, args, n, t = SCENES[key]
+        n, t = (21, QUICK_SCENES[key]) if a.quick else (n, t)
         lattice = ["-da_grid_x", str(n), "-da_grid_y", str(n)]
         cpu, reps = {v: [] for v, _ in VARIANTS}, {}
         for _ in range(a.repeat):
@@ -116,13 +135,14 @@ def scenes(a):
                 reps[v] = r.report
         off = median(cpu["without"])
         rep = reps["with"]
+        per_step = (median(cpu["with"]) / rep["steps"]) / (off / reps["without"]["steps"])
         rows.append([name, f"{n}^2", f"{t:g}", str(rep["steps"]), f"{off:.2f}", f"{median(cpu['with']):.2f}", f"{median(cpu['with']) / off:.2f}",
                      f"{median(cpu['every candidate']):.2f}", f"{median(cpu['every candidate']) / off:.2f}",
-                     f"{rep['self_broad_phases']}", f"{rep['self_near_lists']}", f"{rep['self_live_lists']}"])
+                     f"{rep['self_broad_phases']}", f"{rep['self_near_lists']}", f"{rep['self_live_lists']}", str(reps["without"]["steps"]), f"{per_step:.2f}"])
     print(f"# {machine()}")
     print(f"# CPU seconds (all ranks), one rank, medians of {a.repeat} interleaved repeats")
     print(md_table(["scene", "lattice", "simulated s", "steps", "without", "with", "ratio", "every candidate", "ratio",
-                    "candidate lists", "near lists", "passes on the live list"], rows))
+                    "candidate lists", "near lists", "passes on the live list", "steps without", "ratio a step"], rows))
 
 
 def main():
@@ -134,6 +154,7 @@ def main():
     ap.add_argument("--build", default="build")
     ap.add_argument("--ranks", help="time the filter on these numbers of ranks instead (comma-separated; the pile scene)")
     ap.add_argument("--scenes", action="store_true", help="time self-contact's share of a step on the scenes of issue 27 instead")
+    ap.add_argument("--scene-list", default=",".join(SCENES), help="with --scenes: which, comma-separated (" + ", ".join(SCENES) + ")")
     ap.add_argument("--quick", action="store_true", help="one 21^2 run of 0.4 s each way (a smoke test)")
     a = ap.parse_args()
     if a.quick:

@@ -434,6 +434,7 @@ def test_bench_self_contact_quick(tmp):
     p = subprocess.run([sys.executable, "scripts/bench_self_contact.py", "--scenes", "--quick"], cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stdout + p.stderr
     rows = [[c.strip() for c in l.strip().strip("|").split("|")] for l in p.stdout.splitlines() if "| 21^2 |" in l]
-    assert [r[0].split(",")[0] for r in rows] == ["Cusick denim", "stiff sphere drop"], p.stdout
+    assert [r[0].split(",")[0] for r in rows] == ["Cusick denim", "sphere drop", "stiff sphere drop"], p.stdout
     for cells in rows:
         assert int(cells[3]) > 0 and all(float(c) > 0 for c in cells[4:9]) and int(cells[9]) >= 1 and int(cells[10]) >= 1, cells
+        assert int(cells[12]) > 0 and abs(float(cells[13]) - float(cells[6]) * int(cells[12]) / int(cells[3])) <= 0.02, cells
