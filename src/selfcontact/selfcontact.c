@@ -229,7 +229,7 @@ static PetscErrorCode SetFreeList(SelfSet *s)
   PetscCall(PetscFree(s->cee));
   PetscCall(PetscFree(s->npt_));
   PetscCall(PetscFree(s->nee_));
-  PetscCall(PetscFree3(s->dc, s->lpt_, s->lee_));
+  PetscCall(PetscFree4(s->dc, s->ndc, s->lpt_, s->lee_));
   s->ncpt = s->ncee = s->nnpt = s->nnee = s->npt = s->nee = s->nlpt = s->nlee = 0;
   s->pt = s->ee = NULL;
   s->listed = s->has_near = PETSC_FALSE;
@@ -889,17 +889,18 @@ static PetscErrorCode NearMake(SelfContact sc, SelfSet *s)
     PetscCall(PetscFree(s->nee_));
     PetscCall(PetscMalloc1(2 * s->ncpt + 1, &s->npt_));
     PetscCall(PetscMalloc1(2 * s->ncee + 1, &s->nee_));
-    PetscCall(PetscMalloc3(s->ncpt + s->ncee + 1, &s->dc, 2 * s->ncpt + 1, &s->lpt_, 2 * s->ncee + 1, &s->lee_));
+    PetscCall(PetscMalloc4(s->ncpt + s->ncee + 1, &s->dc, s->ncpt + s->ncee + 1, &s->ndc, 2 * s->ncpt + 1, &s->lpt_, 2 * s->ncee + 1, &s->lee_));
   }
   s->pt = s->cpt, s->ee = s->cee, s->nnpt = s->nnee = 0;
   for (PetscInt kind = 0; kind < 2; kind++) {
     const PetscInt *from = kind ? s->cee : s->cpt;
     PetscInt       *to = kind ? s->nee_ : s->npt_, *n = kind ? &s->nnee : &s->nnpt;
-    PetscReal      *dc = s->dc + (kind ? s->ncpt : 0);
+    PetscReal      *dc = s->dc + (kind ? s->ncpt : 0), *ndc = s->ndc + (kind ? s->ncpt : 0);
     SelfNearDistances(s, kind, kind ? s->ncee : s->ncpt, s->xr, dc);
     for (PetscInt k = 0; k < (kind ? s->ncee : s->ncpt); k++) {
       if (dc[k] >= R) continue; /* (a NaN distance is kept) */
       to[2 * *n] = from[2 * k], to[2 * *n + 1] = from[2 * k + 1];
+      ndc[*n] = dc[k];
       (*n)++;
     }
   }
@@ -1032,10 +1033,39 @@ static PetscErrorCode NearLive(SelfSet *s, PetscReal reach, PetscBool gap_at_end
   PetscFunctionReturn(0);
 }
 
-/* The pairs the passes take: the near list if it holds them (made again at x0 if
- * it no longer does and a list made there would), else the live list (NearLive;
- * the distances made again at x0 when more than a quarter of the candidates are
- * live). */
+/* The near list's pairs that the motion since xr may have brought within reach, in
+ * the list's order, to the live list's arrays: pair k is left out where NearHolds'
+ * test holds for its own distance at xr (ndc) in place of the list's radius, delta
+ * bounding every particle's displacement since xr less one translation (and the
+ * step's less another): its distance at x0, at x1 and along the step (and its gap
+ * at the end) stay beyond reach, so no pass acts on it and the implicit solve takes
+ * no penalty of it (SolvePairMake). The same pairs act, in the same order. A list
+ * made at x0 has delta (0, D, D), D the step's (delta[2], which does not depend on
+ * xr). */
+static void NearWithin(SelfSet *s, const PetscReal delta[3], PetscReal reach, PetscBool gap_at_end)
+{
+  for (PetscInt kind = 0; kind < 2; kind++) {
+    const PetscInt *restrict from = kind ? s->nee_ : s->npt_;
+    const PetscReal *restrict dc  = s->ndc + (kind ? s->ncpt : 0);
+    PetscInt *restrict to         = kind ? s->lee_ : s->lpt_;
+    const PetscInt n              = kind ? s->nnee : s->nnpt;
+    PetscInt       m              = 0;
+    for (PetscInt k = 0; k < n; k++) {
+      if (SelfNearHolds(dc[k], delta, reach, gap_at_end)) continue; /* (a NaN distance is kept) */
+      to[2 * m] = from[2 * k], to[2 * m + 1] = from[2 * k + 1];
+      m++;
+    }
+    if (kind)
+      s->nlee = m;
+    else
+      s->nlpt = m;
+  }
+}
+
+/* The pairs the passes take: those of the near list within reach (NearWithin) if
+ * the list holds them (made again at x0 if it no longer does and a list made there
+ * would), else the live list (NearLive; the distances made again at x0 when more
+ * than a quarter of the candidates are live). */
 static PetscErrorCode NearSelect(SelfContact sc, SelfSet *s, PetscReal reach, PetscBool gap_at_end, const PetscReal motion[18])
 {
   PetscReal delta[3];
@@ -1053,6 +1083,7 @@ static PetscErrorCode NearSelect(SelfContact sc, SelfSet *s, PetscReal reach, Pe
       if ((use = NearHolds(sc, delta, reach, gap_at_end))) {
         PetscCall(NearMake(sc, s));
         sc->stats.near_lists++;
+        delta[0] = 0, delta[1] = delta[2]; /* (at the new xr) */
       } else {
         PetscInt  nlive = 0;
         PetscBool fresh = PETSC_TRUE, remake = (PetscBool) !s->has_near;
@@ -1074,9 +1105,8 @@ static PetscErrorCode NearSelect(SelfContact sc, SelfSet *s, PetscReal reach, Pe
       }
     }
   }
-  if (use)
-    s->pt = s->npt_, s->npt = s->nnpt, s->ee = s->nee_, s->nee = s->nnee;
-  else if (live)
+  if (use) NearWithin(s, delta, reach, gap_at_end);
+  if (use || live)
     s->pt = s->lpt_, s->npt = s->nlpt, s->ee = s->lee_, s->nee = s->nlee;
   else
     s->pt = s->cpt, s->npt = s->ncpt, s->ee = s->cee, s->nee = s->ncee;

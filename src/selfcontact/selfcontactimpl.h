@@ -51,7 +51,8 @@ typedef struct {
   PetscInt   nxr;                      /* entries xr holds */
   PetscBool  listed, has_near;         /* a candidate list exists; a near list is made from it */
   PetscReal *dc;                       /* has_near: every candidate's distance at xr (point-triangle, then edge-edge) */
-  PetscInt   nlpt, nlee, *lpt_, *lee_; /* the live list: the candidates that distance and the motion since xr leave within reach (NearLive) */
+  PetscReal *ndc;                      /* has_near: the near list's distances at xr (point-triangle from 0, edge-edge from ncpt) */
+  PetscInt   nlpt, nlee, *lpt_, *lee_; /* the live list: the candidates (or the near list's pairs) that distance and the motion since xr leave within reach (NearLive, NearWithin) */
   PetscReal *dr;                       /* work: x0 - xr and x1 - xr, 6 each (nxr / 3 particles) */
   PetscReal *dm;                       /* work: each triangle's, then edge's, mean of dr and its particles' largest distance from it (NearLive), 9 each */
   PetscInt   ndm;                      /* entries dm holds */
