@@ -311,7 +311,9 @@ def test_near_list_acts_on_the_same_pairs(tmp):
     together (proximity, collision impulses and impact zones), with near lists made
     and taken, and on the fold the live lists too (the motion too fast for a near
     list: each candidate by its own distance and its particles' motion). A pair
-    the near list or the live list wrongly left out would change the frames."""
+    the near list or the live list wrongly left out would change the frames. Of the
+    near lists' pairs the passes take only those the motion since the list was made
+    may have brought within reach (NearWithin): on the fold, not all."""
     start = hairpin(tmp, "start", "-gravity 0,0,0 -cloth_damping 0 -contact_self -ts_type basicsymplectic -ts_dt 3e-4 -output_interval 0.002", vz=(15.0, -30.0))
     cases = {"fold": f"{FOLD} -gravity 0,0,-100 -ts_type drapebe -ts_dt 2e-3 -ts_max_time 0.15 -contact_self",
              "hairpin": f"-restart {start} -ts_max_steps 100000 -ts_max_time 0.02"}
@@ -328,6 +330,10 @@ def test_near_list_acts_on_the_same_pairs(tmp):
         else:
             assert near["self_contact_pairs"] > 0 and near["self_collisions"] > 0 and near["self_failsafe"] > 0, near
         assert all(near[k] == every[k] for k in ("self_contact_pairs", "self_collisions", "self_failsafe", "self_solve_pairs_max", "self_broad_phases")), (near, every)
+        # (the hairpin's near pairs are its two layers', all within reach: 1 there)
+        assert 0 < near["self_near_within"] <= 1 and every["self_near_within"] == 0, (name, near["self_near_within"], every["self_near_within"])
+        if name == "fold":
+            assert near["self_near_within"] < 0.9, near["self_near_within"]
         assert frames[0].shape == frames[1].shape and np.array_equal(frames[0], frames[1]), np.abs(frames[0] - frames[1]).max()
 
 

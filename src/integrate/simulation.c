@@ -1222,6 +1222,7 @@ static PetscErrorCode SimulationViewSummary(Simulation s, PetscViewer viewer, Pe
     PetscCall(ReportSetInt(r, "self_broad_phases", st.broad_phases));
     PetscCall(ReportSetInt(r, "self_near_lists", st.near_lists));
     PetscCall(ReportSetInt(r, "self_live_lists", st.live_lists));
+    PetscCall(ReportSetReal(r, "self_near_within", st.near_pairs > 0 ? st.near_within / st.near_pairs : 0));
     PetscCall(ReportSetInt(r, "self_halo_max", st.halo));
     PetscCall(ReportSetInt(r, "self_gathered", st.gathered));
     PetscCall(ReportSetInt(r, "self_failsafe_steps", st.failsafe_steps));

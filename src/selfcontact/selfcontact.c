@@ -558,6 +558,11 @@ PetscErrorCode SelfContactGetStats(SelfContact sc, SelfContactStats *stats)
 {
   PetscFunctionBeginUser;
   *stats = sc->stats;
+  if (sc->size > 1) {
+    PetscReal sums[2] = {stats->near_pairs, stats->near_within};
+    PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, sums, 2, MPIU_REAL, MPI_SUM, sc->comm));
+    stats->near_pairs = sums[0], stats->near_within = sums[1];
+  }
   PetscFunctionReturn(0);
 }
 
@@ -1105,12 +1110,31 @@ static PetscErrorCode NearSelect(SelfContact sc, SelfSet *s, PetscReal reach, Pe
       }
     }
   }
-  if (use) NearWithin(s, delta, reach, gap_at_end);
+  s->near_taken = (PetscBool) (use && !gap_at_end);
+  if (use) {
+    NearWithin(s, delta, reach, gap_at_end);
+    sc->stats.near_pairs += (PetscReal) (s->nnpt + s->nnee);
+    sc->stats.near_within += (PetscReal) (s->nlpt + s->nlee);
+    for (PetscInt j = 0; j < 3; j++) s->near_delta[j] = delta[j];
+  }
   if (use || live)
     s->pt = s->lpt_, s->npt = s->nlpt, s->ee = s->lee_, s->nee = s->nlee;
   else
     s->pt = s->cpt, s->npt = s->ncpt, s->ee = s->cee, s->nee = s->ncee;
   PetscFunctionReturn(0);
+}
+
+/* The pairs a collision pass takes, once SelfListUpdate chose them for a thickness's
+ * reach (without the gap): of a near list's, only those the same bound leaves within
+ * the collision test's tolerance (Collides: no pair further apart than that along the
+ * step collides); of a live list or every candidate, all. */
+static void SelfListColliding(SelfContact sc)
+{
+  SelfSet *s = &sc->local;
+
+  if (!s->near_taken) return;
+  NearWithin(s, s->near_delta, SELF_CCD_TOL * sc->thickness, PETSC_FALSE);
+  s->pt = s->lpt_, s->npt = s->nlpt, s->ee = s->lee_, s->nee = s->nlee;
 }
 
 /* The local set's list, rebuilt (with the halo) when a particle of any rank moved
@@ -1670,6 +1694,7 @@ static PetscErrorCode FailSafeZones(SelfContact sc, PetscReal h, PetscInt *count
     PetscBool *pinned, merged = PETSC_FALSE;
 
     PetscCall(SelfListUpdate(sc, sc->thickness, PETSC_FALSE));
+    SelfListColliding(sc);
     for (PetscInt kind = 0; kind < 2; kind++)
       for (PetscInt k = 0; k < (kind ? s->nee : s->npt); k++) {
         Pair      pr;
@@ -1777,6 +1802,7 @@ static PetscErrorCode FailSafeFreeze(SelfContact sc, PetscInt *count)
   do {
     PetscInt mine = 0;
     PetscCall(SelfListUpdate(sc, sc->thickness, PETSC_FALSE));
+    SelfListColliding(sc);
     for (PetscInt kind = 0; kind < 2; kind++)
       for (PetscInt k = 0; k < (kind ? s->nee : s->npt); k++) {
         Pair      pr;
@@ -1817,6 +1843,7 @@ PetscErrorCode SelfContactFilter(SelfContact sc, PetscReal h, PetscScalar *x, Pe
   if (close) PetscCall(SelfHaloUpdate(sc, NULL, s->x1, s->v)); /* close: pairs that acted, on any rank */
   for (PetscInt it = 0; it < sc->its && active; it++) {
     if (it > 0 || close) PetscCall(SelfListUpdate(sc, sc->thickness, PETSC_FALSE)); /* (else nothing moved since the last) */
+    SelfListColliding(sc);
     PetscCall(Pass(sc, PETSC_FALSE, h, &active, &ncol));
     if (ncol) PetscCall(SelfHaloUpdate(sc, NULL, s->x1, s->v));
     sc->stats.collisions += ncol;
