@@ -70,7 +70,7 @@ PetscErrorCode SelfContactCreate(MPI_Comm comm, Cloth cloth, SelfContact *self)
   sc->cloth         = cloth;
   sc->mu            = 0.3;
   sc->its           = 8;
-  sc->margin        = 1;
+  sc->margin        = 0.5;
   sc->near          = SELF_NEAR_RADIUS;
   sc->broad         = SELF_BROAD_TILES;
   sc->zones         = PETSC_TRUE;
@@ -89,8 +89,7 @@ PetscErrorCode SelfContactSetFromOptions(SelfContact sc)
   PetscCall(PetscOptionsBool("-contact_self", "The cloth does not pass through itself (proximity impulses, continuous collisions, fail-safe)", "SelfContactSetFromOptions", sc->enabled, &sc->enabled, NULL));
   PetscCall(PetscOptionsReal("-contact_self_thickness", "Distance the cloth keeps from itself (m; 0: a quarter of the lattice spacing)", "SelfContactSetFromOptions", sc->thickness, &sc->thickness, NULL));
   PetscCall(PetscOptionsReal("-contact_self_friction", "Coulomb friction coefficient between layers of the cloth", "SelfContactSetFromOptions", sc->mu, &sc->mu, NULL));
-  PetscCall(PetscOptionsReal("-contact_self_margin", "Candidate pairs are kept while no particle moved more than this many thicknesses beyond its sweep when they were found (default: 1; 0.5 with -ts_type drapebe)", "SelfContactSetFromOptions",
-                             sc->margin, &sc->margin, &sc->margin_set));
+  PetscCall(PetscOptionsReal("-contact_self_margin", "Candidate pairs are kept while no particle moved more than this many thicknesses beyond its sweep when they were found", "SelfContactSetFromOptions", sc->margin, &sc->margin, NULL));
   PetscCall(PetscOptionsReal("-contact_self_near_radius", "The passes take the candidates closer than this many thicknesses while no particle moved far enough to bring another within reach (0: every candidate, every pass)",
                              "SelfContactSetFromOptions", sc->near, &sc->near, NULL));
   {
@@ -126,18 +125,19 @@ PetscErrorCode SelfContactSetFromOptions(SelfContact sc)
   PetscCall(DrapeCheckInt(sc->comm, "-contact_self_its", sc->its, 0, 1000));
   PetscFunctionReturn(0);
 }
-/* An implicit step scans its candidate list at every solve and every filter, and
- * moves each particle further than an explicit one: a shorter list pays for more
- * broad phases there. The Cusick scene at 161^2 (denim, drapebe, to rest), margin
- * one thickness against a half, side by side: self-contact 31.2 against 22.7 s of
- * the first second (-log_view), 227 against 338 broad phases; a quarter took 24.1 s.
- * The symplectic sphere drop at 64^2 (0.1 ms steps) keeps one thickness: a half
- * cost it 2 % (BENCHMARKS.md). */
+/* The list's margin is half a thickness in every scheme. An implicit step scans its
+ * candidate list at every solve and every filter: the Cusick scene at 161^2 (denim,
+ * drapebe, to rest), margin one thickness against a half, side by side:
+ * self-contact 31.2 against 22.7 s of the first second (-log_view), 227 against 338
+ * broad phases; a quarter took 24.1 s. An explicit step's passes take only the near
+ * list's pairs within reach (NearWithin), so there too a shorter candidate list (its
+ * near lists made from fewer candidates) pays for more broad phases: the stiff
+ * symplectic sphere drop at 64^2 to 1 s, 7.4 CPU s at one thickness, 6.6 at a half,
+ * 6.8 at three quarters, 7.7 at a quarter (BENCHMARKS.md). */
 PetscErrorCode SelfContactSetImplicit(SelfContact sc, PetscBool implicit)
 {
   PetscFunctionBeginUser;
   sc->implicit = implicit;
-  if (!sc->margin_set) sc->margin = implicit ? 0.5 : 1;
   PetscFunctionReturn(0);
 }
 

@@ -114,11 +114,10 @@ struct _p_SelfContact {
   PetscBool        enabled;
   PetscReal        thickness, mu;
   PetscInt         its;
-  PetscReal        margin;     /* of the Verlet list, in thicknesses */
-  PetscBool        margin_set; /* -contact_self_margin given */
-  PetscReal        near;       /* radius of the near list, in thicknesses (0: none) */
-  PetscInt         broad;      /* broad phase: SELF_BROAD_CGAL, _HASH, _TILES */
-  PetscBool        zones;      /* fail-safe by rigid impact zones (else stop the particles) */
+  PetscReal        margin; /* of the Verlet list, in thicknesses */
+  PetscReal        near;   /* radius of the near list, in thicknesses (0: none) */
+  PetscInt         broad;  /* broad phase: SELF_BROAD_CGAL, _HASH, _TILES */
+  PetscBool        zones;  /* fail-safe by rigid impact zones (else stop the particles) */
   PetscInt         Mx, My, N, nowned;
   PetscInt         nt, ne;          /* the whole cloth's triangles and edges (counts) */
   PetscHMapI       local_of;        /* natural -> index in the local set (absent: -1) */
