@@ -91,11 +91,12 @@ static inline unsigned long long CellKey(const SelfGrid *g, const PetscInt64 c[3
   return key;
 }
 
+/* (without a branch: whether two boxes overlap is a coin's toss in the tiles' loops) */
 static inline PetscBool Overlap(const SelfBox *a, const SelfBox *b)
 {
-  for (PetscInt d = 0; d < 3; d++)
-    if (a->lo[d] > b->hi[d] || b->lo[d] > a->hi[d]) return PETSC_FALSE;
-  return PETSC_TRUE;
+  int apart = 0;
+  for (PetscInt d = 0; d < 3; d++) apart |= (a->lo[d] > b->hi[d]) | (b->lo[d] > a->hi[d]);
+  return (PetscBool) !apart;
 }
 
 /* Is (i, j, k) the cell of the lower corner of the intersection of a and b? */
