@@ -41,8 +41,8 @@ typedef struct {
   PetscInt  gathered;        /* pairs of contact groups across ranks, gathered on every rank, since the start */
   PetscInt  failsafe_steps;  /* steps in which the fail-safe ran */
   PetscInt  solve_pairs_max; /* the most pairs pressing in one implicit solve since the start (-contact_self_solve) */
-  PetscReal near_pairs;      /* the pairs of the near lists the passes took from, summed over the passes and the ranks */
-  PetscReal near_within;     /* of those, the pairs the passes took (the ones the motion may have brought within reach) */
+  PetscReal near_pairs;      /* the pairs of the near lists taken from (proximity passes, the implicit solve's search), summed over them and the ranks */
+  PetscReal near_within;     /* of those, the pairs taken (the ones the motion may have brought within reach) */
   PetscReal thickness;       /* m */
 } SelfContactStats;
 

@@ -1110,7 +1110,7 @@ static PetscErrorCode NearSelect(SelfContact sc, SelfSet *s, PetscReal reach, Pe
       }
     }
   }
-  s->near_taken = (PetscBool) (use && !gap_at_end);
+  s->near_taken = use;
   if (use) {
     NearWithin(s, delta, reach, gap_at_end);
     sc->stats.near_pairs += (PetscReal) (s->nnpt + s->nnee);
@@ -1124,8 +1124,8 @@ static PetscErrorCode NearSelect(SelfContact sc, SelfSet *s, PetscReal reach, Pe
   PetscFunctionReturn(0);
 }
 
-/* The pairs a collision pass takes, once SelfListUpdate chose them for a thickness's
- * reach (without the gap): of a near list's, only those the same bound leaves within
+/* The pairs a collision pass takes, once SelfListUpdate chose them: of a near list's,
+ * only those the same bound on the motion since xr leaves within
  * the collision test's tolerance (Collides: no pair further apart than that along the
  * step collides); of a live list or every candidate, all. */
 static void SelfListColliding(SelfContact sc)

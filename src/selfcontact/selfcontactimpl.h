@@ -53,7 +53,7 @@ typedef struct {
   PetscReal *dc;                       /* has_near: every candidate's distance at xr (point-triangle, then edge-edge) */
   PetscReal *ndc;                      /* has_near: the near list's distances at xr (point-triangle from 0, edge-edge from ncpt) */
   PetscInt   nlpt, nlee, *lpt_, *lee_; /* the live list: the candidates (or the near list's pairs) that distance and the motion since xr leave within reach (NearLive, NearWithin) */
-  PetscBool  near_taken;               /* the passes take the near list's pairs within reach (NearWithin), by ... */
+  PetscBool  near_taken;               /* the last list update took the near list's pairs within reach (NearWithin), by ... */
   PetscReal  near_delta[3];            /* ... this bound on the motion since xr (NearHolds') */
   PetscReal *dr;                       /* work: x0 - xr and x1 - xr, 6 each (nxr / 3 particles) */
   PetscReal *dm;                       /* work: each triangle's, then edge's, mean of dr and its particles' largest distance from it (NearLive), 9 each */
