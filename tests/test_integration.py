@@ -364,6 +364,31 @@ def test_tsadapt_chooses_the_backward_euler_step(tmp):
     assert err[1e-5] < err[1e-3] / 3, err
 
 
+def test_steps_rejected_for_their_error_say_so(tmp):
+    """A run whose steps TSAdapt rejects for their local error estimate more than
+    -ts_max_reject times in a row (no solve failed) stops with one sentence that says
+    so and what to loosen, not "reduce -ts_dt" (TSAdapt had cut the step already):
+    drapebe and rk with -ts_adapt_type basic (the hang at 16^2; -ts_max_reject 0 stops
+    at the first rejection, which both runs meet within their first steps). On the hang
+    at 64^2 (drapebe, 7 ms, -ts_atol 1e-5) this came near rest at t = 14.09 s after
+    eleven rejections: the estimate of a stiff mode that backward Euler damps in a step
+    does not fall with the step (BENCHMARKS.md)."""
+    base = "-options_file runs/hang.opts -da_grid_x 16 -da_grid_y 16 -output_interval 1 -ts_adapt_type basic -ts_rtol 0 -ts_max_reject 0"
+    for opts, tail in (("-ts_max_time 1 -ts_dt 7e-3 -ts_atol 1e-5", ", or let drape choose the step (-ts_adapt_type drape, drapebe's default)"),
+                       ("-ts_max_time 0.2 -ts_type rk -ts_rk_type 5dp -ts_dt 1e-3 -ts_atol 1e-9", "")):
+        bad = run(f"{base} {opts} -output_file {tmp / 'r.h5'}", check=False)
+        lines = [l for l in bad.stderr.splitlines() if l.strip()]
+        assert bad.returncode != 0 and len(lines) == 1, bad.stderr
+        assert ("TSAdapt rejected the step for its local error estimate more than -ts_max_reject (0) times in a row (DIVERGED_STEP_REJECTED). "
+                "Loosen -ts_atol and -ts_rtol, or allow more rejections with -ts_max_reject" + tail) in lines[0], lines[0]
+        assert lines[0].endswith(tail or "-ts_max_reject"), lines[0]
+        assert "Reduce -ts_dt" not in lines[0]
+    # with room for its rejections the same drapebe run goes on to its end
+    ok = run(f"-options_file runs/hang.opts -da_grid_x 16 -da_grid_y 16 -output_interval 1 -ts_adapt_type basic -ts_rtol 0 "
+             f"-ts_max_time 1 -ts_dt 7e-3 -ts_atol 1e-5 -output_file {tmp / 'ok.h5'}")
+    assert ok.report["steps_rejected_error"] >= 1 and ok.report["t"] == pytest.approx(1.0), ok.report
+
+
 def test_failed_step_is_retried_at_a_smaller_step(tmp):
     """A step whose solve fails (here: block Jacobi's ICC(0), asked for, loses
     definiteness at 320 x the symplectic limit) is rejected and retried at a quarter

@@ -1246,6 +1246,17 @@ static PetscErrorCode SimulationEndLoop(Simulation s)
   PetscCall(TSGetConvergedReason(s->ts, &reason));
   PetscCall(TSGetTime(s->ts, &t));
   PetscCall(TSDrapeBEGetStatistics(s->ts, NULL, NULL, &failure));
+  if (reason == TS_DIVERGED_STEP_REJECTED && !(failure && failure[0])) { /* rejected for its local error estimate, not for a failed solve: a smaller -ts_dt does not help */
+    TSAdapt   adapt;
+    PetscBool by_error, be;
+    PetscCall(TSGetAdapt(s->ts, &adapt));
+    PetscCall(PetscObjectTypeCompareAny((PetscObject) adapt, &by_error, TSADAPTBASIC, TSADAPTDSP, TSADAPTGLEE, TSADAPTHISTORY, ""));
+    PetscCall(PetscObjectTypeCompare((PetscObject) s->ts, TSDRAPEBE, &be));
+    PetscCheck(!by_error, s->comm, PETSC_ERR_NOT_CONVERGED,
+               "The run stopped at t = %g s: TSAdapt rejected the step for its local error estimate more than -ts_max_reject (%" PetscInt_FMT
+               ") times in a row (DIVERGED_STEP_REJECTED). Loosen -ts_atol and -ts_rtol, or allow more rejections with -ts_max_reject%s",
+               (double) t, s->ts->max_reject, be ? ", or let drape choose the step (-ts_adapt_type drape, drapebe's default)" : "");
+  }
   PetscCheck(reason >= 0, s->comm, PETSC_ERR_NOT_CONVERGED, "The run stopped at t = %g s: %s%s (%s). Reduce -ts_dt, or allow more retries at smaller steps with -ts_max_reject and -ts_max_snes_failures", (double) t,
              failure && failure[0] ? failure : "a step failed", failure && failure[0] ? ", and so did its retries at smaller steps" : "", TSConvergedReasons[reason]);
   PetscCall(TSGetStepNumber(s->ts, &steps));
