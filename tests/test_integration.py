@@ -373,7 +373,8 @@ def test_steps_rejected_for_their_error_say_so(tmp):
     at 64^2 (drapebe, 7 ms, -ts_atol 1e-5) this came near rest at t = 14.09 s after
     eleven rejections: the estimate of a stiff mode that backward Euler damps in a step
     does not fall with the step (BENCHMARKS.md)."""
-    base = "-options_file runs/hang.opts -da_grid_x 16 -da_grid_y 16 -output_interval 1 -ts_adapt_type basic -ts_rtol 0 -ts_max_reject 0"
+    common = "-options_file runs/hang.opts -da_grid_x 16 -da_grid_y 16 -output_interval 1 -ts_adapt_type basic -ts_rtol 0"
+    base = f"{common} -ts_max_reject 0"
     for opts, tail in (("-ts_max_time 1 -ts_dt 7e-3 -ts_atol 1e-5", ", or let drape choose the step (-ts_adapt_type drape, drapebe's default)"),
                        ("-ts_max_time 0.2 -ts_type rk -ts_rk_type 5dp -ts_dt 1e-3 -ts_atol 1e-9", "")):
         bad = run(f"{base} {opts} -output_file {tmp / 'r.h5'}", check=False)
@@ -384,8 +385,7 @@ def test_steps_rejected_for_their_error_say_so(tmp):
         assert lines[0].endswith(tail or "-ts_max_reject"), lines[0]
         assert "Reduce -ts_dt" not in lines[0]
     # with room for its rejections the same drapebe run goes on to its end
-    ok = run(f"-options_file runs/hang.opts -da_grid_x 16 -da_grid_y 16 -output_interval 1 -ts_adapt_type basic -ts_rtol 0 "
-             f"-ts_max_time 1 -ts_dt 7e-3 -ts_atol 1e-5 -output_file {tmp / 'ok.h5'}")
+    ok = run(f"{common} -ts_max_time 1 -ts_dt 7e-3 -ts_atol 1e-5 -output_file {tmp / 'ok.h5'}")
     assert ok.report["steps_rejected_error"] >= 1 and ok.report["t"] == pytest.approx(1.0), ok.report
 
 

@@ -1250,7 +1250,7 @@ static PetscErrorCode SimulationEndLoop(Simulation s)
     TSAdapt   adapt;
     PetscBool by_error, be;
     PetscCall(TSGetAdapt(s->ts, &adapt));
-    PetscCall(PetscObjectTypeCompareAny((PetscObject) adapt, &by_error, TSADAPTBASIC, TSADAPTDSP, TSADAPTGLEE, TSADAPTHISTORY, ""));
+    PetscCall(PetscObjectTypeCompareAny((PetscObject) adapt, &by_error, TSADAPTBASIC, TSADAPTDSP, TSADAPTGLEE, ""));
     PetscCall(PetscObjectTypeCompare((PetscObject) s->ts, TSDRAPEBE, &be));
     PetscCheck(!by_error, s->comm, PETSC_ERR_NOT_CONVERGED,
                "The run stopped at t = %g s: TSAdapt rejected the step for its local error estimate more than -ts_max_reject (%" PetscInt_FMT
