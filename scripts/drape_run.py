@@ -97,9 +97,27 @@ class Result:
         return f"  {self.cmd}\n{self.stdout[-n:]}{self.stderr[-n:]}"
 
 
+# Open MPI's own start failing before drape runs: a one-process run forks a daemon
+# (orted) in MPI_Init, and on a loaded machine that fork has been seen to fail, once in
+# a test suite's 1500 starts ("ompi_rte_init failed", "Unable to start a daemon on the
+# local node"). Such a start is made again, up to LAUNCH_TRIES times.
+LAUNCH_FAILED = "Unable to start a daemon on the local node"
+LAUNCH_TRIES = 3
+
+
 def run(exe, args, np_=1, timeout=None):
     """Run drape `exe` with `args` on np_ ranks (from the repository's root); a run
-    longer than `timeout` s is killed. Returns a Result (its peak RSS: drape's own, or os.wait4's)."""
+    longer than `timeout` s is killed. Returns a Result (its peak RSS: drape's own, or os.wait4's).
+    A start that Open MPI could not make (LAUNCH_FAILED, nothing printed by drape) is
+    made again."""
+    for _ in range(LAUNCH_TRIES):
+        res = _run_once(exe, args, np_, timeout)
+        if res.returncode == 0 or LAUNCH_FAILED not in res.stderr or "drape" in res.stdout:
+            break
+    return res
+
+
+def _run_once(exe, args, np_, timeout):
     cmd = (mpiexec(np_) if np_ > 1 else []) + [str(exe)] + [str(a) for a in args] + ["-drape_progress", "0", "-drape_json"]
     with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
         p = subprocess.Popen(cmd, stdout=out, stderr=err, text=True, cwd=ROOT)

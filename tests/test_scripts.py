@@ -368,3 +368,29 @@ def test_cusick_folds_matches_the_report(tmp_path):
     for bad, why in ((tmp_path / "none.h5", "no such file"), (drape(SPHERE, tmp_path / "s.h5"), "has no Cusick pedestal")):
         res = script("cusick_folds.py", bad)
         assert res.returncode == 2 and why in res.stderr and res.stderr.count("\n") == 1, res.stderr
+
+
+def test_a_failed_mpi_start_is_made_again_and_nothing_else(tmp_path):
+    """drape_run.run makes a start again that Open MPI could not make (its message, no
+    word from drape), and never a run that drape itself ended: a stand-in program
+    whose first F starts fail so, then prints and exits with the given status."""
+    import drape_run
+    starts = tmp_path / "starts"
+    fake = tmp_path / "fake"
+    fake.write_text(f"""#!/bin/sh
+echo x >> {starts}
+if [ "$(wc -l < {starts})" -le "$3" ]; then echo "--> Returned value {drape_run.LAUNCH_FAILED} (-127)" >&2; exit 1; fi
+echo "drape $1"; exit $2
+""")
+    fake.chmod(0o755)
+
+    def run(word, status, failed):
+        starts.write_text("")
+        res = drape_run.run(fake, [word, str(status), str(failed)])
+        return res.returncode, "drape " + word in res.stdout, len(starts.read_text().split())
+
+    assert run("ran", 0, 0) == (0, True, 1)
+    assert run("ran", 0, 1) == (0, True, 2)
+    assert run("failed", 1, 0) == (1, True, 1)  # drape's own failure is final
+    assert run("failed", 1, 1) == (1, True, 2)
+    assert run("never", 0, 9) == (1, False, drape_run.LAUNCH_TRIES)  # the last failure is returned
