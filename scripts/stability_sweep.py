@@ -515,9 +515,9 @@ def main(argv=None):
     try:
         with cf.ThreadPoolExecutor(max_workers=max(1, args.jobs)) as ex:
             futs = {(s, n, v): ex.submit(sweep_point, s, n, v, nsteps[s], args.tol) for s, n, v in plan}
-            # quick: Newton at 0.05 s on the stiff light fabric fails and is retried at smaller
-            # steps, whose growth back its failures throttle: 38005 steps and 134 s to t = 1 s
-            # (2026-12-02), most of the suite's sweep; 2000 steps stop it near t = 0.07 s
+            # quick: at most 2000 steps a backward-Euler run (t = 1 s takes 20 at 0.05 s): a
+            # solver whose failures keep cutting its step stops there, t_reached saying where
+            # (Newton with backtracking on |R|, before cp: 38005 steps and 134 s to t = 1 s)
             be_fut = None if args.no_beuler else ex.submit(backward_euler, be_steps, args.be_time, 0.1, 2000 if args.quick else None)
             results = {k: f.result() for k, f in futs.items()}
             be_rows, be_info = be_fut.result() if be_fut else (None, None)

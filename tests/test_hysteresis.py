@@ -89,6 +89,23 @@ def test_bending_friction_defaults_to_newton_and_the_options_override_it():
     assert run(base).report["snes_type"] == "ksponly"
 
 
+def test_newton_with_friction_takes_its_steps_without_a_failed_solve():
+    """Denim's Cusick drape with the median friction (BENCHMARKS.md, "Bending
+    hysteresis"), 31^2, its first 40 steps of 1 ms: Newton's default line search (cp,
+    for a residual that is the gradient of the step's potential and an SPD matrix that
+    is not its Jacobian) takes every step at once, and block IC stays. Backtracking on
+    |R| (bt, PETSc's default, chosen here by -snes_linesearch_type) fails near
+    convergence: steps retried at a quarter. Those failures, after linear solves that
+    converged, are not the preconditioner's, and block IC stays (they were taken for
+    its, and it gave way to the multigrids)."""
+    base = ("-options_file runs/cusick.opts -cloth_fabric denim -cloth_bend_hysteresis 2.363e-3,1.565e-3 "
+            "-da_grid_x 31 -da_grid_y 31 -ts_max_steps 40 -output_interval 0")
+    rep = run(base).report
+    assert rep["steps"] == 40 and rep["steps_retried"] == 0 and rep["pc_switched_step"] == -1, rep
+    rep = run(f"{base} -snes_linesearch_type bt").report
+    assert rep["steps_retried"] > 0 and rep["pc_switched_step"] == -1, rep
+
+
 @pytest.mark.parametrize("args, what", [("-cloth_bend_hysteresis -1e-3", "-cloth_bend_hysteresis"),
                                         ("-cloth_bend_hysteresis nan", "-cloth_bend_hysteresis"),
                                         ("-cloth_bend_hysteresis 1e-3,1e-3,1e-3", "one value (warp = weft) or two"),

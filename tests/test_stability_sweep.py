@@ -65,3 +65,17 @@ def test_limit_falls_with_stiffness(quick):
                  if r["scheme"] == "symplectic")
     assert len(sym) >= 2
     assert all(b[1] < a[1] for a, b in zip(sym, sym[1:])), sym
+
+
+def test_backward_euler_at_250_times_the_symplectic_limit_reaches_the_end(quick):
+    """Both backward-Euler solvers take the stiff light fabric (1e4 N/m, 0.05 kg/m^2) at
+    0.05 s, about 250 x the symplectic limit, to t = 1 s within the quick sweep's 2000
+    steps; Newton only with a line search for its SPD matrix (drape's default, cp:
+    backtracking on |R| cut the step again and again and stopped near t = 0.07 s).
+    (At such a step both are far from the true motion, which they damp: 0.3-0.4 m RMS
+    from a small-step reference at t = 1 s; BENCHMARKS.md, "Stability stress test".)"""
+    (r,) = rows(quick / "backward_euler.csv")
+    assert float(r["h"]) == 0.05 and float(r["h_over_sym_limit"]) > 200
+    for s in ("ksponly", "newtonls"):
+        assert r[f"{s}_status"] == "ok" and r[f"{s}_nonfinite"] == "False", r
+        assert float(r[f"{s}_t_reached"]) == pytest.approx(1.0), r
