@@ -87,7 +87,7 @@ typedef struct {
   PetscInt  fill_step;   /* the step at which block IC(0) took its level-1 fill (-1: never; BEUseFill) */
   PetscBool fill_auto;   /* the options did not give the fill (-pc_blockicc_levels, -sub_pc_blockicc_levels) */
   PetscInt  lits;        /* CG iterations of the last solve */
-  PetscBool ksp_failed;  /* the last solve failed in KSP (a failure the preconditioner may cause) */
+  PetscBool ksp_failed;  /* the last solve failed in KSP (a failure the preconditioner may cause; implies it failed) */
   /* the matrix kept from an earlier step (-drape_matrix_keep, BEStep) */
   PetscBool keep;                                     /* the option */
   PetscBool ksponly;                                  /* the single linearisation (SNES ksponly): the only solve a matrix may be kept for */
@@ -1074,7 +1074,7 @@ static PetscErrorCode BEStepSolves(TS ts, TS_DrapeBE *be, PetscBool keep, PetscB
      * failure at the 2nd, 4th ... 64th rebuild after it (the hang at 128^2 to rest:
      * one failure, at step 92; kept to the end, its hybrid cycle took 5.07 CG
      * iterations a step against 4.28 with the V-cycle back) */
-    if (!*ok && be->ksp_failed) { /* (Newton failing after solves that converged, SNES DIVERGED_LINE_SEARCH, say: not the preconditioner's doing) */
+    if (be->ksp_failed) { /* a failure in KSP: Newton failing after solves that converged (SNES DIVERGED_LINE_SEARCH, say) is not the preconditioner's doing */
       PetscBool hybrid, allowed;
       PetscCall(PCLatticeMGGetHybrid(be->pc, &hybrid));
       PetscCall(PCLatticeMGHybridAllowed(be->pc, &allowed)); /* the lattice multigrid with its block IC smoother (not sgs: then as any failed solve, below) */
@@ -1093,7 +1093,7 @@ static PetscErrorCode BEStepSolves(TS ts, TS_DrapeBE *be, PetscBool keep, PetscB
         continue;
       }
     }
-    if (be->pc_auto && !be->pc_amg && ((!*ok && be->ksp_failed) || be->lits >= BE_ICC_MAX_ITS)) { /* block IC (or the lattice multigrid) failed or was slow */
+    if (be->pc_auto && !be->pc_amg && (be->ksp_failed || be->lits >= BE_ICC_MAX_ITS)) { /* block IC (or the lattice multigrid) failed or was slow */
       PetscBool restricted;
       PetscCall(BERestrictedSchwarz(ts, &restricted));
       if (restricted) { /* first its symmetric form (BERestrictedSchwarz), the same blocks */
@@ -1380,21 +1380,21 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
       if (given && !be->solve_error_set) be->solve_error = 0;
     }
     be->ksponly = ksponly;
-    if (!ksponly) { /* Newton's line search, unless -snes_linesearch_type chose one */
+    { /* Newton's line search, unless -snes_linesearch_type chose one: R(dv) is the
+       * gradient of the step's incremental potential, and the matrix (SPD-projected)
+       * is not R's Jacobian where edges are compressed, so its direction need not
+       * decrease |R|: PETSc's default, backtracking on |R|^2 (bt), failed near
+       * convergence and cut the step again and again (a stiff light fabric at 0.05 s
+       * crawled to t = 1 s in 38005 steps). The critical-point search (cp) finds
+       * where the potential's slope along the direction, R . dv, vanishes: the SPD
+       * matrix makes dv a descent direction of the potential (the same fabric: 25
+       * steps). */
       const char *prefix;
       PetscBool   given, newtonls;
       PetscCall(SNESGetOptionsPrefix(snes, &prefix));
       PetscCall(PetscOptionsHasName(NULL, prefix, "-snes_linesearch_type", &given));
       PetscCall(PetscObjectTypeCompare((PetscObject) snes, SNESNEWTONLS, &newtonls));
       if (newtonls && !given) {
-        /* R(dv) is the gradient of the step's incremental potential, and the matrix
-         * (SPD-projected) is not R's Jacobian where edges are compressed, so its
-         * direction need not decrease |R|: PETSc's default, backtracking on |R|^2
-         * (bt), failed near convergence and cut the step again and again (a stiff
-         * light fabric at 0.05 s crawled to t = 1 s in 38005 steps). The
-         * critical-point search (cp) finds where the potential's slope along the
-         * direction, R . dv, vanishes: the SPD matrix makes dv a descent direction of
-         * the potential (the same fabric: 25 steps). */
         SNESLineSearch ls;
         PetscCall(SNESGetLineSearch(snes, &ls));
         PetscCall(SNESLineSearchSetType(ls, SNESLINESEARCHCP));
