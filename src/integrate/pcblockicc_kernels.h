@@ -98,7 +98,13 @@ static PetscErrorCode BICC(Numeric)(PC_BlockICC *icc, const MatScalar *aa, Petsc
 
 /* y = (U^T D U)^-1 y with the stored blocks V = -U: forward U^T z = y (z_j += V(i,
  * j)^T z_i once z_i is final) and z_i = D_i^-1 z_i in the same pass, backward U x =
- * z (x_k += V(k, j) x_j). */
+ * z (x_k += V(k, j) x_j). The next row's blocks are prefetched into every level of
+ * the cache (T0), not past it (NTA, as PETSc's own AIJ products do): CG reads the
+ * factor twice an iteration and again at the next, so it should stay where it fits.
+ * On the Xeon of BENCHMARKS.md's 2026-12-02 sections NTA made each solve depend on
+ * where the factor happened to lie (0.33 to 0.74 ms at 64^2 over the run's
+ * allocations, 0.21 with none new) and T0 takes 0.18-0.19; drapebe's runs 5 to 22 %
+ * faster, the most where the factor is larger than the L2 (128^2 and up). */
 static void BICC(Solve)(const PC_BlockICC *icc, PetscScalar *restrict y)
 {
   const PetscInt n = icc->n, *restrict ai = icc->fi, *restrict aj = icc->fj;
@@ -106,8 +112,8 @@ static void BICC(Solve)(const PC_BlockICC *icc, PetscScalar *restrict y)
 
   for (PetscInt i = 0; i < n; i++) {
     const PetscScalar y0 = y[3 * i], y1 = y[3 * i + 1], y2 = y[3 * i + 2];
-    PetscPrefetchBlock(fa + 9 * ai[i + 1], 9 * (ai[i + 1] - ai[i]), 0, PETSC_PREFETCH_HINT_NTA);
-    PetscPrefetchBlock(aj + ai[i + 1], ai[i + 1] - ai[i], 0, PETSC_PREFETCH_HINT_NTA);
+    PetscPrefetchBlock(fa + 9 * ai[i + 1], 9 * (ai[i + 1] - ai[i]), 0, PETSC_PREFETCH_HINT_T0);
+    PetscPrefetchBlock(aj + ai[i + 1], ai[i + 1] - ai[i], 0, PETSC_PREFETCH_HINT_T0);
     for (PetscInt p = ai[i] + 1; p < ai[i + 1]; p++) {
       const BICC_T *v = fa + 9 * p;
       PetscScalar  *t = y + 3 * aj[p];
@@ -129,8 +135,8 @@ static void BICC(Solve)(const PC_BlockICC *icc, PetscScalar *restrict y)
     /* the rows go down memory, each row up it: a pattern the hardware does not
      * prefetch (without this the pass takes 2.4 times as long), so fetch the next
      * row's blocks and columns, assumed as long as this one */
-    PetscPrefetchBlock(d - 9 * (ai[k + 1] - ai[k]), 9 * (ai[k + 1] - ai[k]), 0, PETSC_PREFETCH_HINT_NTA);
-    PetscPrefetchBlock(aj + ai[k] - (ai[k + 1] - ai[k]), ai[k + 1] - ai[k], 0, PETSC_PREFETCH_HINT_NTA);
+    PetscPrefetchBlock(d - 9 * (ai[k + 1] - ai[k]), 9 * (ai[k + 1] - ai[k]), 0, PETSC_PREFETCH_HINT_T0);
+    PetscPrefetchBlock(aj + ai[k] - (ai[k + 1] - ai[k]), ai[k + 1] - ai[k], 0, PETSC_PREFETCH_HINT_T0);
     s0 = t[0], s1 = t[1], s2 = t[2];
     for (PetscInt p = ai[k] + 1; p < ai[k + 1]; p++) {
       const BICC_T      *v  = fa + 9 * p;
