@@ -124,6 +124,16 @@ def test_block_icc_preconditioner():
     run_unit_ranks("test_blockicc", 1, [], 5)
 
 
+@pytest.mark.parametrize("np_", [1, 3])
+def test_sbaij_product_is_petscs_to_the_bit(np_):
+    """drape's product for SBAIJ of block size 3 (drapebe's matrix on one rank, each
+    rank's diagonal block on many): on a lattice's pattern, with 300 far blocks, with
+    a row missing its diagonal block and an empty row, A x equals PETSc's MatMult to
+    the bit (the same sums in the same order); an AIJ matrix keeps PETSc's product
+    (1 and 3 ranks, no leaks)."""
+    run_unit_ranks("test_sbaijmult", np_, [], 4)
+
+
 def test_lattice_multigrid_preconditioner():
     """The lattice multigrid (PCLATTICEMG): its V(1,1), W and hybrid cycles symmetric to
     round-off (the coarse levels hold one triangle; the sweeps backward are the

@@ -35,6 +35,7 @@
 #include <petsc/private/kspimpl.h> /* KSP's norm type as the options left it (KSPGetNormType resolves the default) */
 #include <pcblockicc.h>
 #include <pclatticemg.h>
+#include <sbaijmult.h>
 #include <drapebe.h>
 #include <stability.h>
 #include <drape.h>
@@ -366,6 +367,7 @@ static PetscErrorCode BEUseMultigrid(TS ts, TS_DrapeBE *be)
   be->pc_stale    = PETSC_TRUE;
   be->pc_switched = ts->steps;
   PetscCall(ClothCreateMatrix(be->cloth, be->mattype, &J));
+  PetscCall(DrapeMatUseSBAIJProduct(J));
   PetscCall(SNESSetJacobian(snes, J, J, BEJacobian, be));
   PetscCall(MatDestroy(&be->J));
   be->J     = J;
@@ -987,6 +989,7 @@ static PetscErrorCode BESelfBlocks(TS ts, TS_DrapeBE *be)
     Mat       J;
     PetscBool overlap;
     PetscCall(ClothCreateMatrix(be->cloth, be->mattype, &J));
+    PetscCall(DrapeMatUseSBAIJProduct(J));
     PetscCall(TSGetSNES(ts, &snes));
     PetscCall(SNESGetKSP(snes, &ksp));
     PetscCall(KSPGetPC(ksp, &pc));
@@ -1345,6 +1348,7 @@ static PetscErrorCode TSSetUp_DrapeBE(TS ts)
     PetscCall(KSPGetTolerances(ksp, NULL, NULL, NULL, &be->max_its));
     if (be->pc_auto && !be->pc_amg) PetscCall(KSPSetTolerances(ksp, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, PetscMin(be->max_its, BE_ICC_MAX_ITS)));
     PetscCall(ClothCreateMatrix(be->cloth, be->mattype, &be->J));
+    PetscCall(DrapeMatUseSBAIJProduct(be->J));
     be->pc = pc;
     PetscCall(BELatticeMGSetLattice(be, pc)); /* when it is geometric multigrid */
     if (be->pc_auto && !be->pc_amg) {         /* -drape_mat_type chose a storage block IC(0) does not factor: PETSc's block Jacobi/ILU(0) */
