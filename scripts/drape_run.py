@@ -112,9 +112,36 @@ def run(exe, args, np_=1, timeout=None):
     made again."""
     for _ in range(LAUNCH_TRIES):
         res = _run_once(exe, args, np_, timeout)
-        if res.returncode == 0 or LAUNCH_FAILED not in res.stderr or "drape" in res.stdout:
+        if not launch_failed(res.returncode, res.stdout, res.stderr):
             break
     return res
+
+
+def launch_failed(returncode, stdout, stderr):
+    """Did Open MPI fail to start the program: a failure with LAUNCH_FAILED on stderr
+    and no word from drape on stdout (str or bytes, None if not captured)?"""
+    def text(s):
+        return s.decode(errors="replace") if isinstance(s, bytes) else (s or "")
+    return returncode != 0 and LAUNCH_FAILED in text(stderr) and "drape" not in text(stdout)
+
+
+def run_again_if_not_started(run_):
+    """subprocess.run (`run_`) that makes a start Open MPI could not make again (up to
+    LAUNCH_TRIES times, as run() does): for the tests that launch drape, its unit
+    tests or mpiexec themselves (tests/conftest.py installs it). A run whose output
+    is not captured is never made again."""
+    def wrapped(*args, **kwargs):
+        for attempt in range(1, LAUNCH_TRIES + 1):
+            try:
+                res = run_(*args, **kwargs)
+            except subprocess.CalledProcessError as e:
+                if attempt < LAUNCH_TRIES and launch_failed(e.returncode, e.stdout, e.stderr):
+                    continue
+                raise
+            if attempt == LAUNCH_TRIES or not launch_failed(res.returncode, res.stdout, res.stderr):
+                return res
+    wrapped.__wrapped__ = run_
+    return wrapped
 
 
 def _run_once(exe, args, np_, timeout):

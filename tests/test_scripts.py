@@ -373,7 +373,9 @@ def test_cusick_folds_matches_the_report(tmp_path):
 def test_a_failed_mpi_start_is_made_again_and_nothing_else(tmp_path):
     """drape_run.run makes a start again that Open MPI could not make (its message, no
     word from drape), and never a run that drape itself ended: a stand-in program
-    whose first F starts fail so, then prints and exits with the given status."""
+    whose first F starts fail so, then prints and exits with the given status. So does
+    the tests' own subprocess.run (text or bytes, with check=True too), and never a
+    run whose output it does not capture."""
     import drape_run
     starts = tmp_path / "starts"
     fake = tmp_path / "fake"
@@ -394,3 +396,25 @@ echo "drape $1"; exit $2
     assert run("failed", 1, 0) == (1, True, 1)  # drape's own failure is final
     assert run("failed", 1, 1) == (1, True, 2)
     assert run("never", 0, 9) == (1, False, drape_run.LAUNCH_TRIES)  # the last failure is returned
+
+    # the same for the tests' own subprocess.run (conftest.py installs the wrapper)
+    import subprocess
+    assert hasattr(subprocess.run, "__wrapped__")
+
+    def run_direct(word, status, failed, **kw):
+        starts.write_text("")
+        try:
+            res = subprocess.run([str(fake), word, str(status), str(failed)], capture_output=True, **kw)
+            out = res.stdout if isinstance(res.stdout, str) else res.stdout.decode()
+            return res.returncode, "drape " + word in out, len(starts.read_text().split())
+        except subprocess.CalledProcessError as e:
+            return "raised", e.returncode, len(starts.read_text().split())
+
+    assert run_direct("ran", 0, 1, text=True) == (0, True, 2)
+    assert run_direct("ran", 0, 2) == (0, True, 3)  # bytes
+    assert run_direct("failed", 3, 0, text=True) == (3, True, 1)
+    assert run_direct("never", 0, 9, text=True) == (1, False, drape_run.LAUNCH_TRIES)
+    assert run_direct("ran", 0, 1, text=True, check=True) == (0, True, 2)
+    assert run_direct("never", 0, 9, text=True, check=True) == ("raised", 1, drape_run.LAUNCH_TRIES)
+    starts.write_text("")
+    assert subprocess.run([str(fake), "never", "0", "1"]).returncode == 1 and len(starts.read_text().split()) == 1  # not captured: not made again
