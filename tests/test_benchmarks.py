@@ -1,4 +1,4 @@
-"""The benchmark scripts paper_tables.py, scaling.py, solver_study.py, rtol_accuracy.py, implicit_study.py, bench_assembly.py and bench_core.py in --quick mode:
+"""The benchmark scripts paper_tables.py, scaling.py, solver_study.py, rtol_accuracy.py, implicit_study.py, bench_assembly.py, compare_builds.py and bench_core.py in --quick mode:
 their CSV columns and contents, and the claims they rest on (a dense implicit matrix
 gives the AIJ frames, the Blender shortcut is less accurate than drape's default,
 bytes per particle are plausible); plus -drape_mat_type dense on 1 and 2 ranks; the
@@ -218,6 +218,23 @@ def test_bench_assembly_quick_measures_every_way_into_every_matrix(tmp_path):
         t, h = float(r["ms_per_assembly"]), float(r["ms_handoff"])
         assert t > 0, r
         assert (0 < h < t) if mode == "coo" else np.isnan(h), r
+
+
+def test_compare_builds_quick_runs_each_build_in_turn_and_finds_the_same_steps(tmp_path):
+    """compare_builds.py --quick (this build against itself): every scene run once with
+    each build, in turn, the same steps for both, positive CPU times, and a ratio in
+    the table; an unknown scene or a missing --baseline is refused with one sentence."""
+    quick("compare_builds.py", tmp_path)
+    got = rows(tmp_path / "compare_builds.csv")
+    assert [(r["scene"], r["build"]) for r in got] == [("sphere64_self", "baseline"), ("sphere64_self", "new"), ("race64", "baseline"), ("race64", "new")]
+    for scene in ("sphere64_self", "race64"):
+        a, b = (r for r in got if r["scene"] == scene)
+        assert a["steps"] == b["steps"] and int(a["steps"]) > 0 and float(a["cpu"]) > 0 and float(b["cpu"]) > 0, (a, b)
+    md = (tmp_path / "compare_builds.md").read_text()
+    assert "DIFFER" not in md and re.search(r"\| \*\*\d+\.\d{3}\*\* \|", md), md
+    for args, said in ((["--baseline", "build", "--scenes", "nowhere"], "unknown scene 'nowhere'"), ([], "--baseline BUILD is needed")):
+        proc = subprocess.run([sys.executable, str(SCRIPTS / "compare_builds.py"), "--out", str(tmp_path)] + args, capture_output=True, text=True, timeout=60, cwd=ROOT)
+        assert proc.returncode != 0 and said in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
 
 
 # bench_core.py and the generated benchmark table (issue 26)
