@@ -11,3 +11,6 @@
  * other matrix is left as it is. Set again after J is preallocated anew, which
  * gives it PETSc's. Not collective. */
 PETSC_EXTERN PetscErrorCode DrapeMatUseSBAIJProduct(Mat);
+/* Does J take drape's product (as DrapeMatUseSBAIJProduct set it, and no
+ * preallocation since gave it PETSc's)? Not collective. */
+PETSC_EXTERN PetscErrorCode DrapeMatHasSBAIJProduct(Mat, PetscBool *);

@@ -420,8 +420,8 @@ def test_solver_options_win_over_drapebe_defaults(tmp):
     assert outer("-ksp_norm_type natural", "-ksp_view") == ("1e-50", "NATURAL")
     assert outer("-snes_type newtonls", "-snes_view")[0] == atol  # Newton stops where CG does
     assert outer("-snes_type newtonls -snes_atol 1e-12", "-snes_view")[0] == "1e-12"
-    assert run(base).report["mat_type"] == "seqsbaij"
-    assert run(f"{base} -sub_pc_type lu").report["mat_type"] == "seqaij"
+    sym, lu = run(base).report, run(f"{base} -sub_pc_type lu").report
+    assert (sym["mat_type"], sym["mat_product"]) == ("seqsbaij", "drape") and (lu["mat_type"], lu["mat_product"]) == ("seqaij", "PETSc")
     # ML from the start on several ranks ((h Omega_max)^2 > 5e4): drape's threshold, unless given
     ml = "-options_file runs/hang.opts -da_grid_x 16 -da_grid_y 16 -ts_dt 0.2 -ts_max_time 1 -output_interval 1"
     cg = {o: run(f"{ml} {o} -output_file {tmp / 'm.h5'}", np_=2).report for o in ("", "-pc_ml_Threshold 0.02", "-pc_ml_Threshold 0")}  # on one rank: multigrid on the lattice

@@ -80,6 +80,7 @@ def test_prose_says_the_report(hang):
     assert f(r"explicit Euler: stable for h < (\S+) s", str) == format(rep["euler_limit"], ".4e")
     assert f(r"-ts_type (\w+), h = ", str) == rep["ts_type"] and f(r", h = (\S+) s") == shown(rep["dt"], "g")
     assert f(r"PC (\w+) on an assembled (\w+)", str) == rep["pc_type"] and f"assembled {rep['mat_type']} matrix" in res.stdout
+    assert f"(block size 3, {rep['mat_product']}'s product)" in res.stdout and rep["mat_product"] == "drape"
     assert f(r"Summary: (\d+) steps", int) == rep["steps"] and f(r"steps to t = (\S+) s") == shown(rep["t"], "g")
     assert f(r"in (\S+) s wall") == shown(rep["wall"], ".3f") and f(r"wall, (\S+) particle-steps/s") == shown(rep["particle_steps_per_s"], ".4e")
     assert f(r"(\S+) CG iterations per step") == shown(rep["cg_per_step"], ".2f")
@@ -98,7 +99,7 @@ def test_limits_without_damping_and_without_estimate():
     assert res.limits()["symplectic"] == res.report["symplectic_limit"] > 0
     assert res.stdout.splitlines()[-1].startswith('{"drape_version": ')
     assert (res.report["steps"], res.report["step"], res.report["t"]) == (0, 0, 0)
-    assert not {"snes_type", "ksp_type", "pc_type", "mat_type", "pc_switched_step", "pc_fill_step"} & set(res.report)
+    assert not {"snes_type", "ksp_type", "pc_type", "mat_type", "mat_product", "pc_switched_step", "pc_fill_step"} & set(res.report)
     assert res.report["cg_per_step"] == 0 and res.report["solves_per_step"] == 0
     res = run(f"{base} -drape_stability_its 0", checks=False)
     assert not {"omega_max", "symplectic_limit", "euler_limit"} & set(res.report) and res.limits() is None
@@ -118,6 +119,7 @@ def test_two_ranks_report_the_same_cloth(hang, tmp):
         assert two[k] == pytest.approx(one[k], rel=1e-9), k
     assert two["strain_max"] == pytest.approx(one["strain_max"], rel=1e-3)  # block Jacobi has a block per rank
     assert two["mat_type"] == "mpisbaij" and one["mat_type"] == "seqsbaij"
+    assert two["mat_product"] == one["mat_product"] == "drape"  # each rank's diagonal block takes drape's
 
 
 def test_cloth_without_interactions_reports_null_not_a_number_that_means_nothing():

@@ -68,17 +68,41 @@ static PetscErrorCode MatMult_DrapeSBAIJ3(Mat A, Vec xx, Vec zz)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode DrapeMatUseSBAIJProduct(Mat J)
+/* The matrix whose product is drape's or PETSc's: J, or its diagonal block (MPISBAIJ),
+ * NULL when J is neither SeqSBAIJ nor MPISBAIJ of block size 3 */
+static PetscErrorCode ProductMatrix(Mat J, Mat *A)
 {
-  Mat       A = J;
   PetscBool mpi, seq;
   PetscInt  bs;
 
   PetscFunctionBeginUser;
+  *A = J;
   PetscCall(PetscObjectTypeCompare((PetscObject) J, MATMPISBAIJ, &mpi));
-  if (mpi) PetscCall(MatGetDiagonalBlock(J, &A)); /* MatMult_MPISBAIJ takes its diagonal block's product */
-  PetscCall(PetscObjectTypeCompare((PetscObject) A, MATSEQSBAIJ, &seq));
-  PetscCall(MatGetBlockSize(A, &bs));
-  if (seq && bs == 3) PetscCall(MatSetOperation(A, MATOP_MULT, (void (*)(void)) MatMult_DrapeSBAIJ3));
+  if (mpi) PetscCall(MatGetDiagonalBlock(J, A)); /* MatMult_MPISBAIJ takes its diagonal block's product */
+  PetscCall(PetscObjectTypeCompare((PetscObject) *A, MATSEQSBAIJ, &seq));
+  PetscCall(MatGetBlockSize(*A, &bs));
+  if (!seq || bs != 3) *A = NULL;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode DrapeMatUseSBAIJProduct(Mat J)
+{
+  Mat A;
+
+  PetscFunctionBeginUser;
+  PetscCall(ProductMatrix(J, &A));
+  if (A) PetscCall(MatSetOperation(A, MATOP_MULT, (void (*)(void)) MatMult_DrapeSBAIJ3));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode DrapeMatHasSBAIJProduct(Mat J, PetscBool *has)
+{
+  Mat A;
+  void (*mult)(void) = NULL;
+
+  PetscFunctionBeginUser;
+  PetscCall(ProductMatrix(J, &A));
+  if (A) PetscCall(MatGetOperation(A, MATOP_MULT, &mult));
+  *has = (PetscBool) (mult == (void (*)(void)) MatMult_DrapeSBAIJ3);
   PetscFunctionReturn(0);
 }

@@ -16,6 +16,7 @@
 #include <petsc/private/tsimpl.h>
 #include <simulation.h>
 #include <drapebe.h>
+#include <sbaijmult.h>
 #include <stability.h>
 #include <output.h>
 #include <report.h>
@@ -976,12 +977,13 @@ static PetscErrorCode WarnStepLimit(Simulation s, PetscViewer viewer, TSType typ
 }
 
 /* drapebe's solver as set up: SNES, KSP, PC and matrix types. */
-static PetscErrorCode SimulationSolverTypes(Simulation s, SNESType *st, KSPType *kt, PCType *pt, MatType *mt)
+static PetscErrorCode SimulationSolverTypes(Simulation s, SNESType *st, KSPType *kt, PCType *pt, MatType *mt, const char **product)
 {
-  SNES snes;
-  KSP  ksp;
-  PC   pc;
-  Mat  J;
+  SNES      snes;
+  KSP       ksp;
+  PC        pc;
+  Mat       J;
+  PetscBool drapes = PETSC_FALSE;
 
   PetscFunctionBeginUser;
   PetscCall(TSGetSNES(s->ts, &snes));
@@ -993,6 +995,8 @@ static PetscErrorCode SimulationSolverTypes(Simulation s, SNESType *st, KSPType 
   PetscCall(SNESGetJacobian(snes, &J, NULL, NULL, NULL));
   *mt = MATAIJ;
   if (J) PetscCall(MatGetType(J, mt));
+  if (J) PetscCall(DrapeMatHasSBAIJProduct(J, &drapes));
+  *product = drapes ? "drape" : "PETSc";
   PetscFunctionReturn(0);
 }
 
@@ -1109,15 +1113,17 @@ static PetscErrorCode SimulationViewStart(Simulation s, PetscViewer viewer)
   PetscCall(ReportViewReal(r, viewer, "t_max", ", to t = %g s\n", tmax));
   if (s->stability_its > 0) PetscCall(WarnStepLimit(s, viewer, type, dt, tmax));
   if (!strcmp(type, TSDRAPEBE)) {
-    SNESType st;
-    KSPType  kt;
-    PCType   pt;
-    MatType  mt;
-    PetscCall(SimulationSolverTypes(s, &st, &kt, &pt, &mt));
+    SNESType    st;
+    KSPType     kt;
+    PCType      pt;
+    MatType     mt;
+    const char *product;
+    PetscCall(SimulationSolverTypes(s, &st, &kt, &pt, &mt, &product));
     PetscCall(ReportViewString(r, viewer, "snes_type", "  solver: SNES %s", st));
     PetscCall(ReportViewString(r, viewer, "ksp_type", ", KSP %s", kt));
     PetscCall(ReportViewString(r, viewer, "pc_type", ", PC %s", pt));
-    PetscCall(ReportViewString(r, viewer, "mat_type", " on an assembled %s matrix (block size 3)\n", mt));
+    PetscCall(ReportViewString(r, viewer, "mat_type", " on an assembled %s matrix (block size 3", mt));
+    PetscCall(ReportViewString(r, viewer, "mat_product", ", %s's product)\n", product));
   }
   PetscFunctionReturn(0);
 }
@@ -1182,13 +1188,15 @@ static PetscErrorCode SimulationViewSummary(Simulation s, PetscViewer viewer, Pe
       PetscCall(ReportViewInt(r, fill >= 0 ? viewer : NULL, "pc_fill_step", ", block IC(1) from step %" PetscInt_FMT, fill)); /* -1: IC(0) throughout */
     }
     if (implicit && switched >= 0) { /* the report's solver is the one the run ended with (the start-up line said the first) */
-      SNESType st;
-      KSPType  kt;
-      PCType   pt;
-      MatType  mt;
-      PetscCall(SimulationSolverTypes(s, &st, &kt, &pt, &mt));
+      SNESType    st;
+      KSPType     kt;
+      PCType      pt;
+      MatType     mt;
+      const char *product;
+      PetscCall(SimulationSolverTypes(s, &st, &kt, &pt, &mt, &product));
       PetscCall(ReportSetString(r, "pc_type", pt));
       PetscCall(ReportSetString(r, "mat_type", mt));
+      PetscCall(ReportSetString(r, "mat_product", product));
     }
     if (implicit) {
       PetscInt kept, refused;
