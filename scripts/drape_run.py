@@ -110,11 +110,7 @@ def run(exe, args, np_=1, timeout=None):
     longer than `timeout` s is killed. Returns a Result (its peak RSS: drape's own, or os.wait4's).
     A start that Open MPI could not make (LAUNCH_FAILED, nothing printed by drape) is
     made again."""
-    for _ in range(LAUNCH_TRIES):
-        res = _run_once(exe, args, np_, timeout)
-        if not launch_failed(res.returncode, res.stdout, res.stderr):
-            break
-    return res
+    return run_again_if_not_started(_run_once)(exe, args, np_, timeout)
 
 
 def launch_failed(returncode, stdout, stderr):
@@ -126,10 +122,11 @@ def launch_failed(returncode, stdout, stderr):
 
 
 def run_again_if_not_started(run_):
-    """subprocess.run (`run_`) that makes a start Open MPI could not make again (up to
-    LAUNCH_TRIES times, as run() does): for the tests that launch drape, its unit
-    tests or mpiexec themselves (tests/conftest.py installs it). A run whose output
-    is not captured is never made again."""
+    """`run_` (subprocess.run, or anything returning an object with returncode, stdout
+    and stderr) made again, up to LAUNCH_TRIES times, when Open MPI could not start the
+    program: run() takes it, and so do the tests that launch drape, its unit tests or
+    mpiexec themselves (tests/conftest.py installs it on subprocess.run). A run whose
+    output is not captured is never made again."""
     def wrapped(*args, **kwargs):
         for attempt in range(1, LAUNCH_TRIES + 1):
             try:

@@ -976,27 +976,36 @@ static PetscErrorCode WarnStepLimit(Simulation s, PetscViewer viewer, TSType typ
   PetscFunctionReturn(0);
 }
 
-/* drapebe's solver as set up: SNES, KSP, PC and matrix types. */
-static PetscErrorCode SimulationSolverTypes(Simulation s, SNESType *st, KSPType *kt, PCType *pt, MatType *mt, const char **product)
+/* drapebe's solver as it is now (SNES, KSP, PC and matrix types, whose product the
+ * matrix takes) into the report, and on viewer (NULL: the report only) the line
+ * that says it. */
+static PetscErrorCode SimulationViewSolver(Simulation s, Report r, PetscViewer viewer)
 {
   SNES      snes;
   KSP       ksp;
   PC        pc;
   Mat       J;
+  SNESType  st;
+  KSPType   kt;
+  PCType    pt;
+  MatType   mt     = MATAIJ;
   PetscBool drapes = PETSC_FALSE;
 
   PetscFunctionBeginUser;
   PetscCall(TSGetSNES(s->ts, &snes));
-  PetscCall(SNESGetType(snes, st));
+  PetscCall(SNESGetType(snes, &st));
   PetscCall(SNESGetKSP(snes, &ksp));
-  PetscCall(KSPGetType(ksp, kt));
+  PetscCall(KSPGetType(ksp, &kt));
   PetscCall(KSPGetPC(ksp, &pc));
-  PetscCall(PCGetType(pc, pt));
+  PetscCall(PCGetType(pc, &pt));
   PetscCall(SNESGetJacobian(snes, &J, NULL, NULL, NULL));
-  *mt = MATAIJ;
-  if (J) PetscCall(MatGetType(J, mt));
+  if (J) PetscCall(MatGetType(J, &mt));
   if (J) PetscCall(DrapeMatHasSBAIJProduct(J, &drapes));
-  *product = drapes ? "drape" : "PETSc";
+  PetscCall(ReportViewString(r, viewer, "snes_type", "  solver: SNES %s", st));
+  PetscCall(ReportViewString(r, viewer, "ksp_type", ", KSP %s", kt));
+  PetscCall(ReportViewString(r, viewer, "pc_type", ", PC %s", pt));
+  PetscCall(ReportViewString(r, viewer, "mat_type", " on an assembled %s matrix (block size 3", mt));
+  PetscCall(ReportViewString(r, viewer, "mat_product", ", %s's product)\n", drapes ? "drape" : "PETSc"));
   PetscFunctionReturn(0);
 }
 
@@ -1112,19 +1121,7 @@ static PetscErrorCode SimulationViewStart(Simulation s, PetscViewer viewer)
   }
   PetscCall(ReportViewReal(r, viewer, "t_max", ", to t = %g s\n", tmax));
   if (s->stability_its > 0) PetscCall(WarnStepLimit(s, viewer, type, dt, tmax));
-  if (!strcmp(type, TSDRAPEBE)) {
-    SNESType    st;
-    KSPType     kt;
-    PCType      pt;
-    MatType     mt;
-    const char *product;
-    PetscCall(SimulationSolverTypes(s, &st, &kt, &pt, &mt, &product));
-    PetscCall(ReportViewString(r, viewer, "snes_type", "  solver: SNES %s", st));
-    PetscCall(ReportViewString(r, viewer, "ksp_type", ", KSP %s", kt));
-    PetscCall(ReportViewString(r, viewer, "pc_type", ", PC %s", pt));
-    PetscCall(ReportViewString(r, viewer, "mat_type", " on an assembled %s matrix (block size 3", mt));
-    PetscCall(ReportViewString(r, viewer, "mat_product", ", %s's product)\n", product));
-  }
+  if (!strcmp(type, TSDRAPEBE)) PetscCall(SimulationViewSolver(s, r, viewer));
   PetscFunctionReturn(0);
 }
 
@@ -1187,17 +1184,7 @@ static PetscErrorCode SimulationViewSummary(Simulation s, PetscViewer viewer, Pe
       PetscCall(TSDrapeBEGetFillStep(s->ts, &fill));
       PetscCall(ReportViewInt(r, fill >= 0 ? viewer : NULL, "pc_fill_step", ", block IC(1) from step %" PetscInt_FMT, fill)); /* -1: IC(0) throughout */
     }
-    if (implicit && switched >= 0) { /* the report's solver is the one the run ended with (the start-up line said the first) */
-      SNESType    st;
-      KSPType     kt;
-      PCType      pt;
-      MatType     mt;
-      const char *product;
-      PetscCall(SimulationSolverTypes(s, &st, &kt, &pt, &mt, &product));
-      PetscCall(ReportSetString(r, "pc_type", pt));
-      PetscCall(ReportSetString(r, "mat_type", mt));
-      PetscCall(ReportSetString(r, "mat_product", product));
-    }
+    if (implicit && switched >= 0) PetscCall(SimulationViewSolver(s, r, NULL)); /* the report's solver is the one the run ended with (the start-up line said the first) */
     if (implicit) {
       PetscInt kept, refused;
       PetscCall(TSDrapeBEGetMatrixKept(s->ts, &kept, &refused));
