@@ -85,6 +85,7 @@ typedef struct {
   PetscReal its_mean;    /* CG iterations a solve, a moving mean (BEWatchIterations) */
   PetscReal mg_its;      /* -drape_mg_its: past this mean block IC gives way to multigrid on the lattice (0: never; -1, not given: drape's choice) */
   PetscInt  its_solves;  /* solves in it */
+  PetscInt  lits_fresh;  /* CG iterations of the last solve with a fresh block IC (-1: none yet; BEWatchIterations) */
   PetscInt  fill_step;   /* the step at which block IC(0) took its level-1 fill (-1: never; BEUseFill) */
   PetscBool fill_auto;   /* the options did not give the fill (-pc_blockicc_levels, -sub_pc_blockicc_levels) */
   PetscInt  lits;        /* CG iterations of the last solve */
@@ -449,6 +450,9 @@ static PetscErrorCode BEUseLatticeMG(TS ts, TS_DrapeBE *be, const char *why)
  * BE_MG_LARGE) block IC at 8.6 a solve 135 against 129 s, at 81^2 at 8.7, 21.8
  * against 25.7 (BENCHMARKS.md, "Block IC or the multigrid, at the step's accuracy"). */
 #define BE_MG_ITS_LARGE_STEP 8
+/* A held block IC is made again once a solve takes this many CG iterations more
+ * than the last solve after a fresh factorisation (BEWatchIterations) */
+#define BE_LAG_EXTRA_ITS 4
 
 /* BEWatchIterations' threshold: -drape_mg_its if given, else by the lattice's size,
  * where CG stops and the ranks (above) */
@@ -459,7 +463,7 @@ static PetscReal BEMGThreshold(const TS_DrapeBE *be, PetscMPIInt size)
   return be->solve_error > 0 && size == 1 ? BE_MG_ITS_LARGE_STEP : BE_MG_ITS_LARGE;
 }
 
-static PetscErrorCode BEWatchIterations(TS ts, TS_DrapeBE *be)
+static PetscErrorCode BEWatchIterations(TS ts, TS_DrapeBE *be, PetscBool fresh)
 {
   PetscMPIInt size;
   PetscBool   mg;
@@ -469,6 +473,14 @@ static PetscErrorCode BEWatchIterations(TS ts, TS_DrapeBE *be)
   PetscCall(PetscObjectTypeCompare((PetscObject) be->pc, PCLATTICEMG, &mg));
   PetscCallMPI(MPI_Comm_size(PetscObjectComm((PetscObject) ts), &size));
   if (!be->pc_auto || be->pc_amg || mg || size > BE_MG_RANKS) PetscFunctionReturn(0);
+  /* a factorisation held from an earlier step (-drape_pc_lag) takes more iterations
+   * as the matrix moves away from it: made again at the next step once a solve took
+   * more than BE_LAG_EXTRA_ITS more than the one after it was made. Its aged solves
+   * had raised the mean past BE_MG_ITS on the hang at 64^2 to rest at step 124,
+   * where block IC takes 6 a solve: the multigrid from then on cost 1.1 x the CPU
+   * time of block IC until the settled steps (step 422 now; BENCHMARKS.md) */
+  if (!fresh && be->lits_fresh >= 0 && be->lits > be->lits_fresh + BE_LAG_EXTRA_ITS) be->pc_stale = PETSC_TRUE;
+  if (fresh) be->lits_fresh = be->lits;
   be->its_mean = be->its_solves ? 0.8 * be->its_mean + 0.2 * be->lits : be->lits;
   limit        = BEMGThreshold(be, size);
   be->its_solves++;
@@ -1119,7 +1131,7 @@ static PetscErrorCode BEStepSolves(TS ts, TS_DrapeBE *be, PetscBool keep, PetscB
       continue;
     }
     if (!*ok) PetscFunctionReturn(0);
-    if (!keep) PetscCall(BEWatchIterations(ts, be));                                   /* the solves of fresh matrices: the block IC they measure */
+    if (!keep) PetscCall(BEWatchIterations(ts, be, rebuild));                          /* the solves of fresh matrices: the block IC they measure */
     if (rebuild && be->pc_auto && !be->pc_amg && be->fill_auto && be->fill_step < 0) { /* IC(0) compensated: IC(1) from the next solve on */
       PetscBool compensated;
       PetscCall(BEICCCompensated(ts, &compensated));
@@ -1754,6 +1766,7 @@ static PetscErrorCode TSCreate_DrapeBE(TS ts)
   be->mg_its              = -1; /* drape's choice: BE_MG_ITS, or BE_MG_ITS_LARGE on a large lattice */
   be->pc_overlap          = 2;
   be->pc_switched         = -1;
+  be->lits_fresh          = -1;
   be->fill_step           = -1;
   be->rise_cut            = 1e-3;
   be->keep                = PETSC_TRUE;
