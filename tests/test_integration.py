@@ -3,6 +3,7 @@ import hashlib
 import math
 import re
 import subprocess
+from xml.etree import ElementTree
 
 import numpy as np
 import pytest
@@ -57,7 +58,9 @@ def test_output_file_contents(tmp):
 
 
 def test_killed_run_leaves_readable_frames(tmp):
-    """A run killed part-way (SIGKILL) leaves every frame written before readable."""
+    """A run killed part-way (SIGKILL) leaves every frame written before readable, and
+    an XDMF index that parses and lists some of them and no more (it is rewritten at
+    most once a second, through a temporary file and a rename)."""
     out = tmp / "killed.h5"
     cmd = [str(DRAPE)] + (f"-da_grid_x 40 -da_grid_y 40 -cloth_pin edge_corners -ts_type basicsymplectic "
                           f"-ts_dt 1e-4 -ts_max_time 100 -output_steps 20 -drape_progress 0 -output_file {out}").split()
@@ -68,6 +71,9 @@ def test_killed_run_leaves_readable_frames(tmp):
     fr = drape_h5.load(out)
     assert len(fr.time) >= 3
     assert np.all(np.isfinite(fr.positions)) and np.all(np.diff(fr.time) > 0)
+    listed = ElementTree.parse(tmp / "killed.xmf").getroot().findall(".//Time")
+    assert 1 <= len(listed) <= len(fr.time), (len(listed), len(fr.time))
+    assert np.allclose([float(t.get("Value")) for t in listed], fr.time[: len(listed)], rtol=1e-9, atol=1e-12)
 
 
 BAD = [
