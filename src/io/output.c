@@ -537,7 +537,7 @@ static PetscErrorCode OutputWriteReportFile(void *ctx)
   }
   PetscCall(PetscViewerHDF5GetFileId(c->o->viewer, &fid));
   PetscCheck(H5Fflush(fid, H5F_SCOPE_GLOBAL) >= 0, PETSC_COMM_SELF, PETSC_ERR_FILE_WRITE, "HDF5 cannot flush the file");
-  PetscCall(OutputRefreshXDMF(c->o, PETSC_TRUE)); /* (the end of the run: every frame listed) */
+  PetscCall(OutputRefreshXDMF(c->o, PETSC_TRUE)); /* at the run's end every frame listed; at a restart's start the frames it continues (a killed run's index may lack its last second) */
   PetscFunctionReturn(0);
 }
 
