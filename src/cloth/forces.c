@@ -1155,11 +1155,8 @@ static inline void AddStretchBlocks(Cloth c, PetscBool blk, PetscReal b, const P
  * baseline SSE2), as LatticeSweepRows: the lanes take 8, 4 or 2 elements an
  * instruction. The build contracts no multiply-add (ISO C: -ffp-contract=off), so
  * every version gives the same bits. */
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__INTEL_COMPILER) && !defined(DRAPE_NO_TARGET_CLONES)
-__attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default"), flatten))
-#endif
-static void
-AngleHessianLanes(KernelAngleKind kind, PetscInt n, const PetscReal kappa[KERNEL_LANES], const KernelBendLaw *const *law, KernelAngleLanes *L, PetscBool project, PetscReal H6[36][KERNEL_LANES])
+DRAPE_TARGET_CLONES_FLATTEN
+static void AngleHessianLanes(KernelAngleKind kind, PetscInt n, const PetscReal kappa[KERNEL_LANES], const KernelBendLaw *const *law, KernelAngleLanes *L, PetscBool project, PetscReal H6[36][KERNEL_LANES])
 {
   if (kind == KERNEL_SHEAR)
     KernelAngleLanesPartials(KERNEL_SHEAR, n, kappa, NULL, L);
@@ -1258,7 +1255,11 @@ static void AddElementMatrices(Cloth c, PetscInt kind, PetscReal b, const PetscR
   }
 }
 
-/* Elements [e0, e1) of list `kind` into the buffer; map: the list's rb_map entries. */
+/* Elements [e0, e1) of list `kind` into the buffer; map: the list's rb_map entries.
+ * Compiled for the CPU's instruction set with the element kernels inlined: the blocks'
+ * sums and the buffer's adds take AVX2's or AVX-512's lanes, the same bits (drapebe's
+ * 64^2 hang to rest in 0.93 x the CPU time, the sphere drop in 0.89 x; BENCHMARKS.md). */
+DRAPE_TARGET_CLONES_FLATTEN
 static void AddKindRange(Cloth c, PetscInt kind, PetscReal b, const PetscReal *xl, const PetscInt *map, PetscInt e0, PetscInt e1)
 {
   if (e0 >= e1) return;

@@ -329,11 +329,8 @@ static inline void LatticeStoreRow(const ClothLattice *L, const LatticeSweep *S,
  * any x86-64 processor at its own speed. The rounding may differ between these (fused
  * multiply-adds), so results agree across machines to round-off; on one machine every
  * rank takes the same version. */
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__INTEL_COMPILER) && !defined(DRAPE_NO_TARGET_CLONES)
-__attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default"), flatten))
-#endif
-static void
-LatticeSweepRows(const ClothLattice *L, const LatticeSweep *S)
+DRAPE_TARGET_CLONES_FLATTEN
+static void LatticeSweepRows(const ClothLattice *L, const LatticeSweep *S)
 {
   LatticeRows X, F;
 

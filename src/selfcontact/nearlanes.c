@@ -5,12 +5,10 @@
  * multiply-adds (-ffp-contract=off; the Makefile also lets GCC compute both sides
  * of a select, -fno-trapping-math). */
 #include "selfcontactimpl.h"
+#include <drape.h>
 
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__INTEL_COMPILER) && !defined(DRAPE_NO_TARGET_CLONES)
-__attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default"), flatten))
-#endif
-void
-SelfNearDistances(const SelfSet *s, PetscInt kind, PetscInt n, const PetscReal *X, PetscReal *dist)
+DRAPE_TARGET_CLONES_FLATTEN
+void SelfNearDistances(const SelfSet *s, PetscInt kind, PetscInt n, const PetscReal *X, PetscReal *dist)
 {
   for (PetscInt k0 = 0; k0 < n; k0 += SELF_LANES) {
     PetscReal      P[4][3][SELF_LANES], d[SELF_LANES];
@@ -37,11 +35,8 @@ SelfNearDistances(const SelfSet *s, PetscInt kind, PetscInt n, const PetscReal *
  * coordinate (NaN once one is not finite). Lanes of 8 particles' 24 coordinates,
  * each lane keeping its own maxima (exact: a maximum is the same in any order). */
 #define MOTION_LANES 24
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__INTEL_COMPILER) && !defined(DRAPE_NO_TARGET_CLONES)
-__attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
-#endif
-void
-SelfMotionMaxima(PetscInt n, const PetscReal *x0, const PetscReal *x1, const PetscReal *lo, const PetscReal *hi, const PetscReal *xr, PetscReal list[12], PetscReal near[18], PetscReal *zero)
+DRAPE_TARGET_CLONES
+void SelfMotionMaxima(PetscInt n, const PetscReal *x0, const PetscReal *x1, const PetscReal *lo, const PetscReal *hi, const PetscReal *xr, PetscReal list[12], PetscReal near[18], PetscReal *zero)
 {
   PetscReal       m[10][MOTION_LANES], z[MOTION_LANES];
   const PetscInt  N    = 3 * n;
