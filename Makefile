@@ -169,9 +169,11 @@ run: deps venv
 	@echo "drape: wrote $(OUT)/hang.h5, $(OUT)/hang.xmf (ParaView) and $(OUT)/hang.png"
 
 # The test files run on TEST_JOBS pytest-xdist workers (scripts/requirements.txt), a
-# file's tests one after the other in one worker (their module fixtures once);
+# file's tests one after the other in one worker (their module fixtures once): one
+# more than the cores, since a test's runs wait a third of their time (Open MPI's
+# start, its singleton's daemon, files, Python) and a core would idle meanwhile;
 # TEST_JOBS=1, or a Python without pytest-xdist (make check), runs them one at a time.
-TEST_JOBS ?= 2
+TEST_JOBS ?= $(shell echo $$(( $$(nproc 2>/dev/null || echo 1) + 1 )))
 xdist = $(if $(filter-out 0 1,$(TEST_JOBS)),$(shell $(1) -c 'import xdist' 2>/dev/null && printf '%s' '-n $(TEST_JOBS) --dist loadfile'))
 
 test: deps venv
