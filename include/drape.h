@@ -10,10 +10,10 @@
 /* A kernel compiled three times, for x86-64-v4 (AVX-512), v3 (AVX2) and the baseline,
  * the version the CPU takes chosen when the program starts (GCC's function
  * multi-versioning); _FLATTEN also inlines every call inside it, so that the kernels
- * it calls are compiled for its instruction set. The build contracts no multiply-add
- * (ISO C: -ffp-contract=off) and no compiler reorders a sum without -ffast-math, so
- * every version gives the same bits. Other compilers, or -DDRAPE_NO_TARGET_CLONES:
- * the baseline only. */
+ * it calls are compiled for its instruction set. In the files the Makefile compiles
+ * with -ffp-contract=off (no multiply-add contracted; no sum is reordered without
+ * -ffast-math) every version gives the same bits; elsewhere they agree to round-off.
+ * Other compilers, or -DDRAPE_NO_TARGET_CLONES: the baseline only. */
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__INTEL_COMPILER) && !defined(DRAPE_NO_TARGET_CLONES)
 #define DRAPE_TARGET_CLONES         __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 #define DRAPE_TARGET_CLONES_FLATTEN __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default"), flatten))

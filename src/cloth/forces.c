@@ -1257,8 +1257,8 @@ static void AddElementMatrices(Cloth c, PetscInt kind, PetscReal b, const PetscR
 
 /* Elements [e0, e1) of list `kind` into the buffer; map: the list's rb_map entries.
  * Compiled for the CPU's instruction set with the element kernels inlined: the blocks'
- * sums and the buffer's adds take AVX2's or AVX-512's lanes, the same bits (drapebe's
- * 64^2 hang to rest in 0.93 x the CPU time, the sphere drop in 0.89 x; BENCHMARKS.md). */
+ * sums and the buffer's adds take AVX2's or AVX-512's lanes, the same bits (the 64^2
+ * assembly 0.93 x the CPU time, a few % of a drapebe run; BENCHMARKS.md). */
 DRAPE_TARGET_CLONES_FLATTEN
 static void AddKindRange(Cloth c, PetscInt kind, PetscReal b, const PetscReal *xl, const PetscInt *map, PetscInt e0, PetscInt e1)
 {
