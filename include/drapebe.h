@@ -39,6 +39,10 @@ PETSC_EXTERN PetscErrorCode TSAdaptDrapeSetStep(TSAdapt, PetscReal);
  * the next step is the one asked for. Does nothing for another type. Logically
  * collective on TSAdapt. */
 PETSC_EXTERN PetscErrorCode TSAdaptDrapeSetSettled(TSAdapt, PetscBool);
+/* The step just accepted counts as failed (drapebe cuts the next one after it, and
+ * counts a failed solve): if it cleared the record of failed steps, the record stands.
+ * Does nothing for another type. Logically collective on TSAdapt. */
+PETSC_EXTERN PetscErrorCode TSAdaptDrapeCutAfter(TSAdapt);
 /* The step asked for and the largest step taken (0, 0 for another type). Not
  * collective. */
 PETSC_EXTERN PetscErrorCode TSAdaptDrapeGetSteps(TSAdapt, PetscReal *dt, PetscReal *largest);

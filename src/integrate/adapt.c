@@ -9,7 +9,16 @@
  * doubles, up to the step asked for (TSAdaptDrapeSetStep), but back to a size that
  * failed only after 8, 16, ... 1024 steps, doubling with each failure at that size
  * (a step that cannot be taken is not tried again every few steps). It never rejects
- * a step for its error (-ts_adapt_type basic does, TSEvaluateWLTE_DrapeBE).
+ * a step for its error (-ts_adapt_type basic does, TSEvaluateWLTE_DrapeBE). drapebe
+ * also cuts the step after an accepted one that added energy or whose self-contact
+ * filter did (BECutNextStep), counted as a failure of that accepted step
+ * (TSAdaptDrapeCutAfter): a step as large as one that failed clears the record only
+ * if no such cut follows it. (Cleared at once, the record was cleared by the very
+ * step that added the energy, so its wait never doubled and every retry came after 4
+ * steps at half the size: the sphere drop at 2e-2 s made 9 cuts in 140 steps, now 5
+ * in 121. The hang at 64^2 settling with steps up to 1 s, factor 100, still gains
+ * energy at steps from 0.04 s once settled and is not at rest by t = 60 s: 55 cuts
+ * against 66.)
  *
  * Settling (TSAdaptDrapeSetSettled: the run's rest test, rest.h, found the kinetic
  * energy below -drape_settle_tol for -drape_rest_time): the ceiling becomes
@@ -41,6 +50,9 @@ typedef struct {
   PetscReal h_grown;  /* the largest step taken */
   PetscReal h_failed; /* the smallest step that failed since a step that large last succeeded */
   PetscInt  wait;     /* accepted steps before the step grows back to h_failed or beyond */
+  PetscReal h_clear;  /* > 0: the last accepted step, which cleared h_failed and wait, ... */
+  PetscReal h_kept;   /* ... whose values before it were these (restored if a cut follows it) */
+  PetscInt  wait_kept;
   PetscInt  accepted; /* accepted steps since the step was last cut or grown */
   PetscInt  failures; /* ts->num_snes_failures at the last accepted step */
 } TSAdapt_Drape;
@@ -69,9 +81,13 @@ static PetscErrorCode TSAdaptChoose_Drape(TSAdapt adapt, TS ts, PetscReal h, Pet
       d->wait = PetscMin(2 * d->wait, 1024); /* it failed again at that size */
   }
   d->failures = ts->num_snes_failures;
+  d->h_clear  = 0;
   if (h >= d->h_failed) {
-    d->h_failed = PETSC_MAX_REAL;
-    d->wait     = 4;
+    d->h_clear   = h;
+    d->h_kept    = d->h_failed;
+    d->wait_kept = d->wait;
+    d->h_failed  = PETSC_MAX_REAL;
+    d->wait      = 4;
   }
   its        = ts->ksp_its - d->ksp_its; /* this step's, the failed tries included */
   d->ksp_its = ts->ksp_its;
@@ -94,6 +110,7 @@ static PetscErrorCode TSAdaptDestroy_Drape(TSAdapt adapt)
   PetscCall(PetscObjectComposeFunction((PetscObject) adapt, "TSAdaptDrapeSetStep_C", NULL));
   PetscCall(PetscObjectComposeFunction((PetscObject) adapt, "TSAdaptDrapeSetSettled_C", NULL));
   PetscCall(PetscObjectComposeFunction((PetscObject) adapt, "TSAdaptDrapeGetSteps_C", NULL));
+  PetscCall(PetscObjectComposeFunction((PetscObject) adapt, "TSAdaptDrapeCutAfter_C", NULL));
   PetscCall(PetscFree(adapt->data));
   adapt->matchstepfac[0] = 0.01; /* PETSc's (TSAdaptCreate), for a type set after this one */
   adapt->matchstepfac[1] = 2.0;
@@ -111,6 +128,26 @@ static PetscErrorCode TSAdaptView_Drape(TSAdapt adapt, PetscViewer viewer)
   PetscFunctionReturn(0);
 }
 
+static PetscErrorCode TSAdaptDrapeCutAfter_Drape(TSAdapt adapt)
+{
+  TSAdapt_Drape *d = (TSAdapt_Drape *) adapt->data;
+
+  PetscFunctionBeginUser;
+  if (d->h_clear > 0) { /* the step that cleared the record failed after all: the record stands (and its wait doubles at the failure, TSAdaptChoose_Drape) */
+    d->h_failed = d->h_kept;
+    d->wait     = d->wait_kept;
+    d->h_clear  = 0;
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode TSAdaptDrapeCutAfter(TSAdapt adapt)
+{
+  PetscFunctionBeginUser;
+  PetscTryMethod(adapt, "TSAdaptDrapeCutAfter_C", (TSAdapt), (adapt));
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode TSAdaptDrapeSetStep_Drape(TSAdapt adapt, PetscReal dt)
 {
   TSAdapt_Drape *d = (TSAdapt_Drape *) adapt->data;
@@ -119,6 +156,7 @@ static PetscErrorCode TSAdaptDrapeSetStep_Drape(TSAdapt adapt, PetscReal dt)
   d->dt       = dt;
   d->h_failed = PETSC_MAX_REAL;
   d->wait     = 4;
+  d->h_clear  = 0;
   d->accepted = 0;
   d->failures = 0;
   d->ksp_its  = 0;
@@ -198,6 +236,7 @@ static PetscErrorCode TSAdaptCreate_Drape(TSAdapt adapt)
   PetscCall(PetscObjectComposeFunction((PetscObject) adapt, "TSAdaptDrapeSetStep_C", TSAdaptDrapeSetStep_Drape));
   PetscCall(PetscObjectComposeFunction((PetscObject) adapt, "TSAdaptDrapeSetSettled_C", TSAdaptDrapeSetSettled_Drape));
   PetscCall(PetscObjectComposeFunction((PetscObject) adapt, "TSAdaptDrapeGetSteps_C", TSAdaptDrapeGetSteps_Drape));
+  PetscCall(PetscObjectComposeFunction((PetscObject) adapt, "TSAdaptDrapeCutAfter_C", TSAdaptDrapeCutAfter_Drape));
   PetscFunctionReturn(0);
 }
 

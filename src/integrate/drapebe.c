@@ -875,12 +875,15 @@ static PetscErrorCode BESolve(TS ts, TS_DrapeBE *be, PetscBool *ok)
 }
 
 /* Cut the step about to be taken like a failed one: to -ts_adapt_scale_solve_failed
- * of itself, counted as a failed solve so that TSAdapt drape grows it back as after
- * one. */
-static void BECutNextStep(TS ts)
+ * of itself, counted as a failed solve of the step before it, so that TSAdapt drape
+ * grows it back as after one and waits longer each time that size fails again. */
+static PetscErrorCode BECutNextStep(TS ts)
 {
+  PetscFunctionBeginUser;
   ts->time_step *= ts->adapt->scale_solve_failed;
   ts->num_snes_failures++; /* TSAdapt drape: a failure at the step before the cut */
+  PetscCall(TSAdaptDrapeCutAfter(ts->adapt));
+  PetscFunctionReturn(0);
 }
 
 /* What changes the state after a step, the projection onto the solid and the
@@ -911,7 +914,7 @@ static PetscErrorCode BECheckFilter(TS ts, TS_DrapeBE *be)
                           (double) ts->ptime, (double) be->filter_added, (double) (ts->time_step * ts->adapt->scale_solve_failed)));
   be->nfilter++;
   be->filter_added = 0;
-  BECutNextStep(ts);
+  PetscCall(BECutNextStep(ts));
   PetscFunctionReturn(0);
 }
 
@@ -975,7 +978,7 @@ static PetscErrorCode BECheckRise(TS ts, TS_DrapeBE *be)
                           "are counted in the summary)\n",
                           (double) ts->ptime, (double) (100 * be->rise_trial), (double) (100 * be->rise_cut), (double) (ts->time_step * ts->adapt->scale_solve_failed)));
   be->nrising++;
-  BECutNextStep(ts);
+  PetscCall(BECutNextStep(ts));
   PetscFunctionReturn(0);
 }
 
