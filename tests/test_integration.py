@@ -249,9 +249,8 @@ def rise_retries(stdout):
     """From -ts_monitor's lines (each gives the size of the step to come: a cut made at
     the start of a step, or a step retried at a quarter, shows as the size before it),
     the steps after which the next was cut to a quarter: (line, size H, steps at H / 2
-    just before it); and the
-    pairs of them at one size H with no step of H or more between: (H, the first's
-    steps at H / 2, the second's)."""
+    just before it); and the pairs of them at one size H with no step of H or more
+    between: (H, the first's steps at H / 2, the second's)."""
     dts = [float(m) for m in re.findall(r"^\s*\d+ TS dt (\S+) time", stdout, re.M)]
     cuts = []
     for j in range(1, len(dts) - 1):
@@ -272,9 +271,8 @@ def test_a_step_that_adds_energy_cuts_the_next(tmp):
     next step is cut to a quarter, counted as a failure of the step that added the
     energy (so are the self-contact filter's cuts): TSAdapt drape grows the step back,
     and to a size that added energy again only after twice as many steps as the time
-    before (8, 16, ...). The sphere drop at
-    2e-2 s (180 x the symplectic limit) gains energy a step at a time where it lands:
-    5 cuts (101 steps without them, 121 with; largest strain 2.1 % against 2.4 %).
+    before (8, 16, ...). The sphere drop at 2e-2 s (180 x the symplectic limit) gains
+    energy a step at a time where it lands: 5 cuts (101 steps without them, 121 with; largest strain 2.1 % against 2.4 %).
     Before the cut counted as a failure of that step (the step, accepted, cleared the
     record of the size that failed) every retry came after 4 steps at half the size:
     9 cuts, 140 steps, 3.2 %. The strains are not asserted (one hem edge: 3.1 % with

@@ -50,7 +50,7 @@ typedef struct {
   PetscReal h_grown;  /* the largest step taken */
   PetscReal h_failed; /* the smallest step that failed since a step that large last succeeded */
   PetscInt  wait;     /* accepted steps before the step grows back to h_failed or beyond */
-  PetscReal h_clear;  /* > 0: the last accepted step, which cleared h_failed and wait, ... */
+  PetscBool cleared;  /* the last accepted step cleared h_failed and wait, ... */
   PetscReal h_kept;   /* ... whose values before it were these (restored if a cut follows it) */
   PetscInt  wait_kept;
   PetscInt  accepted; /* accepted steps since the step was last cut or grown */
@@ -81,9 +81,8 @@ static PetscErrorCode TSAdaptChoose_Drape(TSAdapt adapt, TS ts, PetscReal h, Pet
       d->wait = PetscMin(2 * d->wait, 1024); /* it failed again at that size */
   }
   d->failures = ts->num_snes_failures;
-  d->h_clear  = 0;
-  if (h >= d->h_failed) {
-    d->h_clear   = h;
+  d->cleared  = (PetscBool) (h >= d->h_failed);
+  if (d->cleared) {
     d->h_kept    = d->h_failed;
     d->wait_kept = d->wait;
     d->h_failed  = PETSC_MAX_REAL;
@@ -133,10 +132,10 @@ static PetscErrorCode TSAdaptDrapeCutAfter_Drape(TSAdapt adapt)
   TSAdapt_Drape *d = (TSAdapt_Drape *) adapt->data;
 
   PetscFunctionBeginUser;
-  if (d->h_clear > 0) { /* the step that cleared the record failed after all: the record stands (and its wait doubles at the failure, TSAdaptChoose_Drape) */
+  if (d->cleared) { /* the step that cleared the record failed after all: the record stands (and its wait doubles at the failure, TSAdaptChoose_Drape) */
     d->h_failed = d->h_kept;
     d->wait     = d->wait_kept;
-    d->h_clear  = 0;
+    d->cleared  = PETSC_FALSE;
   }
   PetscFunctionReturn(0);
 }
@@ -156,7 +155,7 @@ static PetscErrorCode TSAdaptDrapeSetStep_Drape(TSAdapt adapt, PetscReal dt)
   d->dt       = dt;
   d->h_failed = PETSC_MAX_REAL;
   d->wait     = 4;
-  d->h_clear  = 0;
+  d->cleared  = PETSC_FALSE;
   d->accepted = 0;
   d->failures = 0;
   d->ksp_its  = 0;
