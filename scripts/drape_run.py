@@ -97,11 +97,10 @@ class Result:
         return f"  {self.cmd}\n{self.stdout[-n:]}{self.stderr[-n:]}"
 
 
-# Open MPI's own start failing before drape runs: a one-process run forked a daemon
+# Open MPI's own start failing before drape runs: a one-process run forks a daemon
 # (orted) in MPI_Init, and on a loaded machine that fork has been seen to fail, once in
 # a test suite's 1500 starts ("ompi_rte_init failed", "Unable to start a daemon on the
-# local node"). Such a start is made again, up to LAUNCH_TRIES times. drape itself now
-# asks for no daemon (src/main.c); the unit tests' programs still start one.
+# local node"). Such a start is made again, up to LAUNCH_TRIES times.
 LAUNCH_FAILED = "Unable to start a daemon on the local node"
 LAUNCH_TRIES = 3
 

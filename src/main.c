@@ -1,4 +1,4 @@
-#define _POSIX_C_SOURCE 200809L /* setenv, unsetenv */
+#define _POSIX_C_SOURCE 200809L /* unsetenv */
 static const char help[] = "drape: how a fabric falls, hangs and drapes, by the particle method (Landovsky).\n"
                            "Usage: mpirun -np N ./build/drape -options_file runs/hang.opts [options]\n"
                            "Integrators: -ts_type euler | basicsymplectic | drapebe | rk | ssp. See README.md.\n\n";
@@ -42,15 +42,6 @@ int main(int argc, char **argv)
    * instead of killing drape with SIGXFSZ (the output checks the limit before each
    * frame, so that the frames written stay readable) */
   (void) signal(SIGXFSZ, SIG_IGN);
-  /* drape started without mpirun is an MPI singleton, for which Open MPI 4 forks a
-   * daemon (orted) that only MPI_Comm_spawn would use: on the 2-core EPYC a start on
-   * an 8^2 lattice took 0.46 s and 0.23 CPU s with it, 0.31 and 0.12 without. drape
-   * spawns nothing, so it asks for none (other MPIs ignore the variable; a value in
-   * the environment stays). */
-  if (!getenv("OMPI_COMM_WORLD_SIZE")) { /* (set in every rank mpirun starts) */
-    (void) setenv("OMPI_MCA_ess_singleton_isolated", "1", 0);
-    (void) setenv("OMPI_MCA_sharedfp", "^sm", 0); /* shared file pointers in the daemon's session directory (HDF5 uses none): without it, a complaint at every file opened */
-  }
   /* MPI first: the options files are checked before PETSc reads them (PETSc's own
    * reader cannot report a bad one in a sentence), and a bad one keeps them away from
    * PetscInitialize, so that Run() can say what is wrong */
