@@ -25,7 +25,12 @@ from 1e-4 J/kg at 2e-8). Per run: where it came to rest (simulated s), steps, CP
 report's: user + system, so a loaded machine stretches it less than wall time), and
 its rest shape's distance from the reference's (the largest over the particles, mm).
 Then the ratio the issue asks for: the CPU time of the fastest symplectic Euler run
-within --within (1 mm) of the reference over that of the fastest drapebe run.
+within --within (1 mm) of the reference over that of the fastest drapebe run; and,
+since one run's time moves with the machine's neighbours by more than the margins in
+question (the same 64^2 race gave 1.72, 2.40 and 3.41 in different hours) and the
+fastest of several settings is the luckiest of them, those two runs made again in
+--repeat (3) interleaved rounds, one of each in turn: the median of the rounds'
+ratios is the answer.
 
 A cloth with more than one rest (the hang released flat: its middle may buckle up or
 down; the Cusick skirt: its folds) rests where its path takes it, and a scheme that
@@ -49,7 +54,7 @@ import drape_run  # noqa: E402
 from bench_common import machine, md_table, write_csv  # noqa: E402
 
 PROG = "rest_race"
-COLUMNS = ["scene", "run", "scheme", "dt", "rest_tol", "status", "t_rest", "steps", "cg_per_step", "cpu", "error_mm"]
+COLUMNS = ["scene", "run", "round", "scheme", "dt", "rest_tol", "status", "t_rest", "steps", "cg_per_step", "cpu", "error_mm"]
 HANG = ["-options_file", "runs/hang.opts", "-cloth_damping", "5", "-drape_rest_tol", "1e-6", "-ts_max_time", "60"]
 CUSICK = ["-options_file", "runs/cusick.opts", "-cloth_fabric", "denim", "-ts_max_time", "12"]
 SYMPLECTIC = ["-ts_type", "basicsymplectic"]
@@ -125,8 +130,11 @@ def race(drape, scene, n, a, out):
                    ref_tol, xref)
     rows = [ref, check]
 
+    opts_of = {}  # each run's options by its label (for the repeats)
+
     def at_tols(label, scheme, opts, dt):
         """The run at each rest tolerance; False if the first did not finish (diverged)."""
+        opts_of[label] = opts
         for i, rest_tol in enumerate(a.tols):
             row, _ = one(label, scheme, opts, dt, rest_tol, xref)
             rows.append(row)
@@ -153,11 +161,33 @@ def race(drape, scene, n, a, out):
 
     def say(r):
         return f"{r['run']} at rest below {r['rest_tol']:g} J/kg, {r['cpu']:.2f} CPU s ({r['error_mm']:.2f} mm)"
+
+    def repeats(symp, best):
+        """The two fastest runs made again, --repeat rounds of one of each in turn: a
+        single run's CPU time moves by 10-20 % with this machine's neighbours, and the
+        fastest of several settings is the luckiest of them (the sweep's ratio favours
+        the scheme with more settings). Their rows join the table with their round."""
+        cpu = {"symplectic": [], "drapebe": []}
+        for k in range(a.repeat):
+            for r in (symp, best):
+                row, _ = one(r["run"], r["scheme"], opts_of[r["run"]], r["dt"], r["rest_tol"], xref)
+                row["round"] = k + 1
+                rows.append(row)
+                if row["status"] != "ok":
+                    drape_run.fail(PROG, f"{scene}: the repeat of {r['run']} did not come to rest: {row}")
+                cpu[r["scheme"]].append(row["cpu"])
+        ratios = [x / y for x, y in zip(cpu["symplectic"], cpu["drapebe"])]
+        return (f"{a.repeat} interleaved rounds of the two: CPU s " + ", ".join(f"{x:.2f}" for x in cpu["symplectic"]) + " against "
+                + ", ".join(f"{y:.2f}" for y in cpu["drapebe"]) + ", ratios " + ", ".join(f"{q:.2f}" for q in ratios)
+                + f", median ratio {float(np.median(ratios)):.2f}")
+
     symp, best = fastest("symplectic"), fastest("drapebe")
     line = (f"{head}: fastest within {a.within:g} mm of the reference: " + (say(symp) if symp else "no symplectic Euler run") + "; "
             + (say(best) if best else "no drapebe run"))
     if symp and best:
         line += f"; ratio {symp['cpu'] / best['cpu']:.2f}"
+        if a.repeat:
+            line += "; " + repeats(symp, best)
     print(line, flush=True)
     return rows, line
 
@@ -171,6 +201,7 @@ def main():
     p.add_argument("--within", type=float, default=1.0, help="distance from the reference's rest that counts as reaching it, mm")
     p.add_argument("--symplectic-factors", default="0.9,0.85,0.8,0.7,0.5", help="symplectic Euler's steps to try, fractions of its printed limit, largest first: the first that does not diverge is run")
     p.add_argument("--tols", default="1e-6,1e-7,2e-8,1e-8", help="rest tolerances (J/kg) each run is made at; the reference at 1/100 of the smallest")
+    p.add_argument("--repeat", type=int, default=3, help="rounds of the fastest run of each scheme within --within, made again in turn, whose median ratio is the answer (0: none)")
     p.add_argument("--quick", action="store_true", help="small lattices (16^2, 24^2, 31^2): a smoke run")
     a = p.parse_args()
     scenes = [s for s in a.scenes.split(",") if s]
@@ -189,6 +220,8 @@ def main():
         drape_run.fail(PROG, "--symplectic-factors must be in (0, 1]")
     if not all(1e-14 <= t <= 1 for t in a.tols):
         drape_run.fail(PROG, "--tols must be between 1e-14 and 1 J/kg")
+    if not 0 <= a.repeat <= 100:
+        drape_run.fail(PROG, "--repeat must be between 0 and 100")
     if not 0 < a.ref_factor <= 0.9 or not 0 < a.within < 1e3:
         drape_run.fail(PROG, "--ref-factor must be in (0, 0.9] and --within in (0, 1000) mm")
     drape = drape_run.Drape(PROG, a.build)
@@ -204,7 +237,7 @@ def main():
 
     def cell(r, k, fmt):
         return fmt.format(r[k]) if r.get(k) is not None else "-"
-    table = [[r["scene"], r["run"], cell(r, "rest_tol", "{:g}"), r["status"], cell(r, "t_rest", "{:.2f}"), cell(r, "steps", "{}"), cell(r, "cg_per_step", "{:.2f}"),
+    table = [[r["scene"], r["run"] + (f" (round {r['round']})" if r.get("round") else ""), cell(r, "rest_tol", "{:g}"), r["status"], cell(r, "t_rest", "{:.2f}"), cell(r, "steps", "{}"), cell(r, "cg_per_step", "{:.2f}"),
               cell(r, "cpu", "{:.2f}"), cell(r, "error_mm", "{:.2f}")] for r in rows]
     md = [f"# Implicit against explicit to rest\n\nMachine: {machine()}\n",
           md_table(["scene", "run", "at rest below (J/kg)", "status", "at rest at (s)", "steps", "CG a step", "CPU s", "from the reference (mm)"], table), "",

@@ -311,7 +311,7 @@ def test_rest_race_quick(tmp_path):
     (the softest modes creep), both schemes reach it within 1 mm, and the ratio of
     their fastest such runs is printed."""
     import csv
-    res = script("rest_race.py", "--quick", "--scenes", "hangv64", "--out", tmp_path)
+    res = script("rest_race.py", "--quick", "--scenes", "hangv64", "--repeat", "2", "--out", tmp_path)
     assert res.returncode == 0, res.stdout + res.stderr
     with open(tmp_path / "rest_race.csv", newline="") as f:
         rows = list(csv.DictReader(f))
@@ -319,7 +319,16 @@ def test_rest_race_quick(tmp_path):
     runs = {}
     for r in rows[2:]:
         assert r["status"] == "ok", r
-        runs.setdefault(r["run"], []).append(float(r["error_mm"]))
+        if not r["round"]:
+            runs.setdefault(r["run"], []).append(float(r["error_mm"]))
+    # the repeats: the fastest run of each scheme within 1 mm, in turn, twice, at the same place
+    repeats = [r for r in rows if r["round"]]
+    assert [(r["round"], r["scheme"]) for r in repeats] == [("1", "symplectic"), ("1", "drapebe"), ("2", "symplectic"), ("2", "drapebe")], repeats
+    for r in repeats:
+        first = next(q for q in rows if q["run"] == r["run"] and q["rest_tol"] == r["rest_tol"] and not q["round"])
+        assert r["error_mm"] == first["error_mm"] and r["steps"] == first["steps"], (r, first)
+    ratios = [float(s["cpu"]) / float(b["cpu"]) for s, b in zip(repeats[::2], repeats[1::2])]
+    assert re.search(rf"2 interleaved rounds of the two: .*median ratio {np.median(ratios):.2f}", res.stdout), (ratios, res.stdout)
     assert len(runs) == 4 and all(len(e) == 4 for e in runs.values()), runs  # 1e-6, 1e-7, 2e-8, 1e-8 J/kg
     for errors in runs.values():
         assert errors[-1] <= errors[0] + 1e-3, runs  # 1e-8 J/kg against 1e-6
