@@ -34,6 +34,7 @@ in each repeat; the ratio a run and a step.
     .venv/bin/python scripts/bench_self_contact.py --scenes --repeat 3   # about 30 minutes here
 """
 import argparse
+import os
 import re
 import sys
 from pathlib import Path
@@ -151,7 +152,7 @@ def main():
     ap.add_argument("--time", type=float, default=1.0, help="simulated time of each run (s)")
     ap.add_argument("--repeat", type=int, default=3, help="runs per case (medians)")
     ap.add_argument("--broad-phase", default="cgal,hash,tiles", help="broad phases to time, comma-separated (cgal, hash, tiles)")
-    ap.add_argument("--build", default="build")
+    ap.add_argument("--build", default=os.environ.get("DRAPE_BUILD", "build"), help="drape's build directory (default $DRAPE_BUILD or build)")
     ap.add_argument("--ranks", help="time the filter on these numbers of ranks instead (comma-separated; the pile scene)")
     ap.add_argument("--scenes", action="store_true", help="time self-contact's share of a step on the scenes of issue 27 instead")
     ap.add_argument("--scene-list", default=",".join(SCENES), help="with --scenes: which, comma-separated (" + ", ".join(SCENES) + ")")

@@ -23,6 +23,7 @@ commands).
     python3 scripts/compare_builds.py --quick --out /tmp/cb     # smoke run: this build against itself
 """
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -51,7 +52,7 @@ QUICK = {"sphere64_self": ["-da_grid_x", "16", "-da_grid_y", "16", "-ts_max_time
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--baseline", help="the other build's directory (holding drape); --quick: this build")
-    p.add_argument("--build", default="build", help="the new build's directory")
+    p.add_argument("--build", default=os.environ.get("DRAPE_BUILD", "build"), help="the new build's directory (default $DRAPE_BUILD or build)")
     p.add_argument("--scenes", default="sphere64_self,sphere64_noself,race64,race128", help="comma-separated subset of " + ",".join(SCENES))
     p.add_argument("--repeat", type=int, default=3, help="rounds (each: every scene, baseline then new)")
     p.add_argument("--out", default="out/compare_builds", help="output directory")

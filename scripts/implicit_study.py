@@ -39,6 +39,7 @@ strip.csv and implicit_study.md (the tables, the machine, the commands).
     python3 scripts/implicit_study.py --quick --out /tmp/is  # smoke run, under a minute
 """
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -143,7 +144,7 @@ def part_strip(drape, a):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", default="out/implicit_study")
-    ap.add_argument("--build", default="build")
+    ap.add_argument("--build", default=os.environ.get("DRAPE_BUILD", "build"), help="drape's build directory (default $DRAPE_BUILD or build)")
     ap.add_argument("--sizes", default="32,64,128", help="lattices of part 1")
     ap.add_argument("--time", type=float, default=2.0, help="simulated time of every run, s")
     ap.add_argument("--fabric-sizes", default="32,64")

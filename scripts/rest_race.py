@@ -43,6 +43,7 @@ rest_race.md (the tables, the ratios, the machine, the commands).
     python3 scripts/rest_race.py --quick --out /tmp/rr    # smoke run: seconds
 """
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -195,7 +196,7 @@ def race(drape, scene, n, a, out):
 
 def main():
     p = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--build", default="build", help="drape's build directory")
+    p.add_argument("--build", default=os.environ.get("DRAPE_BUILD", "build"), help="drape's build directory (default $DRAPE_BUILD or build)")
     p.add_argument("--out", default="out/rest_race", help="output directory")
     p.add_argument("--scenes", default="hangv64,hang64,hang128,cusick81", help="comma-separated subset of " + ",".join(SCENES))
     p.add_argument("--ref-factor", type=float, default=0.25, help="the reference's step, a fraction of the symplectic limit")
