@@ -118,8 +118,11 @@ check-deps:
 $(BUILD)/tests/unit/%.o: DRAPE_CPPFLAGS += -Isrc
 
 # the lattice force kernel: no floating-point traps to preserve, so GCC may compute
-# both sides of a select and vectorise the loops (src/cloth/lattice.c)
-$(BUILD)/src/cloth/lattice.o: DRAPE_CFLAGS += -fno-trapping-math
+# both sides of a select and vectorise the loops; and multiply-adds contracted (ISO C
+# modes default to -ffp-contract=off), so that its AVX2 and AVX-512 versions use
+# fused multiply-adds: the same motion to round-off (src/cloth/lattice.c), symplectic
+# Euler 8-11 % less CPU time on a Zen 3 (BENCHMARKS.md)
+$(BUILD)/src/cloth/lattice.o: DRAPE_CFLAGS += -fno-trapping-math -ffp-contract=fast
 # the same for the angle elements' Hessians, formed in lanes (src/cloth/kernels.h),
 # whose instruction-set versions must give the same bits: no fused multiply-adds
 $(BUILD)/src/cloth/forces.o: DRAPE_CFLAGS += -fno-trapping-math -ffp-contract=off

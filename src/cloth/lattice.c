@@ -326,9 +326,10 @@ static inline void LatticeStoreRow(const ClothLattice *L, const LatticeSweep *S,
 
 /* The sweep, with the instruction set chosen when the program starts (x86-64:
  * AVX-512, AVX2 with FMA, or the baseline SSE2): the build needs no -march, and runs on
- * any x86-64 processor at its own speed. The rounding may differ between these (fused
- * multiply-adds), so results agree across machines to round-off; on one machine every
- * rank takes the same version. */
+ * any x86-64 processor at its own speed. The rounding differs between these (the
+ * Makefile compiles this file with -ffp-contract=fast: the AVX2 and AVX-512 versions
+ * fuse multiply-adds, the baseline cannot), so results agree across machines to
+ * round-off; on one machine every rank takes the same version. */
 DRAPE_TARGET_CLONES_FLATTEN
 static void LatticeSweepRows(const ClothLattice *L, const LatticeSweep *S)
 {
